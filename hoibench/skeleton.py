@@ -141,3 +141,38 @@ def joints_from_offsets(offsets: np.ndarray, root: np.ndarray | None = None) -> 
     for j in range(1, NUM_JOINTS):  # parents precede children in SMPL order
         out[..., j, :] = out[..., PARENTS[j], :] + offsets[..., j, :]
     return out
+
+
+def forward_kinematics(local_rotations: np.ndarray, rest_joints: np.ndarray,
+                       trans: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """SMPL-style forward kinematics of the 22-joint body.
+
+    Args:
+        local_rotations: (..., 22, 3, 3) parent-relative rotation matrices (joint 0 is the
+            global orientation, applied about the pelvis).
+        rest_joints: (22, 3) or (..., 22, 3) rest (T-pose) joint positions, metres.
+        trans: (..., 3) root translation (SMPL ``transl``), added to every joint.
+
+    Returns:
+        ``(joints, global_rotations)``: (..., 22, 3) posed positions
+        ``J_j = G_parent (rest_j - rest_parent) + J_parent``, ``J_0 = rest_0 + trans``, and
+        (..., 22, 3, 3) global rotations ``G_j = G_parent R_j``.
+    """
+    rots = np.asarray(local_rotations, dtype=np.float64)
+    rest = np.asarray(rest_joints, dtype=np.float64)
+    if rots.shape[-3:] != (NUM_JOINTS, 3, 3):
+        raise ValueError(f"local_rotations: expected shape (..., 22, 3, 3), got {rots.shape}")
+    if rest.shape[-2:] != (NUM_JOINTS, 3):
+        raise ValueError(f"rest_joints: expected shape (..., 22, 3), got {rest.shape}")
+    lead = rots.shape[:-3]
+    glob = np.empty(lead + (NUM_JOINTS, 3, 3))
+    joints = np.empty(lead + (NUM_JOINTS, 3))
+    rest = np.broadcast_to(rest, lead + (NUM_JOINTS, 3))
+    glob[..., 0, :, :] = rots[..., 0, :, :]
+    joints[..., 0, :] = rest[..., 0, :] + (0.0 if trans is None else np.asarray(trans))
+    for j in range(1, NUM_JOINTS):
+        p = PARENTS[j]
+        glob[..., j, :, :] = glob[..., p, :, :] @ rots[..., j, :, :]
+        bone = rest[..., j, :] - rest[..., p, :]
+        joints[..., j, :] = (glob[..., p, :, :] @ bone[..., None])[..., 0] + joints[..., p, :]
+    return joints, glob

@@ -51,13 +51,15 @@ def encode(joints: np.ndarray, obj_rot: np.ndarray, obj_trans: np.ndarray,
     Args:
         joints: (T, 22, 3) or (B, T, 22, 3) positions (m, y-up).
         obj_rot: (T, 3, 3) rotation matrices or (T, 3) axis-angle (same batching).
+            Legacy copies axis-angle input unchanged (HOI-Diff); clean re-expresses the
+            rotation in the canonical frame with angle in [0, pi].
         obj_trans: (T, 3) translations (m), object vertices ``v = R v_template + t``.
         mode: ``"clean"`` or ``"legacy"`` (HOI-Diff).
         fps: frame rate (clean foot contacts).
     """
     body_mode = _mode(mode)
     pos, batched = as_float_array(joints, "joints", (22, 3), min_frames=2)
-    rot = _as_matrices(obj_rot, batched)
+    rot, rotvec_in = _as_matrices(obj_rot, batched)
     trans, _ = as_float_array(obj_trans, "obj_trans", (3,), min_frames=2, batch_ok=batched)
     if rot.shape[:2] != pos.shape[:2] or trans.shape[:2] != pos.shape[:2]:
         raise ValueError(f"obj_rot/obj_trans: expected {pos.shape[:2]} leading dims like joints, "
@@ -71,19 +73,25 @@ def encode(joints: np.ndarray, obj_rot: np.ndarray, obj_trans: np.ndarray,
     q = np.broadcast_to(init_quat[:, None], t.shape[:-1] + (4,)).astype(dt)
     t = geo.quaternion_apply(q, t.astype(dt))
     if mode == "clean":
-        rot = geo.quaternion_to_matrix(q.astype(np.float64)) @ rot
-    rotvec = geo.matrix_to_axis_angle(rot.astype(np.float64))
+        rotvec = geo.matrix_to_axis_angle(geo.quaternion_to_matrix(q.astype(np.float64)) @ rot)
+    elif rotvec_in is not None:
+        rotvec = rotvec_in        # HOI-Diff copies the world-frame axis-angle unchanged
+    else:
+        rotvec = geo.matrix_to_axis_angle(rot)
     out = np.concatenate([body, rotvec[:, :-1].astype(np.float32), t[:, :-1].astype(np.float32)], -1)
     return out if batched else out[0]
 
 
-def _as_matrices(obj_rot, batched: bool) -> np.ndarray:
+def _as_matrices(obj_rot, batched: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """(B, T, 3, 3) float64 matrices and, when given as axis-angle, the (B, T, 3) input."""
     arr = obj_rot.detach().cpu().numpy() if hasattr(obj_rot, "detach") else obj_rot
     if isinstance(arr, np.ndarray) and arr.shape[-2:] == (3, 3):
         m, _ = as_float_array(arr, "obj_rot", (3, 3), min_frames=2, batch_ok=batched)
-        return m.astype(np.float64)
+        if not geo.is_rotation_matrix(m.astype(np.float64), atol=1e-4).all():
+            raise ValueError("obj_rot: expected rotation matrices (orthonormal, det +1)")
+        return m.astype(np.float64), None
     v, _ = as_float_array(arr, "obj_rot", (3,), min_frames=2, batch_ok=batched)
-    return geo.axis_angle_to_matrix(v.astype(np.float64))
+    return geo.axis_angle_to_matrix(v.astype(np.float64)), v.astype(np.float64)
 
 
 def decode(features: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

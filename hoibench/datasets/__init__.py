@@ -1,0 +1,1 @@
+"""Raw dataset loaders (BEHAVE, OMOMO, RICH), the synthetic HOI generator and test motion."""
