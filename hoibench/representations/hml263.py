@@ -48,7 +48,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from .. import geometry as geo
 from .. import skeleton as sk
 from ._checks import as_float_array
 
@@ -100,9 +99,6 @@ MODES: dict[str, Hml263Config] = {
                           float(np.sqrt(0.002) * 20.0), (0.12, 0.08)),
 }
 
-_Z = np.array([0.0, 0.0, 1.0])
-
-
 def _config(mode: str) -> Hml263Config:
     if mode not in MODES:
         raise ValueError(f"mode: expected one of {sorted(MODES)}, got {mode!r}")
@@ -113,78 +109,168 @@ def _dtype(cfg: Hml263Config):
     return np.float32 if cfg.float32 else np.float64
 
 
-def _forward(pos: np.ndarray, swap_hips: bool) -> np.ndarray:
-    """Horizontal facing direction cross(y, across) of (..., 22, 3) positions, unnormalised.
+# The encoder works on a component-first layout: positions P[j][c] are contiguous (B, T)
+# arrays (j joint, c = x, y, z), quaternions are (w, x, y, z) tuples of such arrays. Every
+# step is then a handful of elementwise ufuncs over B*T values per joint, which is what makes
+# batched encoding fast; the formulas are the textbook ones (see hoibench.geometry).
 
-    ``across`` = (right - left hip) + (right - left shoulder), normalised; with
-    ``swap_hips`` the hip difference is reversed (HumanML3D's IK quirk).
+def _qmul(a, b):
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _qinv(q):
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+def _qrot(q, v):
+    """v + 2 (w (u x v) + u x (u x v)) for unit q = (w, u)."""
+    w, x, y, z = q
+    vx, vy, vz = v
+    ax, ay, az = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    bx, by, bz = y * az - z * ay, z * ax - x * az, x * ay - y * ax
+    return (vx + 2 * (w * ax + bx), vy + 2 * (w * ay + by), vz + 2 * (w * az + bz))
+
+
+def _unit(v):
+    n = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return (v[0] / n, v[1] / n, v[2] / n)
+
+
+def _arc_from_axis(axis: int, sign: float, v):
+    """Shortest-arc quaternion from ``u = sign * e_axis`` to unit ``v``: normalise
+    (|u||v| + u.v, u x v) (|v| kept, as the reference, so float32 rounding matches); a half
+    turn about a perpendicular axis when v = -u."""
+    zero = np.zeros_like(v[0])
+    if axis == 0:
+        cross = (zero, -sign * v[2], sign * v[1])
+    elif axis == 1:
+        cross = (sign * v[2], zero, -sign * v[0])
+    else:
+        cross = (-sign * v[1], sign * v[0], zero)
+    w = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + sign * v[axis]
+    n = np.sqrt(w * w + cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2])
+    bad = n < 1e-6
+    if bad.any():  # antiparallel (the reference returns NaN here)
+        flip = [zero, zero, zero]
+        flip[(axis + 1) % 3] = np.ones_like(zero)
+        w, cross, n = (np.where(bad, 0, w), tuple(np.where(bad, f, c) for f, c in zip(flip, cross)),
+                       np.where(bad, 1, n))
+    return (w / n, cross[0] / n, cross[1] / n, cross[2] / n)
+
+
+def _heading(P, cfg: Hml263Config, sigma: float, identity_first: bool):
+    """Per-frame quaternions about y rotating the facing direction onto +Z.
+
+    facing = cross(y, across), across = (R - L hip) + (R - L shoulder) normalised (hips
+    reversed under ``swap_hips_in_ik``); optional Gaussian smoothing over time (frames).
+    cross(f, +Z) = (0, -f_x, 0), so the arc is normalise(1 + f_z, 0, -f_x, 0).
     """
-    hips = pos[..., sk.LEFT_HIP, :] - pos[..., sk.RIGHT_HIP, :]
-    if not swap_hips:
-        hips = -hips
-    across = hips + (pos[..., sk.RIGHT_SHOULDER, :] - pos[..., sk.LEFT_SHOULDER, :])
-    across = across / np.sqrt((across ** 2).sum(-1))[..., None]
-    fwd = np.zeros(across.shape, dtype=np.result_type(across.dtype, np.float64))
-    fwd[..., 0] = across[..., 2]   # cross((0,1,0), a) = (a_z, 0, -a_x)
-    fwd[..., 2] = -across[..., 0]
-    return fwd
-
-
-def _heading_quats(pos: np.ndarray, cfg: Hml263Config, sigma: float) -> np.ndarray:
-    """(B, T, 4) quaternions rotating each frame's facing direction onto +Z."""
-    fwd = _forward(pos, cfg.swap_hips_in_ik)
+    hips = [P[sk.RIGHT_HIP][c] - P[sk.LEFT_HIP][c] for c in range(3)]
+    if cfg.swap_hips_in_ik:
+        hips = [-h for h in hips]
+    across = _unit([hips[c] + (P[sk.RIGHT_SHOULDER][c] - P[sk.LEFT_SHOULDER][c]) for c in range(3)])
+    fx = across[2].astype(np.float64)
+    fz = -across[0].astype(np.float64)
     if sigma > 0:
-        fwd = gaussian_filter1d(fwd, sigma, axis=1, mode="nearest")
-    fwd = fwd / np.sqrt((fwd ** 2).sum(-1))[..., None]
+        fx = gaussian_filter1d(fx, sigma, axis=-1, mode="nearest")
+        fz = gaussian_filter1d(fz, sigma, axis=-1, mode="nearest")
+    n = np.sqrt(fx * fx + fz * fz)
     dt = _dtype(cfg)
-    quat = geo.quaternion_between(fwd.astype(dt), np.broadcast_to(_Z.astype(dt), fwd.shape))
-    if cfg.identity_first_root:
-        quat[:, 0] = (1.0, 0.0, 0.0, 0.0)
-    return quat
+    fx, fz = (fx / n).astype(dt), (fz / n).astype(dt)
+    w, y = 1 + fz, -fx
+    m = np.sqrt(w * w + y * y)
+    back = m < 1e-6                       # facing exactly -Z: half turn about y
+    w, y, m = np.where(back, 0, w), np.where(back, 1, y), np.where(back, 1, m)
+    zero = np.zeros_like(w)
+    q = [w / m, zero, y / m, zero]
+    if identity_first:
+        q[0] = q[0].copy()
+        q[2] = q[2].copy()
+        q[0][..., 0], q[2][..., 0] = 1, 0
+    return tuple(q)
 
 
-def _inverse_kinematics(pos: np.ndarray, root_quat: np.ndarray, cfg: Hml263Config) -> np.ndarray:
-    """HumanML3D's IK: per joint, the parent-relative quaternion of the shortest arc from
-    the raw T-pose bone direction to the observed bone direction. (B, T, 22, 4)."""
+def _inverse_kinematics(P, root, cfg: Hml263Config, visit) -> None:
+    """HumanML3D's IK. For each bone (parent -> child) along the kinematic chains, the
+    parent-relative rotation R_loc = R^-1 * arc(raw direction -> observed direction), where
+    R is the accumulated rotation (starting at the root heading for every chain). Calls
+    ``visit(child, parent, R_loc, R_child)``."""
     dt = _dtype(cfg)
-    quats = np.zeros(pos.shape[:-1] + (4,), dtype=dt)
-    quats[..., 0, :] = root_quat
     for chain in sk.KINEMATIC_CHAINS:
-        rot = root_quat
+        rot = root
         for parent, child in zip(chain[:-1], chain[1:]):
-            bone = pos[..., child, :] - pos[..., parent, :]
-            bone = bone / np.sqrt((bone ** 2).sum(-1))[..., None]
-            u = np.broadcast_to(sk.RAW_OFFSETS[child].astype(dt), bone.shape)
-            arc = geo.quaternion_between(u, bone.astype(dt))
-            local = geo.quaternion_multiply(geo.quaternion_inverse(rot), arc)
-            quats[..., child, :] = local
-            rot = geo.quaternion_multiply(rot, local)
-    return quats
+            bone = _unit([(P[child][c] - P[parent][c]) for c in range(3)])
+            bone = tuple(b.astype(dt, copy=False) for b in bone)
+            axis = int(np.flatnonzero(sk.RAW_OFFSETS[child])[0])
+            arc = _arc_from_axis(axis, float(sk.RAW_OFFSETS[child][axis]), bone)
+            local = _qmul(_qinv(rot), arc)
+            rot = _qmul(rot, local)
+            visit(child, parent, local, rot)
 
 
-def _retarget(pos: np.ndarray, cfg: Hml263Config) -> np.ndarray:
-    """Legacy ``uniform_skeleton``: keep bone directions, set bone lengths to the reference
-    skeleton's, scale the root trajectory by the lower-leg length ratio."""
+def _to_soa(pos: np.ndarray) -> list[list[np.ndarray]]:
+    """(B, T, 22, 3) -> P[j][c] contiguous (B, T) arrays."""
+    t = np.ascontiguousarray(np.moveaxis(pos, (2, 3), (0, 1)))
+    return [[t[j, c] for c in range(3)] for j in range(sk.NUM_JOINTS)]
+
+
+def _from_soa(P) -> np.ndarray:
+    return np.stack([np.stack(P[j], -1) for j in range(len(P))], -2)
+
+
+def _retarget(P, cfg: Hml263Config):
+    """Legacy ``uniform_skeleton``: keep bone directions (IK then FK with the accumulated
+    rotations), set bone lengths to the reference skeleton's, scale the root trajectory by
+    the lower-leg length ratio (float32, as the reference)."""
     tgt = sk.REFERENCE_TARGET_OFFSETS
-    lengths0 = np.sqrt(((pos[:, 0, 1:] - pos[:, 0, list(sk.PARENTS[1:])]) ** 2).sum(-1))
-    lengths0 = np.concatenate([np.zeros((len(pos), 1)), lengths0], axis=1).astype(np.float32)
     a, b = sk.LEG_SCALE_JOINTS
-    src_leg = lengths0[:, a] + lengths0[:, b]
-    tgt_leg = np.float32(np.abs(tgt[a]).max() + np.abs(tgt[b]).max())
-    scale = (tgt_leg / src_leg).astype(np.float32)          # float32 as the reference
-    root = pos[:, :, 0] * scale[:, None, None].astype(pos.dtype)
-    heading = _heading_quats(pos, cfg, sigma=0.0)
-    quats = _inverse_kinematics(pos, heading, cfg)
+
+    def length0(j):
+        p = sk.PARENTS[j]
+        return np.sqrt(sum((P[j][c][:, 0] - P[p][c][:, 0]) ** 2 for c in range(3))).astype(np.float32)
+
+    scale = (np.float32(np.abs(tgt[a]).max() + np.abs(tgt[b]).max()) / (length0(a) + length0(b)))
+    scale = scale.astype(np.float32)[:, None].astype(P[0][0].dtype)
+    out = [None] * sk.NUM_JOINTS
+    out[0] = [P[0][c] * scale for c in range(3)]
     dt = _dtype(cfg)
-    out = np.zeros(pos.shape, dtype=np.float64)
-    out[:, :, 0] = root
-    for chain in sk.KINEMATIC_CHAINS:
-        rot = quats[:, :, 0].astype(dt)
-        for parent, child in zip(chain[:-1], chain[1:]):
-            rot = geo.quaternion_multiply(rot, quats[:, :, child].astype(dt))
-            off = np.broadcast_to(tgt[child].astype(dt), rot.shape[:-1] + (3,))
-            out[:, :, child] = geo.quaternion_apply(rot, off) + out[:, :, parent]
+
+    def visit(child, parent, local, rot):
+        off = tuple(np.asarray(tgt[child][c], dtype=dt) for c in range(3))
+        moved = _qrot(rot, tuple(np.broadcast_to(o, rot[0].shape) for o in off))
+        out[child] = [moved[c] + out[parent][c] for c in range(3)]
+
+    _inverse_kinematics(P, _heading(P, cfg, 0.0, cfg.identity_first_root), cfg, visit)
     return out
+
+
+def _canonicalize(pos: np.ndarray, cfg: Hml263Config):
+    """Canonical frame in component-first layout: (P, floor (B,), origin (B, 3), quat (B, 4))."""
+    src = pos if cfg.float32 else pos.astype(np.float64)
+    P = _to_soa(src)
+    if cfg.retarget:
+        P = _retarget(P, cfg)
+    B = len(pos)
+    if cfg.floor == "global_min":
+        floor = np.min([P[j][1].min(axis=1) for j in range(sk.NUM_JOINTS)], axis=0)
+    else:
+        floor = np.zeros(B)
+    ox, oz = P[0][0][:, 0].copy(), P[0][2][:, 0].copy()
+    P = [[P[j][0] - ox[:, None], P[j][1] - floor[:, None], P[j][2] - oz[:, None]]
+         for j in range(sk.NUM_JOINTS)]
+    P0 = [[P[j][c][:, :1] for c in range(3)] for j in range(sk.NUM_JOINTS)]
+    nocfg = Hml263Config(**{**cfg.__dict__, "swap_hips_in_ik": False})
+    init = _heading(P0, nocfg, 0.0, False)                     # (B, 1) components
+    dt = _dtype(cfg)
+    init = tuple(c.astype(dt) for c in init)
+    P = [list(_qrot(init, tuple(P[j][c].astype(dt) for c in range(3)))) for j in range(sk.NUM_JOINTS)]
+    origin = np.stack([ox, np.zeros(B), oz], -1)
+    return P, floor, origin, np.concatenate(init, -1)
 
 
 def canonicalize(joints: np.ndarray, mode: str = "clean"):
@@ -198,80 +284,67 @@ def canonicalize(joints: np.ndarray, mode: str = "clean"):
     """
     cfg = _config(mode)
     pos, _ = as_float_array(joints, "joints", (22, 3), min_frames=2)
-    return _canonicalize(pos, cfg)
+    P, floor, origin, quat = _canonicalize(pos, cfg)
+    return _from_soa(P), floor, origin, quat
 
 
-def _canonicalize(pos: np.ndarray, cfg: Hml263Config):
-    pos = pos.astype(np.float64) if not cfg.float32 else pos
-    if cfg.retarget:
-        pos = _retarget(pos, cfg)
-    else:
-        pos = pos.copy()
-    if cfg.floor == "global_min":
-        floor = pos[..., 1].min(axis=(1, 2))
-    else:
-        floor = np.zeros(len(pos), dtype=pos.dtype)
-    pos[..., 1] -= floor[:, None, None]
-    origin = pos[:, 0, 0] * np.array([1.0, 0.0, 1.0])
-    pos = pos - origin[:, None, None]
-    fwd0 = _forward(pos[:, 0], swap_hips=False)
-    fwd0 = fwd0 / np.sqrt((fwd0 ** 2).sum(-1))[..., None]
-    dt = _dtype(cfg)
-    init_quat = geo.quaternion_between(fwd0.astype(dt), np.broadcast_to(_Z.astype(dt), fwd0.shape))
-    q = np.broadcast_to(init_quat[:, None, None], pos.shape[:-1] + (4,)).astype(dt)
-    pos = geo.quaternion_apply(q, pos.astype(dt))
-    return pos, floor, origin, init_quat
-
-
-def _foot_contacts(pos: np.ndarray, cfg: Hml263Config, fps: float) -> np.ndarray:
-    """(B, T-1, 4) contacts for L ankle, L foot, R ankle, R foot."""
-    feet = list(sk.LEFT_FOOT_JOINTS + sk.RIGHT_FOOT_JOINTS)
-    disp = pos[:, 1:, feet] - pos[:, :-1, feet]
-    sq = (disp[..., 0] ** 2 + disp[..., 1] ** 2) + disp[..., 2] ** 2
-    if cfg.foot_sq_disp_thresh is not None:
-        contact = sq < cfg.foot_sq_disp_thresh
-    else:
-        contact = np.sqrt(sq) * fps < cfg.foot_speed_mps
-    if cfg.foot_height_m is not None:
-        limits = np.array(cfg.foot_height_m * 2)  # ankle, foot, ankle, foot
-        contact &= pos[:, :-1, feet, 1] < limits
-    return contact.astype(np.float32)
+def _foot_contacts(P, cfg: Hml263Config, fps: float) -> list[np.ndarray]:
+    """Contacts (B, T-1) for L ankle, L foot, R ankle, R foot."""
+    out = []
+    for k, j in enumerate(sk.LEFT_FOOT_JOINTS + sk.RIGHT_FOOT_JOINTS):
+        d = [P[j][c][:, 1:] - P[j][c][:, :-1] for c in range(3)]
+        sq = (d[0] ** 2 + d[1] ** 2) + d[2] ** 2
+        if cfg.foot_sq_disp_thresh is not None:
+            contact = sq < cfg.foot_sq_disp_thresh
+        else:
+            contact = np.sqrt(sq) * fps < cfg.foot_speed_mps
+        if cfg.foot_height_m is not None:
+            contact &= P[j][1][:, :-1] < cfg.foot_height_m[k % 2]
+        out.append(contact)
+    return out
 
 
 def _encode_batch(pos: np.ndarray, cfg: Hml263Config, fps: float):
-    """Features (B, T-1, 263), canonical positions and the (floor, origin, quat) frame."""
-    gpos, floor, origin, init_quat = _canonicalize(pos, cfg)
-    dt = _dtype(cfg)
-    feet = _foot_contacts(gpos, cfg, fps)
-    heading = _heading_quats(gpos, cfg, cfg.heading_sigma_frames)
-    quats = _inverse_kinematics(gpos, heading, cfg)
-    mats = geo.quaternion_to_matrix(quats[:, :, 1:])
-    rot6d = geo.matrix_to_rot6d(mats)                       # (B, T, 21, 6)
-    r_rot = quats[:, :, 0].astype(dt)
-    root = gpos[:, :, 0]
-    vel = geo.quaternion_apply(r_rot[:, 1:], (root[:, 1:] - root[:, :-1]).astype(dt))
-    r_vel = geo.quaternion_multiply(r_rot[:, 1:], geo.quaternion_inverse(r_rot[:, :-1]))
-    if cfg.signed_heading_step:
-        sign = np.where(r_vel[..., 0] < 0, -1.0, 1.0)
-        step = np.arctan2(sign * r_vel[..., 2], sign * r_vel[..., 0])
-    else:
-        step = np.arcsin(r_vel[..., 2])
-    local = gpos.copy()
-    local[..., 0] -= root[:, :, None, 0]
-    local[..., 2] -= root[:, :, None, 2]
-    q_all = np.broadcast_to(r_rot[:, :, None], local.shape[:-1] + (4,))
-    local = geo.quaternion_apply(q_all, local.astype(dt))
-    jvel = geo.quaternion_apply(q_all[:, :-1], (gpos[:, 1:] - gpos[:, :-1]).astype(dt))
-    B, T = gpos.shape[:2]
+    """Features (B, T-1, 263), canonical positions (component-first) and the frame."""
+    P, floor, origin, init_quat = _canonicalize(pos, cfg)
+    B, T = P[0][0].shape
     out = np.empty((B, T - 1, DIM), dtype=np.float32)
+    for k, contact in enumerate(_foot_contacts(P, cfg, fps)):
+        out[..., FOOT_CONTACT.start + k] = contact
+    root = _heading(P, cfg, cfg.heading_sigma_frames, cfg.identity_first_root)
+
+    def visit(child, parent, local, rot):
+        w, x, y, z = local
+        s = 2.0 / (w * w + x * x + y * y + z * z)
+        col = ROT6D.start + 6 * (child - 1)
+        for k, v in enumerate((1 - s * (y * y + z * z), s * (x * y + z * w), s * (x * z - y * w),
+                               s * (x * y - z * w), 1 - s * (x * x + z * z), s * (y * z + x * w))):
+            out[..., col + k] = v[:, :-1]
+
+    _inverse_kinematics(P, root, cfg, visit)
+    prev = tuple(c[:, :-1] for c in root)
+    nxt = tuple(c[:, 1:] for c in root)
+    vel = _qrot(nxt, tuple(P[0][c][:, 1:] - P[0][c][:, :-1] for c in range(3)))
+    r_vel = _qmul(nxt, _qinv(prev))
+    if cfg.signed_heading_step:
+        sign = np.where(r_vel[0] < 0, -1.0, 1.0)
+        step = np.arctan2(sign * r_vel[2], sign * r_vel[0])
+    else:
+        step = np.arcsin(r_vel[2])
     out[..., 0] = step
-    out[..., 1:3] = vel[..., [0, 2]]
-    out[..., 3] = local[:, :-1, 0, 1]
-    out[..., RIC] = local[:, :-1, 1:].reshape(B, T - 1, 63)
-    out[..., ROT6D] = rot6d[:, :-1].reshape(B, T - 1, 126)
-    out[..., LOCAL_VEL] = jvel.reshape(B, T - 1, 66)
-    out[..., FOOT_CONTACT] = feet
-    return out, gpos, (floor, origin, init_quat)
+    out[..., 1] = vel[0]
+    out[..., 2] = vel[2]
+    out[..., 3] = P[0][1][:, :-1]
+    rx, rz = P[0][0], P[0][2]
+    for j in range(sk.NUM_JOINTS):
+        if j > 0:
+            loc = _qrot(root, (P[j][0] - rx, P[j][1], P[j][2] - rz))
+            for c in range(3):
+                out[..., RIC.start + 3 * (j - 1) + c] = loc[c][:, :-1]
+        jv = _qrot(prev, tuple(P[j][c][:, 1:] - P[j][c][:, :-1] for c in range(3)))
+        for c in range(3):
+            out[..., LOCAL_VEL.start + 3 * j + c] = jv[c]
+    return out, P, (floor, origin, init_quat)
 
 
 def encode(joints: np.ndarray, mode: str = "clean", fps: float = 20.0,
@@ -297,9 +370,10 @@ def encode(joints: np.ndarray, mode: str = "clean", fps: float = 20.0,
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps: expected a positive frame rate, got {fps!r}")
     pos, batched = as_float_array(joints, "joints", (22, 3), min_frames=2)
-    feats, gpos, _ = _encode_batch(pos, cfg, float(fps))
+    feats, P, _ = _encode_batch(pos, cfg, float(fps))
+    gpos = _from_soa(P) if return_positions else None
     if not batched:
-        feats, gpos = feats[0], gpos[0]
+        feats, gpos = feats[0], (gpos[0] if return_positions else None)
     return (feats, gpos) if return_positions else feats
 
 
