@@ -458,6 +458,8 @@ class ProxyBody:
         self.rest_joints = arr["J"]
         self.parents = np.array(SMPLH_PARENTS)
         self.part_joint = self.weights.argmax(1)
+        self._rigid = bool(np.all(self.weights[np.arange(len(self.weights)), self.part_joint] == 1.0))
+        self._groups = [(j, np.flatnonzero(self.part_joint == j)) for j in np.unique(self.part_joint)]
         self.chunk = int(chunk)
 
     @property
@@ -523,7 +525,18 @@ class ProxyBody:
         else:
             k = betas.shape[-1]
             v_shaped = self.v_template + np.einsum("vck,...k->...vc", self.shapedirs[..., :k], betas)
-        A = np.concatenate([G.reshape(n, -1, 9), t], -1)  # (n, 52, 12)
-        M = self.weights @ A  # (n, V, 12)
-        v = (M[..., :9].reshape(n, -1, 3, 3) @ v_shaped[..., None])[..., 0] + M[..., 9:]
+        if self._rigid:  # one-hot weights: v = G_j v_shaped + t_j per joint's vertex group
+            v = np.empty((n, len(self.v_template), 3))
+            for j, idx in self._groups:
+                vs, Gj = v_shaped[..., idx, :], G[:, j]
+                if vs.ndim == 2:  # shared shape: one GEMM (k, 3) @ (3, n*3)
+                    rot = (vs @ Gj.transpose(2, 0, 1).reshape(3, -1)).reshape(len(idx), n, 3).swapaxes(0, 1)
+                else:
+                    rot = vs[..., 0:1] * Gj[:, None, :, 0] + vs[..., 1:2] * Gj[:, None, :, 1] \
+                        + vs[..., 2:3] * Gj[:, None, :, 2]
+                v[:, idx] = rot + t[:, j, None, :]
+        else:  # general LBS: blend the 3x4 transforms
+            A = np.concatenate([G.reshape(n, -1, 9), t], -1)  # (n, 52, 12)
+            M = self.weights @ A  # (n, V, 12)
+            v = (M[..., :9].reshape(n, -1, 3, 3) @ v_shaped[..., None])[..., 0] + M[..., 9:]
         return v, body

@@ -1,0 +1,198 @@
+"""SMPL / SMPL-H / SMPL-X through the optional ``smplx`` package (user-supplied files).
+
+The model files are licensed and never shipped; point :func:`load_body_model` at your own
+copies laid out as ``smplx.create`` expects::
+
+    model_dir/smpl/SMPL_NEUTRAL.pkl
+    model_dir/smplh/SMPLH_MALE.pkl   (or .npz)
+    model_dir/smplx/SMPLX_FEMALE.npz (or .pkl)
+
+``.pkl`` model files are unpickled by ``smplx``: load only files you downloaded yourself.
+:func:`hoibench.bodies.write_proxy_model` writes a license-free stand-in with the SMPL-H
+layout (``ext='npz'``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["MODEL_FILE_PREFIX", "POSE_LAYOUTS", "import_smplx", "model_path", "load_body_model",
+           "body_forward"]
+
+#: File-name prefix per model type (``<PREFIX>_<GENDER>.<ext>``).
+MODEL_FILE_PREFIX = {"smpl": "SMPL", "smplh": "SMPLH", "smplx": "SMPLX"}
+_DEFAULT_EXTS = {"smpl": ("pkl",), "smplh": ("npz", "pkl"), "smplx": ("npz", "pkl")}
+
+#: Accepted flat pose widths per model type -> named axis-angle blocks (in order).
+#: SMPL-H 156 = root 3 + body 63 + left hand 45 + right hand 45 (BEHAVE / AMASS);
+#: SMPL-X 165 = root 3 + body 63 + jaw 3 + left eye 3 + right eye 3 + hands 90 (AMASS).
+POSE_LAYOUTS: dict[str, dict[int, tuple[tuple[str, int], ...]]] = {
+    "smpl": {72: (("global_orient", 3), ("body_pose", 69)),
+             66: (("global_orient", 3), ("body_pose", 63))},
+    "smplh": {156: (("global_orient", 3), ("body_pose", 63), ("left_hand_pose", 45), ("right_hand_pose", 45)),
+              66: (("global_orient", 3), ("body_pose", 63))},
+    "smplx": {165: (("global_orient", 3), ("body_pose", 63), ("jaw_pose", 3), ("leye_pose", 3),
+                    ("reye_pose", 3), ("left_hand_pose", 45), ("right_hand_pose", 45)),
+              156: (("global_orient", 3), ("body_pose", 63), ("left_hand_pose", 45), ("right_hand_pose", 45)),
+              66: (("global_orient", 3), ("body_pose", 63))},
+}
+
+
+def import_smplx():
+    """Import ``smplx`` or raise an ImportError that says how to install it."""
+    try:
+        import smplx  # noqa: WPS433
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("SMPL-family body models need the optional 'smplx' package: "
+                          "pip install hoibench[smplx]") from exc
+    return smplx
+
+
+def _check_type(model_type: str) -> str:
+    mt = str(model_type).lower()
+    if mt not in MODEL_FILE_PREFIX:
+        raise ValueError(f"model_type: expected one of {sorted(MODEL_FILE_PREFIX)}, got {model_type!r}")
+    return mt
+
+
+def model_path(model_dir, model_type: str = "smplh", gender: str = "neutral",
+               ext: str | None = None) -> Path:
+    """Path of the model file ``model_dir/<model_type>/<PREFIX>_<GENDER>.<ext>``.
+
+    With ``ext=None`` the first existing of the usual extensions is taken (SMPL: pkl;
+    SMPL-H / SMPL-X: npz, then pkl). Raises FileNotFoundError naming every path tried.
+    """
+    mt = _check_type(model_type)
+    folder = Path(model_dir).expanduser() / mt
+    exts = _DEFAULT_EXTS[mt] if ext is None else (str(ext).lstrip("."),)
+    if mt == "smpl" and exts != ("pkl",):
+        raise ValueError("smplx reads SMPL models from .pkl files only (ext='pkl')")
+    tried = [folder / f"{MODEL_FILE_PREFIX[mt]}_{str(gender).upper()}.{e}" for e in exts]
+    for p in tried:
+        if p.is_file():
+            return p
+    raise FileNotFoundError(
+        f"{mt} body model not found: looked for {', '.join(str(p) for p in tried)}. "
+        f"Download the {mt.upper()} files yourself (they are licensed) and pass the folder "
+        f"that contains '{mt}/', or write the license-free proxy with "
+        "hoibench.bodies.write_proxy_model(model_dir).")
+
+
+def load_body_model(model_dir, model_type: str = "smplh", gender: str = "neutral",
+                    ext: str | None = None, **kwargs):
+    """Create a ``smplx`` body model from the user's files.
+
+    Checks that ``model_dir/<model_type>/<PREFIX>_<GENDER>.<ext>`` exists (error names the
+    paths it looked for), then calls ``smplx.create(model_dir, model_type, gender=...,
+    ext=...)``. For SMPL-H / SMPL-X the defaults are ``use_pca=False,
+    flat_hand_mean=True`` (full 45-D axis-angle hands, zero = flat hand: BEHAVE's
+    semantics); ``kwargs`` override them and are passed on (``num_betas``, ``dtype``...).
+    """
+    mt = _check_type(model_type)
+    path = model_path(model_dir, mt, gender, ext)
+    smplx = import_smplx()
+    opts = dict(kwargs)
+    if mt in ("smplh", "smplx"):
+        opts.setdefault("use_pca", False)
+        opts.setdefault("flat_hand_mean", True)
+        opts["ext"] = path.suffix[1:]
+    return smplx.create(str(Path(model_dir).expanduser()), model_type=mt, gender=str(gender).lower(), **opts)
+
+
+def _model_type_of(model) -> str:
+    smplx = import_smplx()
+    if isinstance(model, smplx.SMPLX):
+        return "smplx"
+    if isinstance(model, smplx.SMPLH):
+        return "smplh"
+    if isinstance(model, smplx.SMPL):
+        return "smpl"
+    raise TypeError(f"model: expected a smplx SMPL/SMPLH/SMPLX module, got {type(model).__name__}")
+
+
+def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
+                 return_vertices: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """Run a ``smplx`` model over a sequence in chunks, under ``torch.no_grad()``.
+
+    Args:
+        model: from :func:`load_body_model` (hands must be axis-angle: ``use_pca=False``).
+        poses: (T, D) axis-angle, radians, laid out as :data:`POSE_LAYOUTS`: SMPL-H
+            D = 156 (root 3 + body 63 + left hand 45 + right hand 45, BEHAVE's
+            ``poses``) or 66 (hands flat); SMPL D = 72 or 66; SMPL-X D = 165, 156 or 66.
+            With ``flat_hand_mean=True`` zero hand pose is the flat hand.
+        betas: (k,) or (T, k) shape coefficients, k <= ``model.num_betas`` (zero-padded);
+            None = mean shape.
+        trans: (T, 3) or (3,) translation, metres; None = 0.
+        batch_size: frames per ``smplx`` call.
+
+    Returns:
+        ``(joints (T, J, 3), vertices (T, V, 3) or None)`` as numpy arrays in the model's
+        dtype (float32 by default); ``J`` includes ``smplx``'s extra vertex joints
+        (joints[:, :22] are the 22 body joints).
+    """
+    import torch
+
+    mt = _model_type_of(model)
+    poses = np.asarray(poses)
+    if poses.ndim != 2 or poses.shape[1] not in POSE_LAYOUTS[mt]:
+        raise ValueError(f"poses: expected (T, D) with D in {sorted(POSE_LAYOUTS[mt])} for {mt}, "
+                         f"got {poses.shape}")
+    if mt != "smpl" and getattr(model, "use_pca", False):
+        raise ValueError("body_forward needs axis-angle hands: create the model with use_pca=False")
+    T = len(poses)
+    buf = next(model.buffers())
+    device, dtype = buf.device, buf.dtype
+    nb = int(model.num_betas)
+    if betas is None:
+        betas = np.zeros(nb)
+    betas = np.asarray(betas, dtype=np.float64)
+    if betas.ndim not in (1, 2) or (betas.ndim == 2 and len(betas) not in (1, T)):
+        raise ValueError(f"betas: expected (k,) or (T, k), got {betas.shape}")
+    if betas.shape[-1] > nb:
+        if np.any(betas[..., nb:] != 0):
+            raise ValueError(f"betas: {betas.shape[-1]} coefficients given but the model uses {nb}; "
+                             f"create it with num_betas={betas.shape[-1]} (if the file has them)")
+        betas = betas[..., :nb]
+    betas = np.concatenate([betas, np.zeros(betas.shape[:-1] + (nb - betas.shape[-1],))], -1)
+    betas = np.broadcast_to(betas, (T, nb))
+    trans = np.zeros((T, 3)) if trans is None else np.broadcast_to(np.asarray(trans, np.float64), (T, 3))
+
+    layout = POSE_LAYOUTS[mt][poses.shape[1]]
+    widths = {"global_orient": 3, "body_pose": 3 * model.NUM_BODY_JOINTS}
+    if mt != "smpl":
+        widths.update(left_hand_pose=45, right_hand_pose=45)
+    if mt == "smplx":
+        widths.update(jaw_pose=3, leye_pose=3, reye_pose=3)
+
+    def tens(x):
+        return torch.from_numpy(np.array(x, dtype=np.float64)).to(device=device, dtype=dtype)
+
+    joints_out, verts_out = [], []
+    saved_bs = getattr(model, "batch_size", None)
+    try:
+        if mt == "smplx":  # SMPL-X repeats its landmark coefficients model.batch_size times
+            model.batch_size = 1
+        with torch.no_grad():
+            for s in range(0, T, int(batch_size)):
+                e = min(T, s + int(batch_size))
+                n = e - s
+                args = {k: np.zeros((n, w)) for k, w in widths.items()}
+                col = 0
+                for name, w in layout:
+                    args[name][:, :w] = poses[s:e, col:col + w]
+                    col += w
+                args = {k: tens(v) for k, v in args.items()}
+                if mt == "smplx":
+                    args["expression"] = torch.zeros((n, model.num_expression_coeffs), dtype=dtype, device=device)
+                out = model(betas=tens(betas[s:e]), transl=tens(trans[s:e]),
+                            return_verts=return_vertices, **args)
+                joints_out.append(out.joints.detach().cpu().numpy())
+                if return_vertices:
+                    verts_out.append(out.vertices.detach().cpu().numpy())
+    finally:
+        if saved_bs is not None:
+            model.batch_size = saved_bs
+    joints = np.concatenate(joints_out) if joints_out else np.zeros((0, 0, 3))
+    verts = (np.concatenate(verts_out) if verts_out else np.zeros((0, 0, 3))) if return_vertices else None
+    return joints, verts
