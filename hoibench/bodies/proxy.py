@@ -39,10 +39,6 @@ Metrics computed with this body must be labelled "proxy body".
 """
 from __future__ import annotations
 
-import io
-import os
-import tempfile
-import zipfile
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -51,6 +47,7 @@ from typing import Sequence
 import numpy as np
 
 from ..geometry import axis_angle_to_matrix
+from ..io import atomic_write_bytes, npz_bytes
 from ..skeleton import NUM_JOINTS, SMPL_REST_JOINTS, forward_kinematics
 
 __all__ = [
@@ -385,22 +382,9 @@ def build_proxy_arrays(model_type: str = "smplh") -> dict[str, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- files
-def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
-    """Deterministic compressed ``.npz`` (fixed zip timestamps, fixed key order)."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for key, arr in arrays.items():
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = 0o644 << 16
-            with zf.open(info, "w", force_zip64=True) as fh:
-                np.lib.format.write_array(fh, np.ascontiguousarray(arr), allow_pickle=False)
-    return buf.getvalue()
-
-
 @lru_cache(maxsize=None)
 def _file_bytes(model_type: str) -> bytes:
-    return _npz_bytes(_build(model_type))
+    return npz_bytes(_build(model_type))
 
 
 def write_proxy_model(root, model_type: str = "smplh",
@@ -419,16 +403,7 @@ def write_proxy_model(root, model_type: str = "smplh",
         if str(g).lower() not in _GENDERS:
             raise ValueError(f"gender: expected one of {_GENDERS}, got {g!r}")
         path = folder / f"{_FILE_PREFIX[mt]}_{str(g).upper()}.npz"
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        paths.append(path)
+        paths.append(atomic_write_bytes(path, data))
     return paths
 
 
@@ -528,13 +503,7 @@ class ProxyBody:
         if self._rigid:  # one-hot weights: v = G_j v_shaped + t_j per joint's vertex group
             v = np.empty((n, len(self.v_template), 3))
             for j, idx in self._groups:
-                vs, Gj = v_shaped[..., idx, :], G[:, j]
-                if vs.ndim == 2:  # shared shape: one GEMM (k, 3) @ (3, n*3)
-                    rot = (vs @ Gj.transpose(2, 0, 1).reshape(3, -1)).reshape(len(idx), n, 3).swapaxes(0, 1)
-                else:
-                    rot = vs[..., 0:1] * Gj[:, None, :, 0] + vs[..., 1:2] * Gj[:, None, :, 1] \
-                        + vs[..., 2:3] * Gj[:, None, :, 2]
-                v[:, idx] = rot + t[:, j, None, :]
+                v[:, idx] = v_shaped[..., idx, :] @ G[:, j].swapaxes(-1, -2) + t[:, j, None, :]
         else:  # general LBS: blend the 3x4 transforms
             A = np.concatenate([G.reshape(n, -1, 9), t], -1)  # (n, 52, 12)
             M = self.weights @ A  # (n, V, 12)
