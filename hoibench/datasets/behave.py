@@ -1,0 +1,303 @@
+"""BEHAVE raw layout -> :class:`HOISequence` (canonical y-up world, floor at 0).
+
+Raw layout (the official release, which ``hoibench synth`` also writes)::
+
+    ROOT/sequences/<Date0X_SubYY_<object>_<action>>/smpl_fit_all.npz    poses (T,156) f32, betas (T,10),
+                                                                        trans (T,3), frame_times
+    ROOT/sequences/<...>/object_fit_all.npz                             angles (T,3) f64, trans (T,3), frame_times
+    ROOT/sequences/<...>/info.json                                      {"gender", "cat", ...}
+    ROOT/objects/<obj>/<obj>_f1000.ply (or _f2000, _f2500; monitor: monitor_closed_f1000.ply)
+
+Conversion (per sequence):
+
+1. Body: SMPL-H of the ``info.json`` gender, ``flat_hand_mean=True`` (BEHAVE's meshes),
+   run through ``smplx`` on the user's model files (or hoibench's proxy).
+2. Frame: BEHAVE's world is the Kinect camera with OpenCV axes (y down). hoibench rotates
+   it by 180 degrees about x: ``p_yup = F p_cam``, ``F = diag(1, -1, -1)``. SMPL parameters are
+   rotated about the pelvis: ``R0' = F R0`` and ``trans' = F (J0 + trans) - J0`` with ``J0``
+   the rest pelvis of the subject's shape (rotating ``trans`` alone would shift the body by
+   ``(I - F) J0``). The object pose becomes ``R' = F R``, ``t' = F t``.
+3. Floor: y is shifted so the lowest body-surface vertex of the sequence sits at y = 0.
+   BEHAVE's floor is tilted by a few degrees in the camera frame; hoibench does not level
+   it (neither does HOI-Diff), and records the shift in the provenance.
+4. Objects: the template is centred on its vertex mean (BEHAVE's fits assume that):
+   ``v = R (v_template - mean) + t``.
+5. Time: ``frame_times`` ('t0003.033' = 3.033 s, millisecond stamps of a 30 fps clock,
+   snapped to the 1/30 s grid) are parsed and the sequence is resampled by time to ``fps`` (poses by quaternion slerp, translations linearly), never by an
+   integer decimation factor.
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .. import geometry as geo
+from .sequence import BodyParams, HOISequence
+
+SOURCE_FPS = 30.0
+FLIP = np.diag([1.0, -1.0, -1.0])       # OpenCV camera (y down) -> y up
+OFFICIAL_TEST_DATE = "Date03"
+_NAME = re.compile(r"^(Date\d+)_(Sub\d+)_([A-Za-z0-9]+)(?:_(.*))?$")
+_BODY_KEYS = {"poses": (156,), "betas": (10,), "trans": (3,)}
+_OBJECT_KEYS = {"angles": (3,), "trans": (3,)}
+
+
+class SequenceError(ValueError):
+    """A sequence that cannot be prepared: names the sequence, the file and the problem."""
+
+
+@dataclass(frozen=True)
+class ParsedName:
+    date: str
+    subject: str
+    object: str
+    action: str
+
+
+def parse_name(name: str) -> ParsedName:
+    m = _NAME.match(name)
+    if not m:
+        raise SequenceError(f"{name}: name does not match Date0X_SubYY_<object>_<action>")
+    return ParsedName(m.group(1), m.group(2), m.group(3), m.group(4) or "")
+
+
+def official_split(name: str) -> str:
+    """BEHAVE's official split: every Date03 sequence is test."""
+    return "test" if parse_name(name).date == OFFICIAL_TEST_DATE else "train"
+
+
+def parse_frame_times(times, name: str) -> np.ndarray:
+    """'t0003.033' -> 3.033 seconds; strictly increasing or a SequenceError."""
+    try:
+        secs = np.array([float(str(t).lstrip("t")) for t in np.asarray(times).ravel()])
+    except ValueError as exc:
+        raise SequenceError(f"{name}: frame_times: cannot parse ({exc})") from None
+    if len(secs) > 1 and not np.all(np.diff(secs) > 0):
+        raise SequenceError(f"{name}: frame_times: not strictly increasing")
+    return secs
+
+
+def snap_to_frame_grid(secs: np.ndarray, fps: float = SOURCE_FPS, tol_s: float = 1e-3) -> np.ndarray:
+    """BEHAVE stamps frames in milliseconds ('t0003.033'). Times within ``tol_s`` of the
+    ``1/fps`` grid started at the first frame are snapped onto it (skipped frames keep their
+    gap), so resampling at the source rate returns the source frames exactly."""
+    k = np.round((secs - secs[0]) * fps)
+    grid = secs[0] + k / fps
+    return np.where(np.abs(grid - secs) <= tol_s, grid, secs)
+
+
+def object_template_path(objects_root: Path, obj: str) -> Path:
+    folder = Path(objects_root) / obj
+    names = ["monitor_closed_f1000.ply"] if obj == "monitor" else []
+    names += [f"{obj}_f1000.ply", f"{obj}_f2000.ply", f"{obj}_f2500.ply"]
+    for n in names:
+        if (folder / n).exists():
+            return folder / n
+    raise SequenceError(f"unknown object template {obj!r}: none of {names} in {folder}")
+
+
+@lru_cache(maxsize=64)
+def load_object_template(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(centred vertices (V,3) float64, faces (F,3) int64, the subtracted mean (3,))."""
+    import trimesh
+    mesh = trimesh.load(path, process=False, force="mesh")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(v) == 0 or len(f) == 0:
+        raise SequenceError(f"{path}: empty mesh")
+    mean = v.mean(0)
+    return v - mean, f, mean
+
+
+def _read_npz(path: Path, name: str, keys: dict[str, tuple[int, ...]]) -> dict[str, np.ndarray]:
+    if not path.exists():
+        raise SequenceError(f"{name}: missing file {path.name}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except Exception as exc:  # zip/format errors of a truncated or corrupt file
+        raise SequenceError(f"{name}: {path.name}: unreadable ({type(exc).__name__}: {exc})") from None
+    for k, tail in keys.items():
+        if k not in data:
+            raise SequenceError(f"{name}: {path.name}: missing key {k!r}")
+        a = data[k]
+        if a.ndim != 2 or a.shape[1:] != tail:
+            raise SequenceError(f"{name}: {path.name}: {k}: expected shape (T, {tail[0]}), got {a.shape}")
+        if not np.issubdtype(a.dtype, np.floating):
+            raise SequenceError(f"{name}: {path.name}: {k}: expected floats, got {a.dtype}")
+        if not np.isfinite(a).all():
+            t = int(np.argwhere(~np.isfinite(a))[0, 0])
+            raise SequenceError(f"{name}: {path.name}: {k}: non-finite value at frame {t}")
+    if "frame_times" not in data:
+        raise SequenceError(f"{name}: {path.name}: missing key 'frame_times'")
+    return data
+
+
+@lru_cache(maxsize=8)
+def _body_model(model_dir: str, gender: str):
+    from ..bodies.smpl import load_body_model
+    return load_body_model(model_dir, "smplh", gender)
+
+
+def _slerp_resample(src_t: np.ndarray, dst_t: np.ndarray, aa: np.ndarray) -> np.ndarray:
+    """Resample (T, K, 3) axis-angle rotations at times ``dst_t`` by quaternion slerp."""
+    if len(src_t) == 1:
+        return np.repeat(aa, len(dst_t), 0)
+    q = geo.axis_angle_to_quaternion(aa)
+    # one hemisphere along time: flip q_t when it points away from q_{t-1} (cumulated)
+    sign = np.where(np.sum(q[1:] * q[:-1], -1) < 0, -1.0, 1.0)
+    q[1:] *= np.cumprod(sign, axis=0)[..., None]
+    idx = np.clip(np.searchsorted(src_t, dst_t, side="right") - 1, 0, len(src_t) - 2)
+    w = ((dst_t - src_t[idx]) / (src_t[idx + 1] - src_t[idx]))[:, None, None]
+    a, b = q[idx], q[idx + 1]
+    theta = np.arccos(np.clip(np.sum(a * b, -1, keepdims=True), -1.0, 1.0))
+    small = theta < 1e-6
+    st = np.where(small, 1.0, np.sin(theta))
+    wa = np.where(small, 1 - w, np.sin((1 - w) * theta) / st)
+    wb = np.where(small, w, np.sin(w * theta) / st)
+    return geo.quaternion_to_axis_angle(wa * a + wb * b)
+
+
+def resample_times(src_t: np.ndarray, fps: float) -> np.ndarray:
+    """Times t0, t0 + 1/fps, ... up to the last source time (inclusive, 1e-9 s slack)."""
+    n = int(np.floor((src_t[-1] - src_t[0]) * fps + 1e-9)) + 1
+    return src_t[0] + np.arange(n) / fps
+
+
+def _lerp(src_t, dst_t, x):
+    return np.stack([np.interp(dst_t, src_t, x[:, k]) for k in range(x.shape[1])], -1)
+
+
+def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: str | Path,
+                  fps: float = SOURCE_FPS) -> HOISequence:
+    """Read one BEHAVE sequence folder into a canonical :class:`HOISequence` at ``fps``.
+
+    Raises :class:`SequenceError` naming the sequence, file and field for bad input.
+    """
+    seq_dir = Path(seq_dir)
+    name = seq_dir.name
+    parsed = parse_name(name)
+    body = _read_npz(seq_dir / "smpl_fit_all.npz", name, _BODY_KEYS)
+    obj = _read_npz(seq_dir / "object_fit_all.npz", name, _OBJECT_KEYS)
+    info_path = seq_dir / "info.json"
+    if not info_path.exists():
+        raise SequenceError(f"{name}: missing file info.json")
+    try:
+        info = json.loads(info_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise SequenceError(f"{name}: info.json: invalid JSON ({exc})") from None
+    gender = str(info.get("gender", "")).lower()
+    if gender not in ("male", "female", "neutral"):
+        raise SequenceError(f"{name}: info.json: gender: expected male/female, got {info.get('gender')!r}")
+    obj_name = str(info.get("cat") or parsed.object)
+    T = len(body["poses"])
+    for key, arr in (("betas", body["betas"]), ("trans", body["trans"])):
+        if len(arr) != T:
+            raise SequenceError(f"{name}: smpl_fit_all.npz: {key}: {len(arr)} frames, poses has {T}")
+    if len(obj["angles"]) != T or len(obj["trans"]) != T:
+        raise SequenceError(f"{name}: object_fit_all.npz has {len(obj['angles'])} frames, "
+                            f"smpl_fit_all.npz has {T}")
+    times = snap_to_frame_grid(parse_frame_times(body["frame_times"], name))
+    if len(times) != T:
+        raise SequenceError(f"{name}: smpl_fit_all.npz: frame_times: {len(times)} entries for {T} frames")
+    if T < 2:
+        raise SequenceError(f"{name}: only {T} frame(s)")
+    template_path = object_template_path(Path(objects_root), obj_name)
+    verts, faces, mean = load_object_template(str(template_path))
+
+    # resample by time
+    dst = resample_times(times, fps)
+    poses = _slerp_resample(times, dst, body["poses"].astype(np.float64).reshape(T, 52, 3)).reshape(len(dst), 156)
+    trans = _lerp(times, dst, body["trans"].astype(np.float64))
+    betas = body["betas"].astype(np.float64).mean(0)   # BEHAVE fits one shape per subject
+    o_aa = _slerp_resample(times, dst, obj["angles"].astype(np.float64)[:, None])[:, 0]
+    o_t = _lerp(times, dst, obj["trans"].astype(np.float64))
+
+    # camera (y down) -> y up, about the pelvis
+    from ..bodies.smpl import body_forward
+    model = _body_model(str(Path(body_models)), gender)
+    rest, _ = body_forward(model, np.zeros((1, 156)), betas, np.zeros((1, 3)), return_vertices=False)
+    j0 = rest[0, 0].astype(np.float64)
+    root = geo.axis_angle_to_matrix(poses[:, :3])
+    poses[:, :3] = geo.matrix_to_axis_angle(FLIP @ root)
+    trans = (j0 + trans) @ FLIP.T - j0
+    o_rot = FLIP @ geo.axis_angle_to_matrix(o_aa)
+    o_t = o_t @ FLIP.T
+    joints, vertices = body_forward(model, poses, betas, trans)
+    floor = float(vertices[..., 1].min())
+    trans[:, 1] -= floor
+    o_t[:, 1] -= floor
+    joints = joints[:, :22].astype(np.float64)
+    joints[..., 1] -= floor
+    return HOISequence(
+        name=name, dataset="behave", subject=parsed.subject, fps=float(fps),
+        joints=joints.astype(np.float32), object_name=obj_name,
+        object_vertices=verts, object_faces=faces, obj_rot=o_rot, obj_trans=o_t,
+        body=BodyParams("smplh", gender, betas.astype(np.float32), poses.astype(np.float32),
+                        trans.astype(np.float32), flat_hand_mean=True),
+        provenance={"source": "behave-raw", "source_frame": "kinect camera, OpenCV (y down)",
+                    "transform": "p_yup = diag(1,-1,-1) p_cam; y -= floor", "floor_shift_m": floor,
+                    "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
+                    "source_frames": T, "template": template_path.name,
+                    "template_mean_subtracted": mean.tolist(), "date": parsed.date,
+                    "action": parsed.action},
+    )
+
+
+def list_sequences(root: str | Path) -> list[Path]:
+    """Sequence folders under ``root/sequences`` in sorted order."""
+    seqs = Path(root) / "sequences"
+    if not seqs.is_dir():
+        raise FileNotFoundError(f"--root: no 'sequences' folder in {root} (expected the BEHAVE raw layout)")
+    return sorted(p for p in seqs.iterdir() if p.is_dir())
+
+
+def load_split_file(path: str | Path) -> dict[str, str]:
+    """``{"train": [...], "test": [...]}`` -> {sequence: split}."""
+    data = json.loads(Path(path).read_text())
+    return {name: split for split in ("train", "val", "test") for name in data.get(split, [])}
+
+
+def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
+                 split_file: str | Path | None = None) -> list[tuple]:
+    """One :func:`hoibench.store.run_unit` job per sequence folder.
+
+    The split is the official one (test = Date03) unless ``split_file`` names another; a
+    sequence the split file does not list is an error for that sequence.
+    """
+    from ..store import file_sha256
+    root = Path(root)
+    splits = load_split_file(split_file) if split_file else None
+    jobs = []
+    for seq in list_sequences(root):
+        name = seq.name
+        loader, args = load_sequence, (str(seq), str(root / "objects"), str(body_models), config.fps)
+        try:
+            split = splits[name] if splits is not None else official_split(name)
+        except KeyError:
+            split, loader, args = "unknown", _fail, (f"{name}: not listed in split file {split_file}",)
+        except SequenceError as exc:
+            split, loader, args = "unknown", _fail, (str(exc),)
+        try:
+            obj = json.loads((seq / "info.json").read_text()).get("cat") or parse_name(name).object
+            template = object_template_path(root / "objects", obj)
+        except Exception:   # the unit reports the reason when it loads
+            template = seq / "<no template>"
+        files = [seq / "smpl_fit_all.npz", seq / "object_fit_all.npz", seq / "info.json", template]
+        sha = file_sha256(files, extra=config.sha256())
+        jobs.append((name, split, sha, str(out), loader, args, config.mode))
+    if splits is not None:
+        present = {j[0] for j in jobs}
+        for name in sorted(set(splits) - present):
+            jobs.append((name, splits[name], "", str(out), _fail,
+                         (f"{name}: listed in split file {split_file} but no sequence folder",), config.mode))
+    return jobs
+
+
+def _fail(message: str):
+    raise SequenceError(message)
