@@ -45,6 +45,19 @@ def _cmd_represent(args) -> int:
     return 0
 
 
+def _cmd_prepare(args) -> int:
+    from .store import PrepareConfig, prepare, summary_table
+    if args.dataset != "behave":
+        raise ValueError(f"dataset: {args.dataset!r} is not supported yet (available: behave)")
+    from .datasets import behave
+    cfg = PrepareConfig(args.dataset, fps=args.fps, mode=args.mode)
+    jobs = behave.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
+    manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
+                       source={"root": str(Path(args.root).resolve()), "body_models": "smplh"})
+    print(summary_table(manifest))
+    return 1 if manifest["counts"]["failed"] and args.strict else 0
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -72,6 +85,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=20.0)
     s.add_argument("--out", type=Path, required=True)
     s.set_defaults(func=_cmd_represent)
+
+    s = sub.add_parser("prepare", help="raw dataset -> processed store",
+                       epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
+                              "--out DATA --fps 20 --executor processes:2")
+    s.add_argument("dataset", choices=["behave"])
+    s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
+    s.add_argument("--body-models", type=Path, required=True,
+                   help="folder with smplh/SMPLH_{MALE,FEMALE}.npz (your files or the proxy)")
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--fps", type=float, default=20.0, help="resample to this rate, by time")
+    s.add_argument("--mode", choices=["clean", "legacy"], default="clean", help="representation mode")
+    s.add_argument("--split-file", type=Path, default=None, help="JSON {train: [...], test: [...]}")
+    s.add_argument("--executor", default="serial", help="serial | processes[:N] | dask://ADDRESS")
+    s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
+    s.set_defaults(func=_cmd_prepare)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")

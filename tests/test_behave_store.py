@@ -162,3 +162,34 @@ def test_split_file_with_unknown_sequence_is_reported(raw, tmp_path):
     errs = (out / "errors.jsonl").read_text()
     assert "Date09_Sub01_ghost_x" in errs and "Date02_Sub06_boxsmall_carry: not listed" in errs
     assert m["counts"]["clips"] == 2
+
+
+@pytest.mark.slow
+def test_serial_processes_and_dask_give_identical_stores(raw, tmp_path):
+    root, models, _ = raw
+    cfg = PrepareConfig("behave", fps=20.0)
+    outputs = {}
+    executors = ["serial", "processes:2"]
+    try:
+        import dask.distributed  # noqa: F401
+        executors.append("dask://local:2")
+    except ImportError:
+        pass
+    for ex in executors:
+        out = tmp_path / ex.replace(":", "_").replace("/", "")
+        prepare(behave.prepare_jobs(root, models, out, cfg), out, cfg, executor=ex)
+        outputs[ex] = {p.relative_to(out).as_posix(): p.read_bytes()
+                       for p in sorted(out.rglob("*")) if p.is_file()}
+    ref = outputs["serial"]
+    assert len(ref) >= 6
+    for ex, files in outputs.items():
+        assert files == ref, ex
+
+
+def test_parse_executor_errors():
+    from hoibench.parallel import parse_executor
+    assert str(parse_executor("processes:3")) == "processes:3"
+    assert parse_executor("dask://127.0.0.1:8786").address == "127.0.0.1:8786"
+    for bad in ["threads", "processes:0", "processes:x", "dask://"]:
+        with pytest.raises(ValueError, match="--executor"):
+            parse_executor(bad)
