@@ -58,6 +58,20 @@ def _cmd_prepare(args) -> int:
     return 1 if manifest["counts"]["failed"] and args.strict else 0
 
 
+def _cmd_render(args) -> int:
+    from .render import render_clip
+    clip = Path(args.clip)
+    if clip.suffix == ".npz":
+        root, clip_id = clip.parent.parent, clip.stem
+    elif args.data is not None:
+        root, clip_id = args.data, str(clip)
+    else:
+        raise ValueError("clip: give DATA/clips/<id>.npz, or an id with --data DATA")
+    path = render_clip(root, clip_id, args.out, body=args.body)
+    print(f"wrote {path}")
+    return 0
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -100,6 +114,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="serial", help="serial | processes[:N] | dask://ADDRESS")
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)
+
+    s = sub.add_parser("render", help="render a processed clip to PNG, GIF or MP4 (off-screen)",
+                       epilog="example: hoibench render data/clips/Date01_Sub01_boxsmall_lift.npz --out clip.gif")
+    s.add_argument("clip", help="DATA/clips/<id>.npz, or a clip id together with --data")
+    s.add_argument("--data", type=Path, default=None)
+    s.add_argument("--out", type=Path, required=True, help=".png (middle frame), .gif or .mp4")
+    s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy")
+    s.set_defaults(func=_cmd_render)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")
