@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import geometry as geo
+from ..bodies.transform import rigid_transform_smpl
 from .sequence import BodyParams, HOISequence
 
 SOURCE_FPS = 30.0
@@ -223,9 +224,7 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
     model = _body_model(str(Path(body_models)), gender)
     rest, _ = body_forward(model, np.zeros((1, 156)), betas, np.zeros((1, 3)), return_vertices=False)
     j0 = rest[0, 0].astype(np.float64)
-    root = geo.axis_angle_to_matrix(poses[:, :3])
-    poses[:, :3] = geo.matrix_to_axis_angle(FLIP @ root)
-    trans = (j0 + trans) @ FLIP.T - j0
+    poses[:, :3], trans = rigid_transform_smpl(poses[:, :3], trans, j0, FLIP, np.zeros(3))
     o_rot = FLIP @ geo.axis_angle_to_matrix(o_aa)
     o_t = o_t @ FLIP.T
     joints, vertices = body_forward(model, poses, betas, trans)
@@ -234,10 +233,12 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
     o_t[:, 1] -= floor
     joints = joints[:, :22].astype(np.float64)
     joints[..., 1] -= floor
+    contacts = _ground_truth_contacts(seq_dir, times, dst)
     return HOISequence(
         name=name, dataset="behave", subject=parsed.subject, fps=float(fps),
         joints=joints.astype(np.float32), object_name=obj_name,
         object_vertices=verts, object_faces=faces, obj_rot=o_rot, obj_trans=o_t,
+        contacts=contacts,
         body=BodyParams("smplh", gender, betas.astype(np.float32), poses.astype(np.float32),
                         trans.astype(np.float32), flat_hand_mean=True),
         provenance={"source": "behave-raw", "source_frame": "kinect camera, OpenCV (y down)",
@@ -247,6 +248,22 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
                     "template_mean_subtracted": mean.tolist(), "date": parsed.date,
                     "action": parsed.action},
     )
+
+
+def _ground_truth_contacts(seq_dir: Path, src_t: np.ndarray, dst_t: np.ndarray) -> np.ndarray | None:
+    """Per-joint contact labels from a ``hoibench_gt.npz`` sidecar (written by ``hoibench
+    synth``; real BEHAVE has none), resampled to ``dst_t`` by nearest source frame."""
+    path = seq_dir / "hoibench_gt.npz"
+    if not path.exists():
+        return None
+    with np.load(path, allow_pickle=False) as z:
+        if "contacts" not in z.files:
+            return None
+        c = z["contacts"].astype(bool)
+    if c.shape != (len(src_t), 22):
+        raise SequenceError(f"{seq_dir.name}: hoibench_gt.npz: contacts: expected ({len(src_t)}, 22), got {c.shape}")
+    nearest = np.clip(np.searchsorted(src_t, dst_t - 0.5 / SOURCE_FPS), 0, len(src_t) - 1)
+    return c[nearest]
 
 
 def list_sequences(root: str | Path) -> list[Path]:
