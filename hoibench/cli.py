@@ -45,6 +45,31 @@ def _cmd_represent(args) -> int:
     return 0
 
 
+def _parse_defects(items: list[str]) -> dict:
+    """['3:foot_skating=1.0', 'Date01_Sub01_boxsmall_lift:penetration=0.02'] -> {clip: [Defect]}."""
+    from .datasets.synthetic import Defect
+    out: dict = {}
+    for item in items or []:
+        clip, _, spec = item.rpartition(":")
+        kind, _, mag = spec.partition("=")
+        if not clip or not mag:
+            raise ValueError(f"--defect: expected CLIP:KIND=MAGNITUDE, got {item!r}")
+        key = int(clip) if clip.isdigit() else clip
+        out.setdefault(key, []).append(Defect(kind, float(mag)))
+    return out
+
+
+def _cmd_synth(args) -> int:
+    from .datasets.synthetic import write_behave_layout
+    if args.layout != "behave":
+        raise ValueError(f"--layout: {args.layout!r} is not available yet (available: behave)")
+    manifest = write_behave_layout(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect),
+                                   executor=args.executor)
+    print(f"wrote {manifest['n_clips']} synthetic clips ({manifest['split']}) to {args.out} "
+          f"in the BEHAVE layout; body models in {Path(args.out) / 'body_models'}")
+    return 0
+
+
 def _cmd_prepare(args) -> int:
     from .store import PrepareConfig, prepare, summary_table
     if args.dataset != "behave":
@@ -99,6 +124,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=20.0)
     s.add_argument("--out", type=Path, required=True)
     s.set_defaults(func=_cmd_represent)
+
+    s = sub.add_parser("synth", help="write the deterministic synthetic HOI dataset",
+                       epilog="example: hoibench synth --out raw --clips 24 --seed 0 "
+                              "--defect 3:foot_skating=1.0 --defect 5:penetration=0.02")
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--clips", type=int, default=24)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--layout", choices=["behave", "omomo", "rich"], default="behave")
+    s.add_argument("--defect", action="append", default=[],
+                   help="CLIP:KIND=MAGNITUDE, KIND in foot_skating (m/s), penetration (m), lost_contact (m)")
+    s.add_argument("--executor", default="serial")
+    s.set_defaults(func=_cmd_synth)
 
     s = sub.add_parser("prepare", help="raw dataset -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "

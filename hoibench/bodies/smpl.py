@@ -97,7 +97,10 @@ def load_body_model(model_dir, model_type: str = "smplh", gender: str = "neutral
         opts.setdefault("use_pca", False)
         opts.setdefault("flat_hand_mean", True)
         opts["ext"] = path.suffix[1:]
-    return smplx.create(str(Path(model_dir).expanduser()), model_type=mt, gender=str(gender).lower(), **opts)
+    import contextlib
+    import io
+    with contextlib.redirect_stdout(io.StringIO()):  # smplx prints a notice about 10 betas
+        return smplx.create(str(Path(model_dir).expanduser()), model_type=mt, gender=str(gender).lower(), **opts)
 
 
 def _model_type_of(model) -> str:
