@@ -57,6 +57,18 @@ def parse_executor(spec: str) -> ExecutorSpec:
     raise ValueError(f"--executor: expected serial, processes[:N] or dask://ADDRESS, got {spec!r}")
 
 
+def _single_threaded_worker() -> None:
+    """One compute thread per worker process: N workers x M library threads would
+    oversubscribe the cores (torch and BLAS default to one thread per core)."""
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = "1"
+    try:
+        import torch
+        torch.set_num_threads(1)
+    except ImportError:  # pragma: no cover
+        pass
+
+
 class _SerialExecutor(cf.Executor):
     def submit(self, fn, /, *args, **kwargs):
         fut: cf.Future = cf.Future()
@@ -76,7 +88,8 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
         return
     if spec.kind == "processes":
         with cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
-                                    mp_context=mp.get_context("spawn")) as ex:
+                                    mp_context=mp.get_context("spawn"),
+                                    initializer=_single_threaded_worker) as ex:
             yield ex
         return
     try:

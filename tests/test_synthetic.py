@@ -223,17 +223,24 @@ def test_camera_parameters_map_back_to_the_generator_joints(dataset):
 
 
 def test_behave_loader_reads_the_synthetic_layout(dataset):
+    """The loader recovers the generator's joints (1e-4 m) and object poses (1e-6) in the
+    generator's world seen through the loader's own transform (camera -> flip -> floor)."""
     pytest.importorskip("smplx")
     pytest.importorskip("trimesh")
     from hoibench.datasets import behave
     root, _, _ = dataset
-    seq = sorted((root / "sequences").iterdir())[0]
-    s = behave.load_sequence(seq, root / "objects", root / "body_models", fps=30.0)
-    gt = np.load(seq / "hoibench_gt.npz", allow_pickle=False)
     flip = np.diag([1.0, -1.0, -1.0])
-    want = (gt["joints"] @ gt["cam_R"].T + gt["cam_c"]) @ flip.T
-    want[..., 1] -= s.provenance["floor_shift_m"]
-    assert np.abs(s.joints - want).max() < 1e-5
+    for seq in sorted((root / "sequences").iterdir()):
+        s = behave.load_sequence(seq, root / "objects", root / "body_models", fps=30.0)
+        gt = np.load(seq / "hoibench_gt.npz", allow_pickle=False)
+        R = flip @ gt["cam_R"]
+        lift = np.array([0.0, s.provenance["floor_shift_m"], 0.0])
+        want = gt["joints"] @ R.T + flip @ gt["cam_c"] - lift
+        assert np.abs(s.joints - want).max() < 1e-4, seq.name
+        np.testing.assert_allclose(s.obj_rot, R @ gt["obj_rot"], atol=1e-6, err_msg=seq.name)
+        np.testing.assert_allclose(s.obj_trans, gt["obj_trans"] @ R.T + flip @ gt["cam_c"] - lift,
+                                   atol=1e-6, err_msg=seq.name)
+        np.testing.assert_array_equal(s.contacts, gt["contacts"].astype(bool))
 
 
 # --------------------------------------------------------------------------- physical claims
