@@ -760,14 +760,19 @@ def _plan_hold(obj, hands, body, rng) -> _Plan:
     plan.obj_t = t + sway
     plan.obj_R = _ry(yaw + math.radians(4.0) * np.sin(2 * np.pi * f[3] * time + ph[3]) * ramp)
     plan.pelvis[:, 0] = 0.015 * np.sin(2 * np.pi * 0.4 * time + ph[0]) * ramp
+    _grip_whole_clip(plan, obj, hands)
+    plan.segments = [("hold", 0, T, hands)]
+    return plan
+
+
+def _grip_whole_clip(plan: _Plan, obj: ObjectModel, hands: str) -> None:
+    """The hands hold the object (its lift grips) on every frame of the clip."""
     plan.attach(hands, obj.grips["lift"], slice(None))
     for h in obj.grips["lift"][hands]:
         k = _HAND_INDEX[h]
         plan.hand_w[:, k] = 1.0
         plan.contacts[:, _WRISTS[k]] = True
     plan.hands = tuple(obj.grips["lift"][hands])
-    plan.segments = [("hold", 0, T, hands)]
-    return plan
 
 
 def _gait(plan: _Plan, body: _Body, i0: int, n_swings: int, step: float, swing: int, ds: int,
@@ -811,12 +816,7 @@ def _plan_carry(obj, hands, body, rng) -> _Plan:
     yaw, t = _hold_pose(obj, hands, body, walking=True)
     plan.obj_R[:] = _ry(yaw)
     plan.obj_t = t + np.stack([plan.pelvis[:, 0], np.zeros(T), plan.pelvis[:, 2]], -1)
-    plan.attach(hands, obj.grips["lift"], slice(None))
-    for h in obj.grips["lift"][hands]:
-        k = _HAND_INDEX[h]
-        plan.hand_w[:, k] = 1.0
-        plan.contacts[:, _WRISTS[k]] = True
-    plan.hands = tuple(obj.grips["lift"][hands])
+    _grip_whole_clip(plan, obj, hands)
     plan.segments = [("carry", 0, T, hands)]
     return plan
 
