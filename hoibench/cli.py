@@ -97,6 +97,20 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_splits(args) -> int:
+    from . import splits
+    if args.action == "ls":
+        print("\n".join(splits.summary_lines()))
+        print("(* = default)")
+        return 0
+    if not args.dataset:
+        raise ValueError("splits show: name a dataset, e.g. hoibench splits show behave --split hoidiff-clips")
+    sp = splits.get(args.dataset, args.split)
+    print(json.dumps(sp if args.full else {k: (v if not isinstance(v, list) else f"{len(v)} ids: {v[:3]} ...")
+                                           for k, v in sp.items()}, indent=2))
+    return 0
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -159,6 +173,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", type=Path, required=True, help=".png (middle frame), .gif or .mp4")
     s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy")
     s.set_defaults(func=_cmd_render)
+
+    s = sub.add_parser("splits", help="list or show the split files and their sources",
+                       epilog="examples: hoibench splits ls; hoibench splits show omomo --split unseen-object")
+    s.add_argument("action", choices=["ls", "show"])
+    s.add_argument("dataset", nargs="?")
+    s.add_argument("--split", default=None)
+    s.add_argument("--full", action="store_true", help="print every id")
+    s.set_defaults(func=_cmd_splits)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")
