@@ -111,6 +111,11 @@ def _cmd_splits(args) -> int:
     return 0
 
 
+def _cmd_export(args) -> int:
+    from .export import main_export
+    return main_export(args.data, args.out, args.format)
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -181,6 +186,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--split", default=None)
     s.add_argument("--full", action="store_true", help="print every id")
     s.set_defaults(func=_cmd_splits)
+
+    s = sub.add_parser("export", help="write a store in the HumanML3D or HOI-Diff folder layout",
+                       epilog="example: hoibench export --format humanml3d data/behave out/HumanML3D")
+    s.add_argument("--format", choices=["humanml3d", "hoidiff"], default="humanml3d")
+    s.add_argument("data", type=Path)
+    s.add_argument("out", type=Path)
+    s.set_defaults(func=_cmd_export)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")
