@@ -116,6 +116,12 @@ def _cmd_export(args) -> int:
     return main_export(args.data, args.out, args.format)
 
 
+def _cmd_annotate(args) -> int:
+    from .annotate import main_annotate
+    return main_annotate(args.data, preview=args.preview, executor=args.executor, strict=args.strict,
+                         seed=args.seed, spec_dir=args.spec_dir, labels=args.labels)
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -193,6 +199,19 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("data", type=Path)
     s.add_argument("out", type=Path)
     s.set_defaults(func=_cmd_export)
+
+    s = sub.add_parser("annotate", help="contact-aware texts and semantic groups for a store",
+                       epilog="examples: hoibench annotate data --preview 5; "
+                              "hoibench annotate data --labels action_label.json --executor processes:2")
+    s.add_argument("data", type=Path)
+    s.add_argument("--preview", type=int, default=None, metavar="N",
+                   help="print a table of N clips (timelines, texts) and write nothing")
+    s.add_argument("--labels", type=Path, default=None, help="BEHAVE per-second action labels (json)")
+    s.add_argument("--seed", type=int, default=0, help="paraphrase choice seed")
+    s.add_argument("--spec-dir", type=Path, default=None, help="annotator spec folder (default annotators/)")
+    s.add_argument("--executor", default="serial")
+    s.add_argument("--strict", action="store_true")
+    s.set_defaults(func=_cmd_annotate)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")

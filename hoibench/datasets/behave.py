@@ -244,6 +244,7 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
         provenance={"source": "behave-raw", "source_frame": "kinect camera, OpenCV (y down)",
                     "transform": "p_yup = diag(1,-1,-1) p_cam; y -= floor", "floor_shift_m": floor,
                     "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
+                    "source_start_s": float(times[0]),
                     "source_frames": T, "template": template_path.name,
                     "template_mean_subtracted": mean.tolist(), "date": parsed.date,
                     "action": parsed.action},
