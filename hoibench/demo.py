@@ -4,7 +4,7 @@ Stage 1 (representations): encodes generated clips into hml263 (legacy and clean
 and joint_level, decodes them again and reports round-trip errors and the legacy-vs-clean
 difference per feature group. Stage 2 (synthetic): writes the synthetic HOI dataset in the
 BEHAVE raw layout, prepares it with the BEHAVE loader into a processed store, prints the
-summary table and renders one clip to a GIF.
+summary table, annotates it with contact-aware texts and renders one clip to a GIF.
 """
 from __future__ import annotations
 
@@ -71,6 +71,9 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 12, executor: str = "
     t2 = time.perf_counter()
     print(f"[synthetic] generated {clips} clips in {t1 - t0:.1f} s, prepared in {t2 - t1:.1f} s")
     print("  " + summary_table(manifest).replace("\n", "\n  "))
+    from .annotate import annotate_store, preview_table
+    annotate_store(data, executor=executor)
+    print("  " + preview_table(data, 3).replace("\n", "\n  "))
     report = {"raw": str(raw), "store": str(data), "counts": manifest["counts"],
               "seconds": {"synth": round(t1 - t0, 2), "prepare": round(t2 - t1, 2)}}
     try:
