@@ -11,9 +11,14 @@ TORCH_SPEC ?= torch==2.13.0
 EXTRAS ?= dev,smplx,dask
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench clean
+.PHONY: install demo test bench clean check-system
 
-$(VENV)/.installed: setup.cfg pyproject.toml
+check-system:
+	@ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0' || { \
+	  echo "hoibench needs the system library libusb-1.0-0 (used by open3d)."; \
+	  echo "Install it with:  sudo apt-get install libusb-1.0-0   (Debian/Ubuntu)"; exit 1; }
+
+$(VENV)/.installed: setup.cfg pyproject.toml | check-system
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip
 	$(PIP) install "$(TORCH_SPEC)"
