@@ -60,25 +60,30 @@ def _parse_defects(items: list[str]) -> dict:
 
 
 def _cmd_synth(args) -> int:
-    from .datasets.synthetic import write_behave_layout
-    if args.layout != "behave":
-        raise ValueError(f"--layout: {args.layout!r} is not available yet (available: behave)")
-    manifest = write_behave_layout(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect),
-                                   executor=args.executor)
-    print(f"wrote {manifest['n_clips']} synthetic clips ({manifest['split']}) to {args.out} "
-          f"in the BEHAVE layout; body models in {Path(args.out) / 'body_models'}")
+    if args.layout == "behave":
+        from .datasets.synthetic import write_behave_layout
+        manifest = write_behave_layout(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect),
+                                       executor=args.executor)
+    else:
+        if args.defect:
+            raise ValueError("--defect: defects are injected in the behave layout only")
+        from .datasets import synthetic_layouts
+        writer = getattr(synthetic_layouts, f"write_{args.layout}_layout")
+        manifest = writer(args.out, args.clips, seed=args.seed)
+    print(f"wrote {args.clips} synthetic clips to {args.out} in the {args.layout} layout; "
+          f"body models in {Path(args.out) / 'body_models'}")
     return 0
 
 
 def _cmd_prepare(args) -> int:
     from .store import PrepareConfig, prepare, summary_table
-    if args.dataset != "behave":
-        raise ValueError(f"dataset: {args.dataset!r} is not supported yet (available: behave)")
-    from .datasets import behave
-    cfg = PrepareConfig(args.dataset, fps=args.fps, mode=args.mode)
-    jobs = behave.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
+    import importlib
+    loader = importlib.import_module(f".datasets.{args.dataset}", __package__)
+    cfg = PrepareConfig(args.dataset, fps=args.fps, mode=args.mode,
+                        body_model_type="smplh" if args.dataset == "behave" else "smplx")
+    jobs = loader.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
     manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
-                       source={"root": str(Path(args.root).resolve()), "body_models": "smplh"})
+                       source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type})
     print(summary_table(manifest))
     return 1 if manifest["counts"]["failed"] and args.strict else 0
 
@@ -162,13 +167,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="serial")
     s.set_defaults(func=_cmd_synth)
 
-    s = sub.add_parser("prepare", help="raw dataset -> processed store",
+    s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave"])
+    s.add_argument("dataset", choices=["behave", "omomo", "rich"])
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
     s.add_argument("--body-models", type=Path, required=True,
-                   help="folder with smplh/SMPLH_{MALE,FEMALE}.npz (your files or the proxy)")
+                   help="folder with smplh/ (BEHAVE) or smplx/ (OMOMO, RICH) model files: yours or the proxy")
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--fps", type=float, default=20.0, help="resample to this rate, by time")
     s.add_argument("--mode", choices=["clean", "legacy"], default="clean", help="representation mode")

@@ -80,6 +80,8 @@ def clip_arrays(seq, mode: str, split: str, source_sha256: str) -> dict[str, np.
                    betas=seq.body.betas, poses=seq.body.poses, trans=seq.body.trans)
     if seq.contacts is not None:
         out["contacts"] = seq.contacts.astype(bool)
+    if seq.texts:   # dataset texts (e.g. OMOMO's annotations), one JSON object per entry
+        out["texts"] = np.array([json.dumps(t, sort_keys=True) for t in seq.texts])
     out["provenance"] = np.array(json.dumps(seq.provenance, sort_keys=True))
     return out
 

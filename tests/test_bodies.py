@@ -109,9 +109,9 @@ def test_build_deterministic_and_fast():
 
 def test_unsupported_model_type():
     with pytest.raises(NotImplementedError, match="smplh"):
-        build_proxy_arrays("smplx")
+        build_proxy_arrays("smpl")
     with pytest.raises(NotImplementedError):
-        ProxyBody("smplx")
+        ProxyBody("smpl")
 
 
 def test_write_proxy_model_byte_identical(tmp_path):

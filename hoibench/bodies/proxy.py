@@ -1,4 +1,4 @@
-"""License-free proxy body model in the SMPL-H file structure.
+"""License-free proxy body model in the SMPL-H and SMPL-X file structures.
 
 The proxy is a closed surface of rigid, elliptic-section capsules around the bones of the
 22-joint skeleton (:data:`hoibench.skeleton.SMPL_REST_JOINTS`, metres, y-up, T-pose, the
@@ -32,10 +32,34 @@ SMPL-H ``.npz`` files):
 * ``hands_componentsl/r`` (45, 45) identity, ``hands_meanl/r`` (45,) zeros (so PCA and
   flat-hand-mean settings do not matter).
 
+SMPL-X structure (``model_type='smplx'``; what ``smplx.create(root, model_type='smplx',
+gender=g, ext='npz')`` reads, the keys and shapes of the released SMPL-X v1.1 ``.npz``):
+the same body capsules plus a chin (skinned to the jaw) and two eyeballs, and
+
+* ``v_template`` (10475, 3) -- SMPL-X's vertex count; ``smplx``'s extra joints
+  (``vertex_ids['smplx']``, max 9929) sit on the head, finger tips, toes and heels;
+* ``kintree_table`` (2, 55) -- SMPL-X's tree: joints 0-21 the body, 22 jaw, 23 left eye,
+  24 right eye (parent: head), 25-39 the left hand, 40-54 the right hand (MANO order);
+  ``J`` (55, 3), ``J_regressor`` (55, V) (rings, as above), ``weights`` (V, 55) one-hot;
+* ``shapedirs`` (V, 3, 400) float32 -- 300 shape + 100 expression directions as in v1.1
+  (fewer than 300 would make ``smplx`` cap ``num_betas`` at 10; OMOMO uses 16); column 0
+  is ``0.05 * v_template`` (the same uniform scaling as SMPL-H), the rest zero, so
+  expressions do not move the proxy;
+* ``posedirs`` (V, 3, 486) float32 zeros; ``hands_componentsl/r`` (45, 45) identity,
+  ``hands_meanl/r`` (45,) zeros (so hand PCA with any number of components, and
+  ``flat_hand_mean`` either way, are well defined: PCA coefficient ``k`` is axis-angle
+  component ``k``);
+* ``lmk_faces_idx`` (51,) / ``lmk_bary_coords`` (51, 3) and ``dynamic_lmk_faces_idx``
+  (79, 17) / ``dynamic_lmk_bary_coords`` (79, 17, 3): face landmarks on faces of the head
+  (barycentre of each face), so ``use_face_contour`` works too.
+
+The 22 body joints, their rest positions and the body surface are the same in both
+structures, so SMPL-H and SMPL-X proxies pose the body identically.
+
 All genders get the same arrays (the proxy has no gendered shapes): files named
-``SMPLH_MALE.npz`` etc. exist only so gendered code paths run. Only the SMPL-H structure
-is produced so far; ``model_type='smplx'`` / ``'smpl'`` raise ``NotImplementedError``.
-Metrics computed with this body must be labelled "proxy body".
+``SMPLH_MALE.npz`` etc. exist only so gendered code paths run. ``model_type='smpl'``
+raises ``NotImplementedError``. Metrics computed with this body must be labelled
+"proxy body".
 """
 from __future__ import annotations
 
@@ -56,6 +80,9 @@ __all__ = [
     "SMPLH_NUM_JOINTS",
     "SMPLH_PARENTS",
     "SMPLH_JOINT_NAMES",
+    "SMPLX_NUM_JOINTS",
+    "SMPLX_PARENTS",
+    "SMPLX_JOINT_NAMES",
     "proxy_rest_joints",
     "build_proxy_arrays",
     "write_proxy_model",
@@ -67,9 +94,12 @@ PROXY_SCALE_PER_BETA = 0.05
 #: Shape coefficients stored in the proxy file (the released SMPL-H ``.npz`` have 16).
 PROXY_NUM_BETAS = 16
 SMPLH_NUM_JOINTS = 52
-_NUM_VERTICES = {"smplh": 6890}
-_SUPPORTED = ("smplh",)
-_FILE_PREFIX = {"smplh": "SMPLH"}
+SMPLX_NUM_JOINTS = 55
+_NUM_VERTICES = {"smplh": 6890, "smplx": 10475}
+_SUPPORTED = ("smplh", "smplx")
+_FILE_PREFIX = {"smplh": "SMPLH", "smplx": "SMPLX"}
+#: SMPL-X v1.1 shapedirs width: 300 shape + 100 expression components.
+_SMPLX_SHAPE_DIMS, _SMPLX_EXPR_DIMS = 300, 100
 _GENDERS = ("male", "female", "neutral")
 
 _FINGERS = ("index", "middle", "pinky", "ring", "thumb")  # MANO / SMPL-H order
@@ -88,6 +118,21 @@ SMPLH_PARENTS: tuple[int, ...] = (
     -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19,
 ) + tuple(p for wrist, base in ((20, 22), (21, 37)) for f in range(5)
           for p in (wrist, base + 3 * f, base + 3 * f + 1))
+
+#: SMPL-X joint names (smplx's order): the 22 body joints, jaw, eyes, then left and right
+#: hand (MANO order).
+SMPLX_JOINT_NAMES: tuple[str, ...] = (
+    SMPLH_JOINT_NAMES[:22] + ("jaw", "left_eye_smplhf", "right_eye_smplhf") + SMPLH_JOINT_NAMES[22:])
+
+#: SMPL-X parents (55): body, jaw and eyes on the head (15), fingers as SMPL-H's from the
+#: wrists (left hand 25-39, right hand 40-54).
+SMPLX_PARENTS: tuple[int, ...] = SMPLH_PARENTS[:22] + (15, 15, 15) + tuple(
+    p for wrist, base in ((20, 25), (21, 40)) for f in range(5)
+    for p in (wrist, base + 3 * f, base + 3 * f + 1))
+
+#: model type -> (number of joints, parents, first left-hand joint, first right-hand joint)
+_LAYOUT = {"smplh": (SMPLH_NUM_JOINTS, SMPLH_PARENTS, 22, 37),
+           "smplx": (SMPLX_NUM_JOINTS, SMPLX_PARENTS, 25, 40)}
 
 # Left-hand finger joints (1, 2, 3) and tip, as offsets from the previous point (the
 # wrist for joint 1), metres; the hand points along +x, palm down, thumb towards +z.
@@ -109,17 +154,26 @@ def _check_model_type(model_type: str) -> str:
     if mt not in _SUPPORTED:
         raise NotImplementedError(
             f"proxy body: model_type={model_type!r} is not implemented yet; only 'smplh' "
-            "(SMPL-H structure: 52 joints, 6890 vertices, 16 betas) is available. "
-            "Load real SMPL/SMPL-X files with hoibench.bodies.load_body_model instead.")
+            "(SMPL-H structure: 52 joints, 6890 vertices, 16 betas) and 'smplx' (SMPL-X "
+            "structure: 55 joints, 10475 vertices) are available. Load real SMPL files with "
+            "hoibench.bodies.load_body_model instead.")
     return mt
 
 
 # --------------------------------------------------------------------------- rest joints
-def _rest_joints_smplh() -> np.ndarray:
-    """(52, 3) rest joints: SMPL_REST_JOINTS plus fingers (right hand mirrored in x)."""
-    out = np.zeros((SMPLH_NUM_JOINTS, 3))
+#: SMPL-X face joints relative to the head joint (15), metres: jaw, left eye, right eye.
+_FACE_JOINTS = ((0.0, 0.005, 0.045), (0.032, 0.075, 0.085), (-0.032, 0.075, 0.085))
+
+
+def _rest_joints(model_type: str = "smplh") -> np.ndarray:
+    """(J, 3) rest joints: SMPL_REST_JOINTS, the face joints (SMPL-X) and the fingers
+    (right hand mirrored in x)."""
+    n, _, lbase, rbase = _LAYOUT[model_type]
+    out = np.zeros((n, 3))
     out[:NUM_JOINTS] = SMPL_REST_JOINTS
-    for wrist, base, sx in ((20, 22, 1.0), (21, 37, -1.0)):
+    if model_type == "smplx":
+        out[22:25] = SMPL_REST_JOINTS[15] + np.array(_FACE_JOINTS)
+    for wrist, base, sx in ((20, lbase, 1.0), (21, rbase, -1.0)):
         for f, name in enumerate(_FINGERS):
             p = SMPL_REST_JOINTS[wrist]
             for k in range(3):
@@ -128,11 +182,17 @@ def _rest_joints_smplh() -> np.ndarray:
     return out
 
 
-def _finger_tip(joint3: int) -> np.ndarray:
-    side = 0 if joint3 < 37 else 1
-    f = ((joint3 - 22) % 15) // 3
+def _rest_joints_smplh() -> np.ndarray:
+    """(52, 3) SMPL-H rest joints (see :func:`_rest_joints`)."""
+    return _rest_joints("smplh")
+
+
+def _finger_tip(joint3: int, model_type: str = "smplh") -> np.ndarray:
+    _, _, lbase, rbase = _LAYOUT[model_type]
+    side = 0 if joint3 < rbase else 1
+    f = ((joint3 - lbase) % 15) // 3
     sx = 1.0 if side == 0 else -1.0
-    return _rest_joints_smplh()[joint3] + np.array(_LEFT_FINGERS[_FINGERS[f]][3]) * (sx, 1.0, 1.0)
+    return _rest_joints(model_type)[joint3] + np.array(_LEFT_FINGERS[_FINGERS[f]][3]) * (sx, 1.0, 1.0)
 
 
 def _scale(betas, lead: tuple) -> np.ndarray:
@@ -218,8 +278,9 @@ def _capsule(part: _Part) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     return verts, faces, ids[n_cap], ids[n_cap + n_len]
 
 
-def _parts_smplh() -> list[_Part]:
-    J = _rest_joints_smplh()
+def _parts(model_type: str = "smplh") -> list[_Part]:
+    J = _rest_joints(model_type)
+    _, _, lbase, rbase = _LAYOUT[model_type]
     big, mid, small, finger = (20, 5, 4), (16, 4, 3), (12, 3, 3), (8, 1, 2)
     P = []
 
@@ -239,7 +300,7 @@ def _parts_smplh() -> list[_Part]:
     for s, sx in (("left", 1.0), ("right", -1.0)):
         hip, knee, ankle, foot = (1, 4, 7, 10) if s == "left" else (2, 5, 8, 11)
         collar, shoulder, elbow, wrist = (13, 16, 18, 20) if s == "left" else (14, 17, 19, 21)
-        base = 22 if s == "left" else 37
+        base = lbase if s == "left" else rbase
         # legs (a: x half-width, b: z depth)
         add(f"{s}_hip", 0, hip, _Y, (0.085, 0.085), (0.085, 0.085), 0.085, 0.085, 0, j1=hip)
         add(f"{s}_thigh", hip, knee, _X, (0.08, 0.08), (0.055, 0.055), 0.08, 0.055, hip, j1=knee, res=big)
@@ -261,27 +322,53 @@ def _parts_smplh() -> list[_Part]:
             rr = [(r, r), (0.93 * r, 0.93 * r), (0.86 * r, 0.86 * r), (0.78 * r, 0.78 * r)]
             add(f"{s}_{name}1", j1, j2, _Y, rr[0], rr[1], rr[0][0], rr[1][0], j1, j0=j1, j1=j2, res=finger)
             add(f"{s}_{name}2", j2, j3, _Y, rr[1], rr[2], rr[1][0], rr[2][0], j2, j1=j3, res=finger)
-            add(f"{s}_{name}3", j3, _finger_tip(j3), _Y, rr[2], rr[3], rr[2][0], rr[3][0], j3, res=finger)
+            add(f"{s}_{name}3", j3, _finger_tip(j3, model_type), _Y, rr[2], rr[3], rr[2][0], rr[3][0], j3,
+                res=finger)
+    if model_type == "smplx":  # chin on the jaw, eyeballs on the eyes (after the SMPL-H parts)
+        add("jaw", 22, J[22] + (0.0, -0.035, 0.055), _X, (0.035, 0.025), (0.03, 0.02), 0.025, 0.02,
+            22, j0=22, res=small)
+        for name, j in (("left_eye", 23), ("right_eye", 24)):
+            add(name, j, J[j] + (0.0, 0.0, 0.025), _X, (0.012, 0.012), (0.012, 0.012), 0.012, 0.012,
+                j, j0=j, res=finger)
     return P
 
 
-def _landmark_targets(J: np.ndarray) -> list[tuple[str, int, str, np.ndarray]]:
-    """``smplx``'s ``vertex_ids['smplh']`` -> (name, required vertex index, part, target
+def _parts_smplh() -> list[_Part]:
+    return _parts("smplh")
+
+
+#: ``smplx``'s ``vertex_ids`` (smplx/vertex_ids.py): head, finger tips, toes and heels.
+_VERTEX_IDS = {
+    "smplh": {"head": (332, 6260, 2800, 4071, 583),
+              "l": dict(thumb=2746, index=2319, middle=2445, ring=2556, pinky=2673),
+              "r": dict(thumb=6191, index=5782, middle=5905, ring=6016, pinky=6133),
+              "L": (3216, 3226, 3387), "R": (6617, 6624, 6787)},
+    "smplx": {"head": (9120, 9929, 9448, 616, 6),
+              "l": dict(thumb=5361, index=4933, middle=5058, ring=5169, pinky=5286),
+              "r": dict(thumb=8079, index=7669, middle=7794, ring=7905, pinky=8022),
+              "L": (5770, 5780, 8846), "R": (8463, 8474, 8635)},
+}
+
+
+def _landmark_targets(J: np.ndarray, model_type: str = "smplh") -> list[tuple[str, int, str, np.ndarray]]:
+    """``smplx``'s ``vertex_ids[model_type]`` -> (name, required vertex index, part, target
     point): the part vertex nearest the target is moved to that index."""
+    ids_ = _VERTEX_IDS[model_type]
+    _, _, lbase, rbase = _LAYOUT[model_type]
     h = J[15]
-    out = [("nose", 332, "head", h + (0.0, 0.10, 0.20)),
-           ("reye", 6260, "head", h + (-0.03, 0.12, 0.20)),
-           ("leye", 2800, "head", h + (0.03, 0.12, 0.20)),
-           ("rear", 4071, "head", h + (-0.20, 0.09, 0.015)),
-           ("lear", 583, "head", h + (0.20, 0.09, 0.015))]
-    tips = {"l": dict(thumb=2746, index=2319, middle=2445, ring=2556, pinky=2673),
-            "r": dict(thumb=6191, index=5782, middle=5905, ring=6016, pinky=6133)}
+    nose, reye, leye, rear, lear = ids_["head"]
+    out = [("nose", nose, "head", h + (0.0, 0.10, 0.20)),
+           ("reye", reye, "head", h + (-0.03, 0.12, 0.20)),
+           ("leye", leye, "head", h + (0.03, 0.12, 0.20)),
+           ("rear", rear, "head", h + (-0.20, 0.09, 0.015)),
+           ("lear", lear, "head", h + (0.20, 0.09, 0.015))]
+    tips = {"l": ids_["l"], "r": ids_["r"]}
     for s, side in (("l", "left"), ("r", "right")):
         for f in _FINGERS:
-            j3 = (22 if s == "l" else 37) + 3 * _FINGERS.index(f) + 2
-            tip = _finger_tip(j3)
+            j3 = (lbase if s == "l" else rbase) + 3 * _FINGERS.index(f) + 2
+            tip = _finger_tip(j3, model_type)
             out.append((f"{s}{f}", tips[s][f], f"{side}_{f}3", tip + (tip - J[j3])))  # the tip pole
-    for s, side, sx, ids in (("L", "left", 1.0, (3216, 3226, 3387)), ("R", "right", -1.0, (6617, 6624, 6787))):
+    for s, side, sx, ids in (("L", "left", 1.0, ids_["L"]), ("R", "right", -1.0, ids_["R"])):
         ankle, foot = (7, 10) if s == "L" else (8, 11)
         toe = J[foot] + np.array([0.005 * sx, _SOLE_Y + 0.018 - J[foot][1], 0.06])
         out.append((f"{s}BigToe", ids[0], f"{side}_toes", toe + (-0.03 * sx, 0.0, 0.05)))
@@ -293,8 +380,9 @@ def _landmark_targets(J: np.ndarray) -> list[tuple[str, int, str, np.ndarray]]:
 @lru_cache(maxsize=None)
 def _build(model_type: str) -> dict[str, np.ndarray]:
     mt = _check_model_type(model_type)
-    J = _rest_joints_smplh()
-    parts = _parts_smplh()
+    n_joints, joint_parents, _, _ = _LAYOUT[mt]
+    J = _rest_joints(mt)
+    parts = _parts(mt)
     n_target = _NUM_VERTICES[mt]
 
     verts, faces, part_of, ring = [], [], [], {}
@@ -309,7 +397,7 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
                 assert j not in ring, f"joint {j} has two regressor rings"
                 ring[j] = r + off
         off += len(v)
-    assert sorted(ring) == list(range(SMPLH_NUM_JOINTS)), "every joint needs one ring"
+    assert sorted(ring) == list(range(n_joints)), "every joint needs one ring"
     V = np.concatenate(verts)
     F = np.concatenate(faces)
     part_of = np.concatenate(part_of)
@@ -319,23 +407,24 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
     pad = n_target - len(V)
     if pad < 0:
         raise AssertionError(f"proxy resolution too high: {len(V)} > {n_target} vertices")
-    if pad:
-        big = {i for i, p in enumerate(parts) if p.res[0] >= 20}
+    big = {i for i, p in enumerate(parts) if p.res[0] >= 20}
+    while pad:  # one round for SMPL-H; SMPL-X's larger count splits the split faces again
         cand = np.flatnonzero(np.isin(part_of[F[:, 0]], sorted(big)))
-        assert pad <= len(cand)
-        pick = cand[(np.arange(pad) * len(cand)) // pad]
-        new = len(V) + np.arange(pad)
+        step = min(pad, len(cand))
+        pick = cand[(np.arange(step) * len(cand)) // step]
+        new = len(V) + np.arange(step)
         a, b, c = F[pick, 0], F[pick, 1], F[pick, 2]
         V = np.concatenate([V, (V[a] + V[b] + V[c]) / 3.0])
         part_of = np.concatenate([part_of, part_of[a]])
         F[pick] = np.stack([a, b, new], -1)
         F = np.concatenate([F, np.stack([b, c, new], -1), np.stack([c, a, new], -1)])
+        pad -= step
 
     # Move smplx's landmark vertices (extra joints) to the indices smplx reads.
     names = [p.name for p in parts]
     order = np.full(len(V), -1)
     taken = np.zeros(len(V), bool)
-    for _, idx, part, target in _landmark_targets(J):
+    for _, idx, part, target in _landmark_targets(J, mt):
         cand = np.flatnonzero((part_of == names.index(part)) & ~taken)
         src = cand[np.argmin(((V[cand] - target) ** 2).sum(-1))]
         order[idx] = src
@@ -346,16 +435,21 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
     V, part_of, F = V[order], part_of[order], inv[F]
 
     n_v = len(V)
-    weights = np.zeros((n_v, SMPLH_NUM_JOINTS))
+    weights = np.zeros((n_v, n_joints))
     weights[np.arange(n_v), np.array([p.joint for p in parts])[part_of]] = 1.0
-    J_reg = np.zeros((SMPLH_NUM_JOINTS, n_v))
+    J_reg = np.zeros((n_joints, n_v))
     for j, r in ring.items():
         J_reg[j, inv[r]] = 1.0 / len(r)
-    shapedirs = np.zeros((n_v, 3, PROXY_NUM_BETAS))
+    if mt == "smplx":  # float32: 400 directions of 10475 vertices (the files store no more)
+        shapedirs = np.zeros((n_v, 3, _SMPLX_SHAPE_DIMS + _SMPLX_EXPR_DIMS), dtype=np.float32)
+        posedirs = np.zeros((n_v, 3, 9 * (n_joints - 1)), dtype=np.float32)
+    else:
+        shapedirs = np.zeros((n_v, 3, PROXY_NUM_BETAS))
+        posedirs = np.zeros((n_v, 3, 9 * (n_joints - 1)))
     shapedirs[:, :, 0] = PROXY_SCALE_PER_BETA * V
-    parents = np.array(SMPLH_PARENTS, dtype=np.int64)
+    parents = np.array(joint_parents, dtype=np.int64)
     parents[0] = 4294967295  # as in the released files (uint32 -1)
-    kintree = np.stack([parents, np.arange(SMPLH_NUM_JOINTS, dtype=np.int64)])
+    kintree = np.stack([parents, np.arange(n_joints, dtype=np.int64)])
     out = {
         "v_template": V,
         "f": F.astype(np.int64),
@@ -364,20 +458,39 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
         "weights": weights,
         "kintree_table": kintree,
         "shapedirs": shapedirs,
-        "posedirs": np.zeros((n_v, 3, 9 * (SMPLH_NUM_JOINTS - 1))),
+        "posedirs": posedirs,
         "hands_componentsl": np.eye(45),
         "hands_componentsr": np.eye(45),
         "hands_meanl": np.zeros(45),
         "hands_meanr": np.zeros(45),
     }
+    if mt == "smplx":
+        out.update(_face_landmarks(V, F, part_of == names.index("head")))
     for a in out.values():
         a.setflags(write=False)
     return out
 
 
+def _face_landmarks(V: np.ndarray, F: np.ndarray, head: np.ndarray) -> dict[str, np.ndarray]:
+    """SMPL-X landmark arrays on the front of the head: 51 static landmarks and 79 x 17
+    dynamic contour candidates, each the barycentre of a head face (deterministic)."""
+    faces = np.flatnonzero(head[F].all(1))
+    centre = V[F[faces]].mean(1)
+    front = faces[np.argsort(-centre[:, 2], kind="stable")][: max(51, len(faces) // 3)]
+    front = np.sort(front)
+    static = front[(np.arange(51) * len(front)) // 51]
+    dyn = faces[(np.arange(79 * 17) * len(faces)) // (79 * 17)].reshape(79, 17)
+    third = np.full(3, 1.0 / 3.0)
+    return {"lmk_faces_idx": static.astype(np.int64),
+            "lmk_bary_coords": np.tile(third, (51, 1)),
+            "dynamic_lmk_faces_idx": dyn.astype(np.int64),
+            "dynamic_lmk_bary_coords": np.tile(third, (79, 17, 1))}
+
+
 def build_proxy_arrays(model_type: str = "smplh") -> dict[str, np.ndarray]:
-    """The proxy model's arrays, keyed as in the SMPL-H ``.npz`` (fresh, writable copies;
-    deterministic: byte-identical on every call). See the module docstring for shapes."""
+    """The proxy model's arrays, keyed as in the SMPL-H / SMPL-X ``.npz`` (fresh, writable
+    copies; deterministic: byte-identical on every call). See the module docstring for
+    shapes."""
     return {k: v.copy() for k, v in _build(_check_model_type(model_type)).items()}
 
 
@@ -390,7 +503,7 @@ def _file_bytes(model_type: str) -> bytes:
 def write_proxy_model(root, model_type: str = "smplh",
                       genders: Sequence[str] = _GENDERS) -> list[Path]:
     """Write the proxy as ``root/<model_type>/<PREFIX>_<GENDER>.npz`` (e.g.
-    ``root/smplh/SMPLH_MALE.npz``), the layout ``smplx.create(root, model_type=...,
+    ``root/smplh/SMPLH_MALE.npz``, ``root/smplx/SMPLX_NEUTRAL.npz``), the layout ``smplx.create(root, model_type=...,
     gender=..., ext='npz')`` expects. Every gender gets the same arrays. Each file is
     written atomically (temporary file in the same folder, then ``os.replace``) and is
     byte-identical across calls. Returns the written paths."""
@@ -411,27 +524,31 @@ def write_proxy_model(root, model_type: str = "smplh",
 class ProxyBody:
     """Pure-numpy linear blend skinning of the proxy (no ``smplx`` needed).
 
-    ``forward`` reproduces ``smplx``'s SMPL-H forward pass on the proxy files
-    (``use_pca=False, flat_hand_mean=True``) in float64:
+    ``forward`` reproduces ``smplx``'s SMPL-H (or, with ``model_type='smplx'``, SMPL-X with
+    zero expression) forward pass on the proxy files (``use_pca=False``) in float64:
     ``v_shaped = v_template + shapedirs . betas``, rest joints ``(1 + 0.05 b_0) J``,
     joints by :func:`hoibench.skeleton.forward_kinematics` (hands continue from the
     wrists), and ``v = sum_j w_vj (G_j v_shaped + J_j - G_j rest_j)`` (``trans`` included
     in ``J_j``).
 
-    Attributes: ``v_template`` (V, 3), ``faces`` (F, 3), ``weights`` (V, 52),
-    ``shapedirs`` (V, 3, 16), ``parents`` (52,), ``rest_joints`` (52, 3), ``part_joint``
-    (V,) the joint each vertex is rigid to.
+    Attributes: ``v_template`` (V, 3), ``faces`` (F, 3), ``weights`` (V, J),
+    ``shapedirs`` (V, 3, 16) (SMPL-X: (V, 3, 400)), ``parents`` (J,), ``rest_joints``
+    (J, 3), ``part_joint`` (V,) the joint each vertex is rigid to; J = 52 (SMPL-H) or 55
+    (SMPL-X).
     """
 
     def __init__(self, model_type: str = "smplh", chunk: int = 256):
-        arr = _build(_check_model_type(model_type))
-        self.model_type = model_type
+        mt = _check_model_type(model_type)
+        arr = _build(mt)
+        self.model_type = mt
+        self.num_joints = _LAYOUT[mt][0]
+        self.max_betas = PROXY_NUM_BETAS if mt == "smplh" else _SMPLX_SHAPE_DIMS
         self.v_template = arr["v_template"]
         self.faces = arr["f"]
         self.weights = arr["weights"]
         self.shapedirs = arr["shapedirs"]
         self.rest_joints = arr["J"]
-        self.parents = np.array(SMPLH_PARENTS)
+        self.parents = np.array(_LAYOUT[mt][1])
         self.part_joint = self.weights.argmax(1)
         self._rigid = bool(np.all(self.weights[np.arange(len(self.weights)), self.part_joint] == 1.0))
         self._groups = [(j, np.flatnonzero(self.part_joint == j)) for j in np.unique(self.part_joint)]
@@ -448,25 +565,27 @@ class ProxyBody:
             body_pose_aa: (T, 22, 3) axis-angle (radians), joint 0 = global orientation
                 about the pelvis; or (T, 52, 3) with the 30 hand joints too (SMPL-H
                 ``poses`` (T, 156) reshaped); flat (T, 66) / (T, 156) also accepted.
-                Missing hand joints are the flat hand.
+                SMPL-X proxy: (T, 55, 3) / flat (T, 165) in SMPL-X order (root, body,
+                jaw, eyes, hands) instead of 52 / 156. Missing hand joints are the flat hand.
             trans: (T, 3) or (3,) root translation (SMPL ``transl``), metres; None = 0.
-            betas: (k,) or (T, k), k <= 16; None = mean shape.
+            betas: (k,) or (T, k), k <= 16 (SMPL-X proxy: k <= 300); None = mean shape.
 
         Returns:
             ``(vertices (T, V, 3), joints (T, 22, 3))``, float64, metres.
         """
         pose = np.asarray(body_pose_aa, dtype=np.float64)
-        if pose.ndim == 2 and pose.shape[1] in (3 * NUM_JOINTS, 3 * SMPLH_NUM_JOINTS):
+        nj = self.num_joints
+        if pose.ndim == 2 and pose.shape[1] in (3 * NUM_JOINTS, 3 * nj):
             pose = pose.reshape(len(pose), -1, 3)
-        if pose.ndim != 3 or pose.shape[1:] not in ((NUM_JOINTS, 3), (SMPLH_NUM_JOINTS, 3)):
-            raise ValueError(f"body_pose_aa: expected shape (T, 22, 3) or (T, 52, 3), got {pose.shape}")
+        if pose.ndim != 3 or pose.shape[1:] not in ((NUM_JOINTS, 3), (nj, 3)):
+            raise ValueError(f"body_pose_aa: expected shape (T, 22, 3) or (T, {nj}, 3), got {pose.shape}")
         T = len(pose)
         trans = np.zeros((T, 3)) if trans is None else np.broadcast_to(np.asarray(trans, np.float64), (T, 3))
         if betas is not None:
             betas = np.asarray(betas, dtype=np.float64)
-            if betas.ndim not in (1, 2) or betas.shape[-1] > PROXY_NUM_BETAS or (
+            if betas.ndim not in (1, 2) or betas.shape[-1] > self.max_betas or (
                     betas.ndim == 2 and len(betas) not in (1, T)):
-                raise ValueError(f"betas: expected shape (k,) or (T, k) with k <= {PROXY_NUM_BETAS}, "
+                raise ValueError(f"betas: expected shape (k,) or (T, k) with k <= {self.max_betas}, "
                                  f"got {betas.shape}")
             if betas.ndim == 2 and len(betas) == 1:
                 betas = betas[0]
@@ -482,19 +601,20 @@ class ProxyBody:
 
     def _forward(self, pose, trans, betas):
         n = len(pose)
-        rots = np.broadcast_to(np.eye(3), (n, SMPLH_NUM_JOINTS, 3, 3)).copy()
+        nj = self.num_joints
+        rots = np.broadcast_to(np.eye(3), (n, nj, 3, 3)).copy()
         rots[:, :pose.shape[1]] = axis_angle_to_matrix(pose)
         scale = _scale(betas, ())
         scale_n = np.broadcast_to(scale, (n,))
-        rest = self.rest_joints * scale_n[:, None, None]  # (n, 52, 3)
+        rest = self.rest_joints * scale_n[:, None, None]  # (n, J, 3)
         body, G = forward_kinematics(rots[:, :NUM_JOINTS], rest[:, :NUM_JOINTS], trans)
-        Jp = np.concatenate([body, np.empty((n, SMPLH_NUM_JOINTS - NUM_JOINTS, 3))], 1)
-        G = np.concatenate([G, np.empty((n, SMPLH_NUM_JOINTS - NUM_JOINTS, 3, 3))], 1)
-        for j in range(NUM_JOINTS, SMPLH_NUM_JOINTS):  # fingers: same recursion as the body
+        Jp = np.concatenate([body, np.empty((n, nj - NUM_JOINTS, 3))], 1)
+        G = np.concatenate([G, np.empty((n, nj - NUM_JOINTS, 3, 3))], 1)
+        for j in range(NUM_JOINTS, nj):  # face and fingers: same recursion as the body
             p = self.parents[j]
             G[:, j] = G[:, p] @ rots[:, j]
             Jp[:, j] = (G[:, p] @ (rest[:, j] - rest[:, p])[..., None])[..., 0] + Jp[:, p]
-        t = Jp - (G @ rest[..., None])[..., 0]  # (n, 52, 3)
+        t = Jp - (G @ rest[..., None])[..., 0]  # (n, J, 3)
         if betas is None:
             v_shaped = self.v_template
         else:

@@ -1,0 +1,444 @@
+"""OMOMO processed release -> :class:`HOISequence` (canonical y-up world, floor at 0).
+
+Raw layout (the processed release that OMOMO and CHOIS train on; ``hoibench`` also writes it
+with :func:`hoibench.datasets.synthetic_layouts.write_omomo_layout`)::
+
+    ROOT/train_diffusion_manip_seq_joints24.p   joblib pickle: {int: sequence dict}
+    ROOT/test_diffusion_manip_seq_joints24.p    (ROOT may also be the folder holding data/)
+    ROOT/captured_objects/<object>_cleaned_simplified.obj
+    ROOT/omomo_text_anno_json_data/<seq_name>.json   {seq_name: sentence} (optional; also
+        found under ROOT/omomo_text_anno/omomo_text_anno_json_data/)
+
+A sequence dict holds (facts read from ``manip/data/hand_foot_dataset.py`` of
+lijiaman/omomo_release and ``cal_normalize_data_input`` of lijiaman/chois_release):
+``seq_name`` ('sub16_clothesstand_000': subject, object, take), ``gender``, ``betas``
+(1, 16), ``trans`` and ``root_orient`` (T, 3), ``pose_body`` (T, 63) axis-angle,
+``rest_offsets`` (24, 3), ``trans2joint`` (3,), ``obj_trans`` (T, 3, 1), ``obj_rot``
+(T, 3, 3), ``obj_scale`` (T,), ``obj_com_pos`` (T, 3). Two-part objects (vacuum, mop) add
+``obj_bottom_trans/rot/scale``.
+
+.. warning::
+   The pickles are read with ``joblib.load``, which unpickles them: it can run code. Only
+   point hoibench at the OMOMO files you downloaded yourself (hoibench never unpickles
+   anything else: its own outputs are ``.npz`` read with ``allow_pickle=False`` and JSON).
+   ``joblib`` is needed (``pip install joblib``).
+
+Conversion (per sequence):
+
+1. Body: SMPL-X of the sequence's gender with its 16 betas (``num_betas=16``), hands flat
+   (OMOMO stores no hand pose), run through ``smplx`` on the user's model files (or the
+   hoibench proxy in the SMPL-X structure). ``trans`` is SMPL-X's ``transl``.
+   ``rest_offsets``/``trans2joint`` are not needed: the joints come from the body model.
+   As a check, the joints OMOMO's own code computes (forward kinematics over
+   ``rest_offsets`` with the root at ``trans - trans2joint``) are compared with the body
+   model's and the largest difference is recorded as ``rest_offsets_fk_max_dev_m``.
+2. Frame: OMOMO's world is z-up (mocap). hoibench rotates it by -90 degrees about x,
+   ``p_yup = F p_zup`` with ``F = [[1,0,0],[0,0,1],[0,-1,0]]`` ((x, y, z) -> (x, z, -y), a
+   proper rotation: no mirroring). SMPL-X parameters are moved about the pelvis
+   (``R0' = F R0``, ``trans' = F (J0 + trans) - J0``); the object pose ``R' = F R``,
+   ``t' = F t``.
+3. Floor: y is shifted so the lowest body-surface vertex of the sequence sits at y = 0
+   (as for BEHAVE; OMOMO's own floor is z = 0, so the shift is small); recorded in the
+   provenance.
+4. Objects: OMOMO's templates are *not* centred and carry a per-object scale:
+   ``v = s R v_obj + t``. hoibench stores the scaled template centred on its vertex mean
+   ``m``, ``v' = s (v_obj - m)``, and the translation ``t' = t + s R m``, so
+   ``R v' + t'`` reproduces OMOMO's vertices exactly. ``obj_scale`` must be constant over
+   the sequence (it is one per object). If one object name appears with different scales
+   in the release, each scale gets its own template name ``<object>_s<scale>`` (the
+   store keeps one template per name); the category stays in the provenance.
+   Two-part objects (vacuum, mop: a top and an articulated bottom part) cannot be one rigid
+   template: those sequences fail with a message (CHOIS skips them too).
+5. Time: 30 fps, resampled by time to ``fps`` (poses by quaternion slerp, translations
+   linearly).
+6. Text: the sentence of ``<seq_name>.json`` as one sequence-level text, source "omomo"
+   (about 84 % of the sequences have one; the others get none).
+7. Split: the official subject split (sub1-15 train, sub16-17 test) unless a split file
+   names another (e.g. CHOIS's unseen-object split).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import geometry as geo
+from ..bodies.transform import rigid_transform_smpl
+from ..skeleton import NUM_JOINTS, PARENTS, forward_kinematics
+from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, resample_times
+from .sequence import BodyParams, HOISequence
+
+__all__ = ["SOURCE_FPS", "ZUP_TO_YUP", "PICKLES", "SequenceError", "parse_name", "official_split",
+           "object_template_path", "read_pickle", "load_sequence", "prepare_jobs"]
+
+SOURCE_FPS = 30.0
+#: z-up -> y-up: rotation by -90 degrees about x, (x, y, z) -> (x, z, -y).
+ZUP_TO_YUP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+PICKLES = {"train": "train_diffusion_manip_seq_joints24.p", "test": "test_diffusion_manip_seq_joints24.p"}
+TEST_SUBJECTS = (16, 17)
+NUM_BETAS = 16
+TEXT_DIRS = ("omomo_text_anno_json_data", "omomo_text_anno/omomo_text_anno_json_data", "omomo_text_anno")
+GT_DIR = "hoibench_gt"           # ground-truth sidecars written by hoibench's synthetic layout
+_NAME = re.compile(r"^sub(\d+)_([A-Za-z0-9]+)_(.+)$")
+_SEQ_KEYS = {"trans": (3,), "root_orient": (3,), "pose_body": (63,), "obj_rot": (3, 3)}
+_SCALE_TOL = 1e-5                # relative spread allowed in obj_scale over a sequence
+
+
+def parse_name(name: str) -> tuple[int, str, str]:
+    """'sub16_clothesstand_000' -> (16, 'clothesstand', '000')."""
+    m = _NAME.match(str(name))
+    if not m:
+        raise SequenceError(f"{name}: seq_name does not match sub<N>_<object>_<take>")
+    return int(m.group(1)), m.group(2), m.group(3)
+
+
+def official_split(name: str) -> str:
+    """OMOMO's subject split: sub16 and sub17 are test, sub1-15 train."""
+    return "test" if parse_name(name)[0] in TEST_SUBJECTS else "train"
+
+
+def object_template_path(objects_root: str | Path, obj: str) -> Path:
+    return Path(objects_root) / f"{obj}_cleaned_simplified.obj"
+
+
+def read_pickle(path: str | Path) -> Any:
+    """``joblib.load`` of one of the user's OMOMO pickles (this unpickles: own downloads only)."""
+    try:
+        import joblib
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("reading OMOMO's pickles needs the 'joblib' package: pip install joblib") from exc
+    return joblib.load(str(path))
+
+
+@lru_cache(maxsize=64)
+def load_object_template(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """Raw template vertices (V, 3) float64 (not centred, unscaled) and faces (F, 3) int64."""
+    import trimesh
+    mesh = trimesh.load(path, process=False, force="mesh")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(v) == 0 or len(f) == 0:
+        raise SequenceError(f"{path}: empty mesh")
+    return v, f
+
+
+@lru_cache(maxsize=8)
+def _body_model(model_dir: str, gender: str, num_betas: int):
+    from ..bodies.smpl import load_body_model
+    return load_body_model(model_dir, "smplx", gender, num_betas=num_betas)
+
+
+def _array(seq: dict, key: str, name: str) -> np.ndarray:
+    if key not in seq:
+        raise SequenceError(f"{name}: missing key {key!r}")
+    try:
+        a = np.asarray(seq[key])
+    except Exception as exc:
+        raise SequenceError(f"{name}: {key}: not an array ({type(exc).__name__}: {exc})") from None
+    if not np.issubdtype(a.dtype, np.number):
+        raise SequenceError(f"{name}: {key}: expected numbers, got {a.dtype}")
+    a = a.astype(np.float64)
+    if not np.isfinite(a).all():
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        raise SequenceError(f"{name}: {key}: non-finite value at {idx}")
+    return a
+
+
+def _frames(a: np.ndarray, key: str, tail: tuple, name: str) -> np.ndarray:
+    if a.ndim != 1 + len(tail) or a.shape[1:] != tail:
+        raise SequenceError(f"{name}: {key}: expected shape (T, {', '.join(map(str, tail))}), got {a.shape}")
+    return a
+
+
+def _text(seq: dict, key: str, name: str) -> str:
+    if key not in seq:
+        raise SequenceError(f"{name}: missing key {key!r}")
+    v = seq[key]
+    if isinstance(v, bytes):
+        v = v.decode()
+    v = np.asarray(v).ravel()
+    if v.size != 1:
+        raise SequenceError(f"{name}: {key}: expected one string, got shape {v.shape}")
+    return str(v[0])
+
+
+def _texts(path: str | None, name: str) -> list[dict]:
+    if not path or not Path(path).exists():
+        return []
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SequenceError(f"{name}: {Path(path).name}: invalid JSON ({exc})") from None
+    value = data.get(name) if isinstance(data, dict) else None
+    if value is None:
+        raise SequenceError(f"{name}: {Path(path).name}: no entry for {name!r}")
+    sentences = [value] if isinstance(value, str) else list(value)
+    return [{"text": str(s).strip(), "start": None, "end": None, "source": "omomo"}
+            for s in sentences if str(s).strip()]
+
+
+def _gt_contacts(path: str | None, src_t: np.ndarray, dst_t: np.ndarray, name: str) -> np.ndarray | None:
+    """Per-joint contacts from a hoibench ground-truth sidecar (synthetic data only)."""
+    if not path or not Path(path).exists():
+        return None
+    with np.load(path, allow_pickle=False) as z:
+        if "contacts" not in z.files:
+            return None
+        c = z["contacts"].astype(bool)
+    if c.shape != (len(src_t), NUM_JOINTS):
+        raise SequenceError(f"{name}: {Path(path).name}: contacts: expected ({len(src_t)}, 22), got {c.shape}")
+    nearest = np.clip(np.searchsorted(src_t, dst_t - 0.5 / SOURCE_FPS), 0, len(src_t) - 1)
+    return c[nearest]
+
+
+def _rest_offsets_fk(rots: np.ndarray, trans: np.ndarray, offsets: np.ndarray, trans2joint: np.ndarray):
+    """OMOMO's own joints: FK over parent-relative ``rest_offsets`` with the root at
+    ``trans - trans2joint`` (``process_window_data`` in omomo_release)."""
+    rest = np.zeros((NUM_JOINTS, 3))
+    for j in range(1, NUM_JOINTS):
+        rest[j] = rest[PARENTS[j]] + offsets[j]
+    joints, _ = forward_kinematics(rots, rest, trans - trans2joint)
+    return joints
+
+
+def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
+                  fps: float = SOURCE_FPS, text_file: str | None = None, object_name: str | None = None,
+                  source: str = "", gt_file: str | None = None) -> HOISequence:
+    """Convert one OMOMO sequence dict (an entry of the joblib pickle) into a canonical
+    :class:`HOISequence` at ``fps`` (see the module docstring).
+
+    ``object_name`` overrides the template name stored with the clip (default: the object
+    of ``seq_name``). Raises :class:`SequenceError` naming the sequence, key or file.
+    """
+    if not isinstance(seq, dict):
+        raise SequenceError(f"{source or 'omomo'}: expected a sequence dict, got {type(seq).__name__}")
+    name = _text(seq, "seq_name", source or "omomo")
+    sub, obj, _ = parse_name(name)
+    if any(k.startswith("obj_bottom") for k in seq):
+        raise SequenceError(f"{name}: two-part object {obj!r} (obj_bottom_* keys: an articulated top and "
+                            "bottom part) cannot be one rigid template; not supported (CHOIS skips "
+                            "vacuum and mop too)")
+    gender = _text(seq, "gender", name).lower()
+    if gender not in ("male", "female", "neutral"):
+        raise SequenceError(f"{name}: gender: expected male/female/neutral, got {gender!r}")
+    arr = {k: _frames(_array(seq, k, name), k, tail, name) for k, tail in _SEQ_KEYS.items()}
+    T = len(arr["trans"])
+    betas = _array(seq, "betas", name).reshape(-1)
+    if not 1 <= len(betas) <= 300:
+        raise SequenceError(f"{name}: betas: expected 1..300 coefficients, got {len(betas)}")
+    o_t = _array(seq, "obj_trans", name)
+    if o_t.shape in ((T, 3, 1), (T, 1, 3)):
+        o_t = o_t.reshape(T, 3)
+    if o_t.shape != (T, 3):
+        raise SequenceError(f"{name}: obj_trans: expected shape (T, 3, 1), got {o_t.shape}")
+    scale = _array(seq, "obj_scale", name).reshape(-1)
+    if scale.size == 1:
+        scale = np.repeat(scale, T)
+    for key, a in (("root_orient", arr["root_orient"]), ("pose_body", arr["pose_body"]),
+                   ("obj_rot", arr["obj_rot"]), ("obj_trans", o_t), ("obj_scale", scale)):
+        if len(a) != T:
+            raise SequenceError(f"{name}: {key}: {len(a)} frames, trans has {T}")
+    if T < 2:
+        raise SequenceError(f"{name}: only {T} frame(s)")
+    s0 = float(scale.mean())
+    if not s0 > 0 or float(np.abs(scale - s0).max()) > _SCALE_TOL * s0:
+        raise SequenceError(f"{name}: obj_scale: expected one positive scale for the sequence, got "
+                            f"{scale.min():.6g}..{scale.max():.6g}")
+    R_src = arr["obj_rot"]
+    ortho = np.abs(R_src @ R_src.swapaxes(-1, -2) - np.eye(3)).max(axis=(-2, -1))
+    bad = np.flatnonzero((ortho > 1e-3) | (np.linalg.det(R_src) < 0))
+    if len(bad):
+        raise SequenceError(f"{name}: obj_rot: not a rotation matrix at frame {int(bad[0])}")
+    template_path = object_template_path(objects_root, obj)
+    if not template_path.exists():
+        raise SequenceError(f"{name}: missing object template {template_path.name} in {Path(objects_root)}")
+    raw_v, faces = load_object_template(str(template_path))
+
+    # object: centre the scaled template (v' = s (v - m)), keep s R v + t exactly (t' = t + s R m)
+    mean = raw_v.mean(0)
+    verts = s0 * (raw_v - mean)
+    o_tc = o_t + s0 * (R_src @ mean)
+
+    # resample by time
+    src_t = np.arange(T) / SOURCE_FPS
+    dst = resample_times(src_t, fps)
+    pose = np.concatenate([arr["root_orient"], arr["pose_body"]], 1).reshape(T, NUM_JOINTS, 3)
+    pose = _slerp_resample(src_t, dst, pose).reshape(len(dst), 3 * NUM_JOINTS)
+    trans = _lerp(src_t, dst, arr["trans"])
+    o_aa = _slerp_resample(src_t, dst, geo.matrix_to_axis_angle(R_src)[:, None])[:, 0]
+    o_tc = _lerp(src_t, dst, o_tc)
+
+    # SMPL-X in OMOMO's z-up world, then rotate everything to y-up (rigid: exact)
+    from ..bodies.smpl import body_forward
+    model = _body_model(str(Path(body_models)), gender, max(NUM_BETAS, len(betas)))
+    joints_z, verts_z = body_forward(model, pose, betas, trans)
+    joints_z = joints_z[:, :NUM_JOINTS].astype(np.float64)
+    j0 = (joints_z[:, 0] - trans).mean(0)          # rest pelvis: SMPL-X's pelvis = J0 + transl
+    check = {}
+    if "rest_offsets" in seq and "trans2joint" in seq:
+        try:
+            offsets = np.asarray(seq["rest_offsets"], dtype=np.float64)[:NUM_JOINTS].reshape(NUM_JOINTS, 3)
+            t2j = np.asarray(seq["trans2joint"], dtype=np.float64).reshape(3)
+            fk = _rest_offsets_fk(geo.axis_angle_to_matrix(pose.reshape(-1, NUM_JOINTS, 3)), trans, offsets, t2j)
+            check = {"rest_offsets_fk_max_dev_m": float(np.abs(fk - joints_z).max()),
+                     "trans2joint_vs_rest_pelvis_m": (t2j + j0).tolist()}
+        except (ValueError, TypeError) as exc:
+            check = {"rest_offsets_fk_check": f"skipped ({exc})"}
+    F = ZUP_TO_YUP
+    root, trans_y = rigid_transform_smpl(pose[:, :3], trans, j0, F, np.zeros(3))
+    pose[:, :3] = root
+    joints = joints_z @ F.T
+    floor = float((verts_z.reshape(-1, 3) @ F[1]).min())
+    joints[..., 1] -= floor
+    trans_y[:, 1] -= floor
+    o_rot = F @ geo.axis_angle_to_matrix(o_aa)
+    o_trans = o_tc @ F.T
+    o_trans[:, 1] -= floor
+
+    gt_c = _gt_contacts(gt_file, src_t, dst, name)
+    return HOISequence(
+        name=name, dataset="omomo", subject=f"sub{sub}", fps=float(fps),
+        joints=joints.astype(np.float32), object_name=object_name or obj,
+        object_vertices=verts, object_faces=faces, obj_rot=o_rot, obj_trans=o_trans,
+        contacts=gt_c,
+        body=BodyParams("smplx", gender, betas.astype(np.float32), pose.astype(np.float32),
+                        trans_y.astype(np.float32), flat_hand_mean=True),
+        texts=_texts(text_file, name),
+        provenance={"source": "omomo-processed", "source_file": source,
+                    "source_frame": "OMOMO mocap world, z-up, metres",
+                    "transform": "p_yup = [[1,0,0],[0,0,1],[0,-1,0]] p_zup (Rx(-90 deg)); y -= floor",
+                    "floor_shift_m": floor, "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
+                    "source_frames": T, "body_model": "smplx", "num_betas": int(len(betas)),
+                    "hands": "flat (OMOMO stores no hand pose)",
+                    "object_category": obj, "template": template_path.name,
+                    "object_scale": s0, "template_mean_subtracted": mean.tolist(),
+                    "object_convention": "v = s R v_obj + t -> template s (v_obj - mean), t' = t + s R mean",
+                    **check},
+    )
+
+
+# --------------------------------------------------------------------------- jobs
+def _data_root(root: Path) -> Path:
+    for cand in (root, root / "data"):
+        if any((cand / f).exists() for f in PICKLES.values()):
+            return cand
+    raise FileNotFoundError(f"--root: no {' or '.join(PICKLES.values())} in {root} or {root / 'data'} "
+                            "(expected OMOMO's processed release)")
+
+
+def _text_dir(root: Path, data_root: Path) -> Path | None:
+    for base in dict.fromkeys((root, data_root, root.parent)):
+        for d in TEXT_DIRS:
+            if (base / d).is_dir() and any((base / d).glob("*.json")):
+                return base / d
+    return None
+
+
+def _sequence_sha(seq: Any, files: list[Path], extra: str) -> str:
+    """sha256 over a sequence dict's arrays (key, dtype, shape, bytes) and ``files``."""
+    from ..store import file_sha256
+    h = hashlib.sha256()
+    if isinstance(seq, dict):
+        for k in sorted(seq, key=str):
+            a = np.asarray(seq[k])
+            h.update(f"{k}|{a.dtype.str}|{a.shape}|".encode())
+            h.update(np.ascontiguousarray(a).tobytes() if a.dtype != object else repr(seq[k]).encode())
+    else:
+        h.update(repr(type(seq)).encode())
+    return file_sha256(files, extra=h.hexdigest() + extra)
+
+
+def _scale_of(seq: Any) -> float | None:
+    try:
+        s = np.asarray(seq["obj_scale"], dtype=np.float64).reshape(-1)
+        return round(float(s.mean()), 6) if s.size and np.isfinite(s).all() else None
+    except Exception:
+        return None
+
+
+def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
+                 split_file: str | Path | None = None) -> list[tuple]:
+    """One :func:`hoibench.store.run_unit` job per OMOMO sequence (both pickles).
+
+    Reads the pickles here (``joblib.load``: the user's own download only) and passes each
+    sequence dict to its unit. The split is the official subject split unless
+    ``split_file`` (``{"train": [seq_name, ...], "test": [...]}``) names another; a
+    sequence it does not list is an error for that sequence. Clip id = ``seq_name``.
+    """
+    root = Path(root)
+    data_root = _data_root(root)
+    objects_root = data_root / "captured_objects"
+    text_dir = _text_dir(root, data_root)
+    splits = load_split_file(split_file) if split_file else None
+    entries: list[tuple[str, Any, str]] = []   # (clip id, sequence dict, pickle name)
+    for fname in PICKLES.values():
+        path = data_root / fname
+        if not path.exists():
+            continue
+        try:
+            data = read_pickle(path)
+        except ImportError:
+            raise
+        except Exception as exc:
+            raise ValueError(f"{path}: unreadable OMOMO pickle ({type(exc).__name__}: {exc})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{path}: expected a dict of sequences, got {type(data).__name__}")
+        for key, seq in data.items():
+            name = None
+            if isinstance(seq, dict) and "seq_name" in seq:
+                try:
+                    name = str(np.asarray(seq["seq_name"]).ravel()[0])
+                except Exception:
+                    name = None
+            entries.append((name or f"{Path(fname).stem}_{key}", seq, fname))
+
+    # one template name per (object, scale): the store keeps one template per name
+    scales: dict[str, set] = {}
+    for cid, seq, _ in entries:
+        m = _NAME.match(cid)
+        s = _scale_of(seq) if isinstance(seq, dict) else None
+        if m and s is not None:
+            scales.setdefault(m.group(2), set()).add(s)
+
+    jobs, seen = [], {}
+    for cid, seq, fname in entries:
+        seen[cid] = seen.get(cid, 0) + 1
+        if seen[cid] > 1:
+            dup = f"{cid}_dup{seen[cid]}"
+            jobs.append((dup, "unknown", "", str(out), _fail,
+                         (f"{dup}: duplicate seq_name {cid!r} (again in {fname})",), config.mode))
+            continue
+        m = _NAME.match(cid)
+        obj = m.group(2) if m else ""
+        s = _scale_of(seq) if isinstance(seq, dict) else None
+        obj_name = f"{obj}_s{s:.6f}" if obj and s is not None and len(scales.get(obj, ())) > 1 else (obj or None)
+        text_file = str(text_dir / f"{cid}.json") if text_dir is not None and (text_dir / f"{cid}.json").exists() else None
+        gt = data_root / GT_DIR / f"{cid}.npz"
+        gt_file = str(gt) if gt.exists() else None
+        loader, args = load_sequence, (seq, str(objects_root), str(body_models), config.fps, text_file,
+                                       obj_name, fname, gt_file)
+        try:
+            split = splits[cid] if splits is not None else official_split(cid)
+        except KeyError:
+            split, loader, args = "unknown", _fail, (f"{cid}: not listed in split file {split_file}",)
+        except SequenceError as exc:
+            split, loader, args = "unknown", _fail, (f"{exc} (in {fname})",)
+        files = [object_template_path(objects_root, obj) if obj else objects_root / "<no template>"]
+        files += [Path(p) for p in (text_file, gt_file) if p]
+        sha = _sequence_sha(seq, files, config.sha256())
+        jobs.append((cid, split, sha, str(out), loader, args, config.mode))
+    if splits is not None:
+        present = {j[0] for j in jobs}
+        for name in sorted(set(splits) - present):
+            jobs.append((name, splits[name], "", str(out), _fail,
+                         (f"{name}: listed in split file {split_file} but in neither OMOMO pickle",), config.mode))
+    return jobs
+
+
+def _fail(message: str):
+    raise SequenceError(message)

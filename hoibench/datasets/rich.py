@@ -1,0 +1,578 @@
+"""RICH -> :class:`HOISequence` clips: **RICH-CAT (hoibench rebuild)**.
+
+RICH-CAT (26 actions, template texts, 22-joint contacts) is described in the CATMO paper but
+its data and code were never released; hoibench rebuilds it from RICH's release. Clips carry
+``provenance["label"] = "RICH-CAT (hoibench rebuild)"``; texts come from the annotator.
+
+Raw layout (RICH's release as its toolkit, paulchhuang/rich_toolkit, expects it; ``ROOT``
+may be the toolkit folder holding ``data/``; hoibench also writes it with
+:func:`hoibench.datasets.synthetic_layouts.write_rich_layout`)::
+
+    ROOT/bodies/<split>/<seq>/<frame:05d>/<sub:03d>.pkl      SMPL-X parameters of one frame
+    ROOT/human_scene_contact/<split>/<seq>/<frame:05d>/<sub:03d>.pkl   {'contact': (6890,)}
+    ROOT/multicam2world/<Scene>[_<variant>]_multicam2world.json        {"R", "t", "c"}
+    ROOT/resource/meta/{train,val,test}.txt   toolkit meta: seq, scene, scan, subject, _, gender
+    ROOT/resource/gender.json                 {"<subject id>": "male" | "female"}
+
+``<seq>`` is ``<Scene>_<sub>[_<sub2>]_<action><take>`` (e.g. ``Gym_010_pushup1``); a frame
+folder holds one pickle per subject. Facts (rich_toolkit's ``smplx2images.py``,
+``multicam2world.py``, ``hsc_params.py`` and ``README.md``):
+
+* body pickles hold batch-first (1, D) arrays: ``betas`` (10), ``global_orient``,
+  ``body_pose`` (63), ``left_hand_pose`` / ``right_hand_pose`` (12-D PCA), ``jaw_pose``,
+  ``leye_pose``, ``reye_pose``, ``expression`` (10), ``transl``; the toolkit poses them with
+  ``SMPLX(num_pca_comps=12, flat_hand_mean=False)``;
+* they live in the calibrated multi-camera frame (camera 0 = identity), not gravity aligned;
+  ``multicam2world`` maps that frame to the scan's z-up world as row vectors,
+  ``X_world = c * X @ R + t`` (a similarity: ``c`` is a scale; some ``R`` are rounded to
+  three decimals, so not exactly orthonormal). LectureHall has two scans (chair / yoga):
+  the json is chosen from the meta file's scan name (``scan_<v>_scene_camcoord`` ->
+  ``<Scene>_<v>_multicam2world.json``), else ``<Scene>_multicam2world.json``, else by action;
+* ``human_scene_contact`` pickles hold ``contact`` (6890,) per-vertex 0/1 labels in **SMPL**
+  topology (plus SMPL-X distance fields hoibench does not read);
+* frame ids are 5-digit, start anywhere and may skip.
+
+.. warning::
+   Body and contact files are Python pickles: they are unpickled (``pickle.load``), which
+   can run code. Only point hoibench at the RICH files you downloaded yourself.
+
+Conversion (per subject of a sequence):
+
+1. Frames: a frame id that does not follow its predecessor (id + 1) ends a run; gaps are
+   never interpolated. Each run is resampled by time from ``SOURCE_FPS`` (30) to ``fps``
+   (rotations by quaternion slerp, the rest linearly) and cut, from its start, into clips
+   of 192, 128 or 64 frames (greedy: the longest that still fits; a remainder shorter than
+   64 frames is dropped) -- RICH-CAT's clip lengths. One unit = one clip; its id is
+   ``<seq>_<sub>_<first source frame id:05d>``.
+2. Body: SMPL-X of the subject's gender (meta file, else ``gender.json``), hand PCA turned
+   into axis-angle with the model's own components (``flat_hand_mean=False``: the hand mean
+   is added by the model), expression included -- the toolkit's mesh, exactly.
+3. Frame: camera 0 -> z-up world (``c X R + t``) -> y-up (``F = Rx(-90 deg)``, as OMOMO):
+   joints and vertices are mapped with the full similarity, so they are exactly the
+   toolkit's. The stored SMPL-X parameters get the rotation part (the nearest rotation to
+   ``F R^T``) about the pelvis and the pelvis lands exactly; their mesh is the toolkit's
+   scaled by ``1/c`` about the pelvis (exact when ``c = 1``; ``c`` is recorded).
+4. Floor: per clip, y is shifted so the lowest body vertex sits at y = 0 (recorded).
+5. Contacts: every SMPL vertex goes to the joint of its largest skinning weight (hand and
+   finger joints to their wrist, SMPL-X face joints to the head); a joint is in contact in
+   a frame when any of its vertices is (OR). The weights come from SMPL-topology model
+   files under ``body_models`` (``smplh/`` or ``smpl/``; hoibench's proxy SMPL-H for
+   synthetic data). Output frames take the nearest source frame's labels.
+6. No object: RICH's scenes are static (``object_name`` None).
+"""
+from __future__ import annotations
+
+import json
+import pickle
+import re
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .. import geometry as geo
+from ..skeleton import NUM_JOINTS
+from .behave import SequenceError, _lerp, _slerp_resample, load_split_file
+from .omomo import ZUP_TO_YUP
+from .sequence import BodyParams, HOISequence
+
+__all__ = ["SOURCE_FPS", "CLIP_LENGTHS", "LABEL", "SequenceError", "split_runs", "cut_lengths",
+           "vertex_joint_map", "joint_contacts", "read_frame", "load_clip", "prepare_jobs"]
+
+SOURCE_FPS = 30.0
+CLIP_LENGTHS = (192, 128, 64)
+LABEL = "RICH-CAT (hoibench rebuild)"
+SMPL_NUM_VERTICES = 6890
+_BODY_KEYS = ("betas", "global_orient", "body_pose", "transl")
+_KNOWN_KEYS = _BODY_KEYS + ("left_hand_pose", "right_hand_pose", "jaw_pose", "leye_pose", "reye_pose",
+                            "expression")
+_WIDTH = {"global_orient": (3,), "body_pose": (63,), "transl": (3,), "jaw_pose": (3,), "leye_pose": (3,),
+          "reye_pose": (3,)}
+_FRAME = re.compile(r"^\d{5}$")
+_SCAN_VARIANT = re.compile(r"^scan_(\w+?)_scene_camcoord$")
+
+
+# --------------------------------------------------------------------------- frames and clips
+def split_runs(frame_ids) -> list[list[int]]:
+    """Sorted frame ids -> runs of consecutive ids (a gap, id != previous + 1, ends a run)."""
+    ids = sorted(int(i) for i in frame_ids)
+    runs: list[list[int]] = []
+    for i in ids:
+        if runs and i == runs[-1][-1] + 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return runs
+
+
+def cut_lengths(n: int, lengths=CLIP_LENGTHS) -> list[tuple[int, int]]:
+    """Cut ``n`` frames, from the start, into clips of the given lengths (greedy: the longest
+    that still fits); a remainder shorter than the shortest length is dropped.
+    Returns ``[(start, length), ...]``."""
+    out, a = [], 0
+    shortest = min(lengths)
+    while n - a >= shortest:
+        L = max(x for x in lengths if x <= n - a)
+        out.append((a, L))
+        a += L
+    return out
+
+
+def _n_resampled(n_src: int, fps: float) -> int:
+    """Frames of a run of ``n_src`` consecutive source frames resampled to ``fps``
+    (``behave.resample_times`` of ``arange(n_src) / SOURCE_FPS``)."""
+    return int(np.floor((n_src - 1) / SOURCE_FPS * fps + 1e-9)) + 1
+
+
+# --------------------------------------------------------------------------- contacts
+def vertex_joint_map(weights) -> np.ndarray:
+    """(V, J) skinning weights -> (V,) index in 0..21 of the joint each vertex moves with most.
+
+    J = 24 (SMPL: hands 22/23 -> wrists 20/21), 52 (SMPL-H: fingers 22-36 -> 20, 37-51 -> 21),
+    55 (SMPL-X: jaw/eyes 22-24 -> head 15, fingers 25-39 -> 20, 40-54 -> 21) or 22.
+    Ties go to the lower joint index (``argmax``).
+    """
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 2 or w.shape[1] not in (22, 24, 52, 55):
+        raise ValueError(f"weights: expected (V, J) with J in 22, 24, 52, 55, got {w.shape}")
+    j = w.argmax(1)
+    fold = np.arange(w.shape[1])
+    if w.shape[1] == 24:
+        fold[22], fold[23] = 20, 21
+    elif w.shape[1] == 52:
+        fold[22:37], fold[37:52] = 20, 21
+    elif w.shape[1] == 55:
+        fold[22:25], fold[25:40], fold[40:55] = 15, 20, 21
+    return fold[j]
+
+
+def joint_contacts(vertex_labels, vmap) -> np.ndarray:
+    """(T, V) per-vertex contact labels + (V,) vertex->joint map -> (T, 22) bool: a joint is
+    in contact when any of its vertices is (OR)."""
+    lab = np.asarray(vertex_labels) > 0
+    vmap = np.asarray(vmap)
+    if lab.shape[-1] != len(vmap):
+        raise ValueError(f"vertex_labels: {lab.shape[-1]} vertices, the map has {len(vmap)}")
+    onehot = np.zeros((len(vmap), NUM_JOINTS), dtype=np.float32)
+    onehot[np.arange(len(vmap)), vmap] = 1.0
+    return (lab.astype(np.float32) @ onehot) > 0
+
+
+@lru_cache(maxsize=4)
+def smpl_topology_weights(body_models: str) -> tuple[np.ndarray, str]:
+    """Skinning weights (6890, J) of an SMPL-topology model under ``body_models`` (SMPL-H
+    ``.npz`` read without pickles, else ``smplx`` on SMPL-H / SMPL files) and where they came
+    from. Raises SequenceError when there is none."""
+    root = Path(body_models)
+    tried = []
+    for g in ("NEUTRAL", "MALE", "FEMALE"):
+        p = root / "smplh" / f"SMPLH_{g}.npz"
+        tried.append(str(p))
+        if p.is_file():
+            try:
+                with np.load(p, allow_pickle=False) as z:
+                    w = np.asarray(z["weights"], dtype=np.float64)
+                if w.shape[0] == SMPL_NUM_VERTICES:
+                    return w, str(p)
+            except Exception:
+                pass
+    from ..bodies.smpl import load_body_model
+    for mt in ("smplh", "smpl"):
+        for g in ("neutral", "male", "female"):
+            try:
+                model = load_body_model(root, mt, g)
+            except (FileNotFoundError, ImportError):
+                continue
+            except Exception:
+                continue
+            w = model.lbs_weights.detach().cpu().numpy().astype(np.float64)
+            if w.shape[0] == SMPL_NUM_VERTICES:
+                return w, f"{mt} {g}"
+    raise SequenceError(f"RICH contacts are in SMPL topology (6890 vertices): need SMPL-H or SMPL model "
+                        f"files under {root} (smplh/SMPLH_*.npz or smpl/SMPL_*.pkl) for the skinning "
+                        f"weights; tried {', '.join(tried)} and smplx's loaders")
+
+
+# --------------------------------------------------------------------------- reading
+def _rel(path: Path, data_root: Path) -> str:
+    try:
+        return str(path.relative_to(data_root))
+    except ValueError:
+        return str(path)
+
+
+def _unpickle(path: Path, seq: str, data_root: Path):
+    rel = _rel(path, data_root)
+    if not path.is_file():
+        raise SequenceError(f"{seq}: missing file {rel}")
+    try:
+        with open(path, "rb") as fh:
+            return pickle.load(fh, encoding="latin1")
+    except Exception as exc:
+        raise SequenceError(f"{seq}: {rel}: unreadable pickle ({type(exc).__name__}: {exc})") from None
+
+
+def read_frame(path: str | Path, seq: str, data_root: str | Path | None = None) -> dict[str, np.ndarray]:
+    """One RICH body pickle -> {key: (D,) float64}; SequenceError naming the sequence and
+    file for a missing, unreadable or malformed file."""
+    path = Path(path)
+    data_root = Path(data_root) if data_root is not None else path.parent
+    d = _unpickle(path, seq, data_root)
+    rel = _rel(path, data_root)
+    if not isinstance(d, dict):
+        raise SequenceError(f"{seq}: {rel}: expected a dict of SMPL-X parameters, got {type(d).__name__}")
+    out = {}
+    for k in _KNOWN_KEYS:                 # other keys of the release are not read
+        if k not in d:
+            continue
+        v = d[k]
+        try:
+            a = np.asarray(v.detach().cpu().numpy() if hasattr(v, "detach") else v, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise SequenceError(f"{seq}: {rel}: {k}: not numbers ({exc})") from None
+        if a.ndim == 2 and a.shape[0] == 1:
+            a = a[0]
+        if a.ndim != 1:
+            raise SequenceError(f"{seq}: {rel}: {k}: expected shape (1, D), got {np.shape(v)}")
+        if not np.isfinite(a).all():
+            raise SequenceError(f"{seq}: {rel}: {k}: non-finite value")
+        out[k] = a
+    for k in _BODY_KEYS:
+        if k not in out:
+            raise SequenceError(f"{seq}: {rel}: missing key {k!r}")
+    for k, w in _WIDTH.items():
+        if k in out and out[k].shape != w:
+            raise SequenceError(f"{seq}: {rel}: {k}: expected {w[0]} values, got {out[k].shape[0]}")
+    for k in ("left_hand_pose", "right_hand_pose"):
+        if k in out and not 1 <= out[k].shape[0] <= 45:
+            raise SequenceError(f"{seq}: {rel}: {k}: expected 1..45 values (PCA or axis-angle), got "
+                                f"{out[k].shape[0]}")
+    return out
+
+
+def _stack(frames: list[dict], key: str, width: int | None, seq: str) -> np.ndarray:
+    present = [key in f for f in frames]
+    if not any(present):
+        return np.zeros((len(frames), width or 0))
+    if not all(present):
+        raise SequenceError(f"{seq}: {key}: present in some frames only")
+    widths = {f[key].shape[0] for f in frames}
+    if len(widths) != 1:
+        raise SequenceError(f"{seq}: {key}: width changes between frames ({sorted(widths)})")
+    return np.stack([f[key] for f in frames])
+
+
+@lru_cache(maxsize=16)
+def _body_model(model_dir: str, gender: str, num_betas: int, num_expr: int, num_pca: int):
+    from ..bodies.smpl import load_body_model
+    return load_body_model(model_dir, "smplx", gender, num_betas=num_betas,
+                           num_expression_coeffs=max(num_expr, 1), use_pca=False,
+                           flat_hand_mean=False, num_pca_comps=max(num_pca, 1))
+
+
+def _hand_aa(pose: np.ndarray, components: np.ndarray, key: str, seq: str) -> np.ndarray:
+    """(T, k) hand pose -> (T, 45) axis-angle: k = 45 is axis-angle already, else PCA
+    coefficients times the model's first k components (what smplx does with use_pca)."""
+    k = pose.shape[1]
+    if k == 0:
+        return np.zeros((len(pose), 45))
+    if k == 45:
+        return pose
+    comp = np.asarray(components, dtype=np.float64)
+    if comp.shape[0] < k:
+        raise SequenceError(f"{seq}: {key}: {k} PCA coefficients, the model has {comp.shape[0]} components")
+    return pose @ comp[:k]
+
+
+def _smplx_forward(model, pose55, betas, expr, transl, chunk: int = 256):
+    """SMPL-X forward with every parameter (expression included): joints (T, 22, 3) float64,
+    vertices (T, V, 3) float32."""
+    import torch
+    buf = next(model.buffers())
+    dt, dev = buf.dtype, buf.device
+    tens = lambda x: torch.from_numpy(np.ascontiguousarray(x, dtype=np.float64)).to(device=dev, dtype=dt)  # noqa: E731
+    J, V = [], []
+    saved = getattr(model, "batch_size", None)
+    try:
+        model.batch_size = 1      # smplx repeats its landmark coefficients batch_size times
+        with torch.no_grad():
+            for s in range(0, len(pose55), chunk):
+                p = pose55[s:s + chunk]
+                n = len(p)
+                out = model(betas=tens(betas[s:s + chunk]), expression=tens(expr[s:s + chunk]),
+                            global_orient=tens(p[:, 0]), body_pose=tens(p[:, 1:22].reshape(n, 63)),
+                            jaw_pose=tens(p[:, 22]), leye_pose=tens(p[:, 23]), reye_pose=tens(p[:, 24]),
+                            left_hand_pose=tens(p[:, 25:40].reshape(n, 45)),
+                            right_hand_pose=tens(p[:, 40:55].reshape(n, 45)),
+                            transl=tens(transl[s:s + chunk]), return_verts=True)
+                J.append(out.joints[:, :NUM_JOINTS].cpu().numpy().astype(np.float64))
+                V.append(out.vertices.cpu().numpy())
+    finally:
+        if saved is not None:
+            model.batch_size = saved
+    return np.concatenate(J), np.concatenate(V)
+
+
+def _read_transform(path: Path, seq: str) -> tuple[float, np.ndarray, np.ndarray]:
+    try:
+        d = json.loads(Path(path).read_text())
+        c = float(d["c"])
+        R = np.asarray(d["R"], dtype=np.float64).reshape(3, 3)
+        t = np.asarray(d["t"], dtype=np.float64).reshape(3)
+    except FileNotFoundError:
+        raise SequenceError(f"{seq}: missing multicam2world file {Path(path).name}") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise SequenceError(f"{seq}: {Path(path).name}: expected JSON with 'R' (3x3), 't' (3), 'c' "
+                            f"({type(exc).__name__}: {exc})") from None
+    if not (np.isfinite(R).all() and np.isfinite(t).all() and np.isfinite(c) and c > 0):
+        raise SequenceError(f"{seq}: {Path(path).name}: non-finite R/t or non-positive c")
+    if abs(np.linalg.det(R) - 1.0) > 1e-2 or np.abs(R.T @ R - np.eye(3)).max() > 1e-2:
+        raise SequenceError(f"{seq}: {Path(path).name}: R is not (close to) a rotation")
+    return c, R, t
+
+
+def _nearest_rotation(M: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(M)
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        U[:, -1] *= -1
+        R = U @ Vt
+    return R
+
+
+def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_ids, run_first: int,
+              out_start: int, length: int, fps: float, body_models: str | Path, gender: str,
+              transform_file: str | Path, with_contacts: bool = True, clip_id: str | None = None
+              ) -> HOISequence:
+    """Load one RICH-CAT clip: output frames ``out_start .. out_start + length - 1`` of the
+    run starting at source frame ``run_first`` (resampled to ``fps``), from the source
+    frames ``frame_ids`` (consecutive, covering the clip). See the module docstring."""
+    data_root = Path(data_root)
+    ids = np.asarray(frame_ids, dtype=np.int64)
+    if len(ids) < 1 or np.any(np.diff(ids) != 1):
+        raise SequenceError(f"{seq}: frame ids of a clip must be consecutive, got {ids[:5].tolist()}...")
+    body_dir = data_root / "bodies" / split_dir / seq
+    frames = [read_frame(body_dir / f"{i:05d}" / f"{sub}.pkl", seq, data_root) for i in ids]
+    N = len(frames)
+    betas = _stack(frames, "betas", None, seq)
+    expr = _stack(frames, "expression", 0, seq)
+    lh = _stack(frames, "left_hand_pose", 0, seq)
+    rh = _stack(frames, "right_hand_pose", 0, seq)
+    model = _body_model(str(Path(body_models)), gender, betas.shape[1], expr.shape[1],
+                        max(lh.shape[1] if lh.shape[1] != 45 else 0, rh.shape[1] if rh.shape[1] != 45 else 0, 12))
+    if expr.shape[1] == 0:
+        expr = np.zeros((N, model.num_expression_coeffs))
+    pose = np.zeros((N, 55, 3))
+    pose[:, 0] = _stack(frames, "global_orient", 3, seq)
+    pose[:, 1:22] = _stack(frames, "body_pose", 63, seq).reshape(N, 21, 3)
+    for j, k in ((22, "jaw_pose"), (23, "leye_pose"), (24, "reye_pose")):
+        pose[:, j] = _stack(frames, k, 3, seq)
+    pose[:, 25:40] = _hand_aa(lh, model.np_left_hand_components, "left_hand_pose", seq).reshape(N, 15, 3)
+    pose[:, 40:55] = _hand_aa(rh, model.np_right_hand_components, "right_hand_pose", seq).reshape(N, 15, 3)
+    transl = _stack(frames, "transl", 3, seq)
+
+    # resample by time (the run's clock: source frame i at (i - run_first) / 30 s)
+    src_t = (ids - int(run_first)) / SOURCE_FPS
+    dst = (int(out_start) + np.arange(int(length))) / float(fps)
+    if dst[0] < src_t[0] - 1e-9 or dst[-1] > src_t[-1] + 1e-9:
+        raise SequenceError(f"{seq}: clip times {dst[0]:.3f}..{dst[-1]:.3f} s outside the loaded frames "
+                            f"{src_t[0]:.3f}..{src_t[-1]:.3f} s")
+    if N == 1:
+        pose_r, transl_r, betas_r, expr_r = pose, transl, betas, expr
+    else:
+        pose_r = _slerp_resample(src_t, dst, pose)
+        transl_r, betas_r, expr_r = (_lerp(src_t, dst, x) for x in (transl, betas, expr))
+    joints_c, verts_c = _smplx_forward(model, pose_r, betas_r, expr_r, transl_r)
+
+    # camera 0 -> z-up world (X c R + t, row vectors) -> y-up; exact similarity for points
+    c, R, t = _read_transform(Path(transform_file), seq)
+    F = ZUP_TO_YUP
+    A = c * F @ R.T
+    b = F @ t
+    joints = joints_c @ A.T + b
+    floor = float((verts_c.reshape(-1, 3).astype(np.float64) @ A[1]).min() + b[1])
+    joints[..., 1] -= floor
+    # parameters: rotation part about the pelvis, pelvis exactly on the mapped pelvis
+    Rr = _nearest_rotation(F @ R.T)
+    j0 = joints_c[:, 0] - transl_r                         # per-frame rest pelvis
+    pose_w = pose_r.copy()
+    pose_w[:, 0] = geo.matrix_to_axis_angle(Rr @ geo.axis_angle_to_matrix(pose_r[:, 0]))
+    trans_w = (j0 + transl_r) @ A.T + b - j0
+    trans_w[:, 1] -= floor
+    betas_out = betas_r[0] if np.allclose(betas_r, betas_r[:1], atol=1e-6) else betas_r
+
+    contacts, cmap_src = None, None
+    contact_dir = data_root / "human_scene_contact" / split_dir / seq
+    if with_contacts and contact_dir.is_dir():
+        labels = []
+        for i in ids:
+            cpath = contact_dir / f"{i:05d}" / f"{sub}.pkl"
+            d = _unpickle(cpath, seq, data_root)
+            lab = None
+            if isinstance(d, dict) and "contact" in d:
+                try:
+                    lab = np.asarray(d["contact"], dtype=np.float64).reshape(-1)
+                except (TypeError, ValueError):
+                    lab = None
+            if lab is None or lab.shape != (SMPL_NUM_VERTICES,) or not np.isfinite(lab).all():
+                raise SequenceError(f"{seq}: {_rel(cpath, data_root)}: expected 'contact' with "
+                                    f"{SMPL_NUM_VERTICES} finite SMPL-vertex labels")
+            labels.append(lab)
+        w, cmap_src = smpl_topology_weights(str(Path(body_models)))
+        jc = joint_contacts(np.stack(labels), vertex_joint_map(w))
+        nearest = np.clip(np.searchsorted(src_t, dst - 0.5 / SOURCE_FPS), 0, N - 1)
+        contacts = jc[nearest]
+
+    scene = seq.split("_")[0]
+    name = clip_id or f"{seq}_{sub}_{int(ids[0]):05d}"
+    return HOISequence(
+        name=name, dataset="rich-cat", subject=str(sub), fps=float(fps),
+        joints=joints.astype(np.float32), contacts=contacts,
+        body=BodyParams("smplx", gender, np.asarray(betas_out, dtype=np.float32),
+                        np.concatenate([pose_w[:, 0], pose_w[:, 1:22].reshape(-1, 63), pose_w[:, 22:25].reshape(-1, 9),
+                                        pose_w[:, 25:].reshape(-1, 90)], 1).astype(np.float32),
+                        trans_w.astype(np.float32), flat_hand_mean=False),
+        provenance={"label": LABEL, "source": "rich", "sequence": seq, "scene": scene, "split_folder": split_dir,
+                    "subject": str(sub), "gender": gender,
+                    "source_frames": [int(ids[0]), int(ids[-1])], "run_first_frame": int(run_first),
+                    "clip_output_frames": [int(out_start), int(out_start) + int(length)],
+                    "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
+                    "source_frame": "RICH multi-camera frame (camera 0), not gravity aligned",
+                    "transform": "p_yup = Rx(-90 deg) (c * p_cam @ R + t); y -= floor",
+                    "multicam2world": Path(transform_file).name, "world_scale_c": c,
+                    "world_R_orthonormality_error": float(np.abs(R.T @ R - np.eye(3)).max()),
+                    "body_params_note": ("exact" if abs(c - 1.0) < 1e-9 else
+                                         "joints exact; stored SMPL-X params are rigid (mesh scaled by 1/c about the pelvis)"),
+                    "floor_shift_m": floor,
+                    "hands": "PCA -> axis-angle with the model's components, flat_hand_mean=False",
+                    "contacts": (None if contacts is None else
+                                 f"human_scene_contact (6890 SMPL vertices) -> joint of largest skinning weight "
+                                 f"({cmap_src}), OR over each joint's vertices; nearest source frame")},
+    )
+
+
+# --------------------------------------------------------------------------- jobs
+def _data_root(root: Path) -> Path:
+    for cand in (root, root / "data"):
+        if (cand / "bodies").is_dir():
+            return cand
+    raise FileNotFoundError(f"--root: no 'bodies' folder in {root} or {root / 'data'} (expected RICH's release)")
+
+
+def _resource_dir(root: Path, data_root: Path) -> Path | None:
+    for cand in dict.fromkeys((root / "resource", data_root / "resource", data_root.parent / "resource")):
+        if cand.is_dir():
+            return cand
+    return None
+
+
+def read_meta(resource: Path | None) -> dict[tuple[str, str], dict]:
+    """rich_toolkit's ``resource/meta/{train,val,test}.txt`` (tab-separated: seq, scene,
+    scan, subject, _, gender, ...) -> {(seq, subject): {"scene", "scan", "gender", "split"}}."""
+    out: dict[tuple[str, str], dict] = {}
+    if resource is None:
+        return out
+    for split in ("train", "val", "test"):
+        p = resource / "meta" / f"{split}.txt"
+        if not p.is_file():
+            continue
+        for line in p.read_text().splitlines():
+            cols = line.strip().split("\t")
+            if len(cols) >= 6 and cols[0]:
+                out[(cols[0], cols[3].zfill(3))] = {"scene": cols[1], "scan": cols[2],
+                                                     "gender": cols[5].lower(), "split": split}
+    return out
+
+
+def _gender_json(resource: Path | None) -> dict[str, str]:
+    p = resource / "gender.json" if resource is not None else None
+    if p is None or not p.is_file():
+        return {}
+    return {str(int(k)): str(v).lower() for k, v in json.loads(p.read_text()).items()}
+
+
+def transform_path(data_root: Path, seq: str, scan: str | None = None) -> Path:
+    """The ``multicam2world`` json of a sequence (see the module docstring)."""
+    folder = data_root / "multicam2world"
+    scene = seq.split("_")[0]
+    cands = []
+    if scan:
+        m = _SCAN_VARIANT.match(scan)
+        cands.append(folder / (f"{scene}_{m.group(1)}_multicam2world.json" if m else f"{scene}_multicam2world.json"))
+    cands.append(folder / f"{scene}_multicam2world.json")
+    if scene == "LectureHall":
+        variant = "chair" if ("chair" in seq or "reparingprojector" in seq) else "yoga"
+        cands.append(folder / f"LectureHall_{variant}_multicam2world.json")
+    for p in cands:
+        if p.is_file():
+            return p
+    return cands[0]
+
+
+def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
+                 split_file: str | Path | None = None) -> list[tuple]:
+    """One :func:`hoibench.store.run_unit` job per RICH-CAT clip (see the module docstring).
+
+    The split is RICH's (the ``bodies/<split>`` folder: train, val, test) unless
+    ``split_file`` (``{"train": [...], "val": [...], "test": [...]}`` of sequence names or
+    clip ids) names another; a clip it does not list is an error for that clip. A subject
+    of a sequence with no run long enough for one clip is reported as a failed unit.
+    """
+    from ..store import file_sha256
+    root = Path(root)
+    data_root = _data_root(root)
+    resource = _resource_dir(root, data_root)
+    meta = read_meta(resource)
+    genders = _gender_json(resource)
+    splits = load_split_file(split_file) if split_file else None
+    fps = float(config.fps)
+    jobs = []
+    for split_path in sorted(p for p in (data_root / "bodies").iterdir() if p.is_dir()):
+        for seq_path in sorted(p for p in split_path.iterdir() if p.is_dir()):
+            seq = seq_path.name
+            by_sub: dict[str, list[int]] = {}
+            for fdir in sorted(p for p in seq_path.iterdir() if p.is_dir() and _FRAME.match(p.name)):
+                for f in fdir.iterdir():
+                    if f.suffix == ".pkl":
+                        by_sub.setdefault(f.stem, []).append(int(fdir.name))
+            contact_seq = data_root / "human_scene_contact" / split_path.name / seq
+            for sub, ids in sorted(by_sub.items()):
+                info = meta.get((seq, sub.zfill(3)), {})
+                gender = info.get("gender") or (genders.get(str(int(sub))) if sub.isdigit() else None)
+                tpath = transform_path(data_root, seq, info.get("scan"))
+                runs = split_runs(ids)
+                clips = [(run, a, L) for run in runs for a, L in cut_lengths(_n_resampled(len(run), fps))]
+                if not clips:
+                    cid = f"{seq}_{sub}"
+                    msg = (f"{cid}: no run of consecutive frames long enough for a {min(CLIP_LENGTHS)}-frame clip "
+                           f"at {fps:g} fps (runs of {', '.join(str(len(r)) for r in runs)} source frames)")
+                    jobs.append((cid, split_path.name, "", str(out), _fail, (msg,), config.mode))
+                    continue
+                for run, a, L in clips:
+                    t0, t1 = a / fps, (a + L - 1) / fps
+                    i0 = int(np.floor(t0 * SOURCE_FPS + 1e-9))
+                    i1 = min(len(run) - 1, int(np.ceil(t1 * SOURCE_FPS - 1e-9)))
+                    fids = tuple(run[i0:i1 + 1])
+                    cid = f"{seq}_{sub}_{fids[0]:05d}"
+                    files = [seq_path / f"{i:05d}" / f"{sub}.pkl" for i in fids]
+                    if contact_seq.is_dir():
+                        files += [contact_seq / f"{i:05d}" / f"{sub}.pkl" for i in fids]
+                    files.append(tpath)
+                    sha = file_sha256(files, extra=f"{seq}|{sub}|{gender}|{run[0]}|{a}|{L}|" + config.sha256())
+                    loader, args = load_clip, (str(data_root), split_path.name, seq, sub, fids, run[0], a, L, fps,
+                                               str(body_models), gender, str(tpath), True, cid)
+                    split = split_path.name
+                    if splits is not None:
+                        split = splits.get(cid, splits.get(seq, "unknown"))
+                        if split == "unknown":
+                            loader, args = _fail, (f"{cid}: neither the clip nor {seq} is listed in split file "
+                                                   f"{split_file}",)
+                    if gender not in ("male", "female", "neutral"):
+                        loader, args = _fail, (f"{cid}: gender unknown for subject {sub} of {seq}: put rich_toolkit's "
+                                               f"resource/gender.json or resource/meta/*.txt under {root}",)
+                    jobs.append((cid, split, sha, str(out), loader, args, config.mode))
+    return jobs
+
+
+def _fail(message: str):
+    raise SequenceError(message)
