@@ -1,6 +1,6 @@
-"""Throughput of ``hoibench prepare behave`` on generated sequences, 1 and 2 workers.
+"""Throughput of ``hoibench prepare`` on generated sequences, 1 and 2 workers.
 
-    python benchmarks/prepare.py [--clips 200] [--workers 1 2] [--fps 20]
+    python benchmarks/prepare.py [--clips 200] [--workers 1 2] [--fps 20] [--layouts behave omomo rich]
 
 Generates the synthetic dataset in the BEHAVE raw layout (timed separately), then prepares
 it into a fresh store once per worker count (1 = serial, N > 1 = processes:N) and prints
@@ -24,34 +24,49 @@ def _files(root: Path) -> dict[str, bytes]:
     return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+def run_layout(layout: str, tmp: Path, args) -> None:
+    raw = tmp / "raw"
+    t0 = time.perf_counter()
+    if layout == "behave":
+        m = write_behave_layout(raw, args.clips, seed=0, progress=False)
+        loader, split_file = behave, raw / "split.json"
+    else:
+        from hoibench.datasets import omomo, rich, synthetic_layouts
+        m = getattr(synthetic_layouts, f"write_{layout}_layout")(raw, args.clips, seed=0)
+        loader, split_file = {"omomo": omomo, "rich": rich}[layout], None
+    src_frames = sum(c.get("num_frames", 0) for c in m.get("clips", [])) or None
+    print(f"[{layout}] synth: {args.clips} sequences in {time.perf_counter() - t0:.1f} s"
+          + (f", {src_frames} source frames at 30 fps" if src_frames else ""))
+    cfg = PrepareConfig(layout, fps=args.fps, body_model_type="smplh" if layout == "behave" else "smplx")
+    stores = {}
+    for n in args.workers:
+        out = tmp / f"store{n}"
+        ex = "serial" if n == 1 else f"processes:{n}"
+        t0 = time.perf_counter()
+        man = prepare(loader.prepare_jobs(raw, raw / "body_models", out, cfg, split_file=split_file),
+                      out, cfg, executor=ex)
+        dt = time.perf_counter() - t0
+        extra = f"{src_frames / dt:7.0f} source frames/s  " if src_frames else ""
+        print(f"[{layout}] prepare, {ex:12s}: {dt:6.1f} s  {extra}"
+              f"{man['counts']['frames'] / dt:7.0f} output frames/s ({args.fps:g} fps)  "
+              f"{man['counts']['clips']} clips, {man['counts']['failed']} failed")
+        stores[ex] = _files(out)
+    ref = next(iter(stores.values()))
+    print(f"[{layout}] stores byte-identical across worker counts:", all(s == ref for s in stores.values()))
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--clips", type=int, default=200)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--fps", type=float, default=20.0)
+    ap.add_argument("--layouts", nargs="+", default=["behave", "omomo", "rich"],
+                    help="raw layouts to generate and prepare")
     args = ap.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="hoibench-bench-"))
     try:
-        raw = tmp / "raw"
-        t0 = time.perf_counter()
-        m = write_behave_layout(raw, args.clips, seed=0, progress=False)
-        src_frames = sum(c["num_frames"] for c in m["clips"])
-        print(f"synth: {args.clips} sequences, {src_frames} frames at 30 fps in {time.perf_counter() - t0:.1f} s")
-        cfg = PrepareConfig("synthetic", fps=args.fps)
-        stores = {}
-        for n in args.workers:
-            out = tmp / f"store{n}"
-            ex = "serial" if n == 1 else f"processes:{n}"
-            t0 = time.perf_counter()
-            man = prepare(behave.prepare_jobs(raw, raw / "body_models", out, cfg, split_file=raw / "split.json"),
-                          out, cfg, executor=ex)
-            dt = time.perf_counter() - t0
-            print(f"prepare behave, {ex:12s}: {dt:6.1f} s  {src_frames / dt:7.0f} source frames/s  "
-                  f"{man['counts']['frames'] / dt:7.0f} output frames/s ({args.fps:g} fps)  "
-                  f"{man['counts']['clips']} clips, {man['counts']['failed']} failed")
-            stores[ex] = _files(out)
-        ref = next(iter(stores.values()))
-        print("stores byte-identical across worker counts:", all(s == ref for s in stores.values()))
+        for layout in args.layouts:
+            run_layout(layout, tmp / layout, args)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
