@@ -252,10 +252,7 @@ def test_surface_mode_reproduces_synthetic_contacts(clips):
     for p in PARTS:
         assert strict[p]["recall"] >= 0.95, p
         assert tolerant[p]["precision"] >= 0.95, p
-    for p in ("left_hand", "right_hand", "feet"):
         assert strict[p]["precision"] >= 0.95, p
-    # seated pelvis settles slowly: the labelled onset comes after ~5 frames within 7 mm
-    assert strict["hips"]["precision"] >= 0.85
     # the mesh distances agree with the generator's analytic ones at the contact joints
     for c, d in zip(clips, dist):
         m = c.contacts

@@ -127,7 +127,7 @@ __all__ = [
     "rest_joints", "frame_times", "measure_clip", "ply_bytes",
 ]
 
-GENERATOR_VERSION = "1.0"
+GENERATOR_VERSION = "1.1"  # 1.1: sit contact starts when the pelvis has settled within 3 mm
 FPS = 30.0
 FRAME_TIME_OFFSET_S = 3.0
 ACTIONS: tuple[str, ...] = ("lift", "carry", "putdown", "push", "pull", "sit", "kick", "hold")
@@ -184,6 +184,8 @@ CAMERA_C: np.ndarray = np.array(CAMERA_OFFSET_M, dtype=np.float64)
 JOINT_PENETRATION_TOL_M = 0.002
 #: Hip-joint height above a seat when sitting, times the body scale: the proxy's hip radius.
 SEAT_CLEARANCE_M = 0.088
+#: hips are labelled seated once the pelvis is this close to its seated position (m)
+SIT_CONTACT_TOL_M = 0.003
 
 # motion-model constants (metres at scale 1, radians)
 _REACH_FRAC = 0.96        # hand targets within this fraction of the arm length
@@ -869,7 +871,11 @@ def _plan_sit(obj, hands, body, rng) -> _Plan:
     plan.pelvis[:, 2] = start[2] + (end[2] - start[2]) * _minjerk(u / 0.85)
     plan.pelvis[:, 1] = start[1] + (end[1] - start[1]) * _minjerk((u - 0.1) / 0.9)
     plan.bend = math.radians(35.0) * np.sin(np.pi * u)
-    plan.contacts[i1:, [1, 2]] = True
+    # hips are labelled from the first frame the settling pelvis is within SIT_CONTACT_TOL_M
+    # of its seated position (the min-jerk approach spends several frames within millimetres)
+    near = np.hypot(plan.pelvis[:, 1] - end[1], plan.pelvis[:, 2] - end[2]) < SIT_CONTACT_TOL_M
+    first = int(np.argmax(near & (i >= i0))) if (near & (i >= i0)).any() else i1
+    plan.contacts[min(first, i1):, [1, 2]] = True
     plan.seated = i >= i1
     plan.segments = [("sit", i0, T, "none")]
     return plan
