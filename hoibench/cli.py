@@ -127,6 +127,21 @@ def _cmd_annotate(args) -> int:
                          seed=args.seed, spec_dir=args.spec_dir, labels=args.labels)
 
 
+def _cmd_protocols(args) -> int:
+    from .protocol import main_protocols
+    return main_protocols(args.action, args.name)
+
+
+def _cmd_validate(args) -> int:
+    from .submission import main_validate
+    return main_validate(args.submission, args.data, protocol=args.protocol)
+
+
+def _cmd_submission(args) -> int:
+    from .submission import main_submission_from_store
+    return main_submission_from_store(args.data, args.out, as_zip=args.zip)
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -217,6 +232,27 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="serial")
     s.add_argument("--strict", action="store_true")
     s.set_defaults(func=_cmd_annotate)
+
+    s = sub.add_parser("protocols", help="list or show evaluation protocols",
+                       epilog="examples: hoibench protocols ls; hoibench protocols show behave-clean")
+    s.add_argument("action", choices=["ls", "show"])
+    s.add_argument("name", nargs="?")
+    s.set_defaults(func=_cmd_protocols)
+
+    s = sub.add_parser("validate", help="check a submission against a store's test split",
+                       epilog="example: hoibench validate my_method.zip --data data/behave")
+    s.add_argument("submission", type=Path)
+    s.add_argument("--data", type=Path, required=True)
+    s.add_argument("--protocol", default=None)
+    s.set_defaults(func=_cmd_validate)
+
+    s = sub.add_parser("submission", help="make submissions (from-store: the ground-truth 'real motion' row)",
+                       epilog="example: hoibench submission from-store data/behave --out gt_submission")
+    s.add_argument("action", choices=["from-store"])
+    s.add_argument("data", type=Path)
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--zip", action="store_true")
+    s.set_defaults(func=_cmd_submission)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")

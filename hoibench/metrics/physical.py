@@ -1,0 +1,377 @@
+"""Physical metrics over a set of clips: per-clip pure units, mapped by an executor, pooled by
+a mergeable metric.
+
+Per clip (:func:`clip_physical_stats`, a pure function of one :class:`ClipInput` and the
+:class:`PhysicalConfig`, so serial, process-pool and Dask runs agree bit for bit):
+
+========================== ============================================= ======= ==========
+output                     definition (module)                           units   better
+========================== ============================================= ======= ==========
+``cd``                     contact distance (contact_metrics)            m^2     lower
+``ocd``                    CD minimised over the semantic group          m^2     lower
+``ps``                     penetrating body-surface vertex-frames        frac.   lower
+``penetration_depth_max_m`` deepest penetrating vertex                   m       lower
+``penetration_depth_mean_m`` mean depth of penetrating vertex-frames     m       lower
+``fsr``                    ChainHOI foot skating ratio (motion)          frac.   lower
+``fsr_gmd``                GMD / HOI-Diff velocity-based skating ratio   frac.   lower
+``contact_iou``            joint contact labels vs ground truth          frac.   higher
+``hand_contact_ratio``     frames with a wrist in contact                frac.   ~ real
+``object_floating_ratio``  object off the floor and untouched            frac.   lower
+``jitter_mps3``            mean jerk magnitude                           m/s^3   lower
+========================== ============================================= ======= ==========
+
+Pooling (:class:`PhysicalMetrics`): counts are summed over clips (PS, FSR, IoU, ratios,
+jitter: ratio of sums, as ChainHOI pools PS and FSR); ``fsr_gmd`` averages per-clip ratios
+(GMD); CD and OCD average per-clip values -- ``legacy`` divides by *every* clip, those
+without ground-truth contact contributing 0 (ChainHOI's ``contact_distance.mean() /
+count_seq``), ``clean`` averages over the clips that have contact.
+
+Body surface for PS, penetration depth and object floating: the proxy body fitted to the
+joints (:mod:`hoibench.metrics.body_surface`), labelled ``"proxy (joint fit)"``, or a
+user callable named ``"module:function"``. ``legacy`` mode also reproduces ChainHOI's PS
+quirk of lowering the body (not the object) so that its lowest joint is at y = 0 before
+fitting the surface (``floor_shift``).
+"""
+from __future__ import annotations
+
+import importlib
+import json
+from dataclasses import asdict, dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .. import skeleton as sk
+from ..contact import joint_thresholds, signed_distance_field
+from ..parallel import map_units
+from . import METRICS
+from . import contact_metrics as cm
+from . import motion as mo
+from .body_surface import PROXY_LABEL, proxy_vertices_from_joints
+from .state import Metric, sorted_items
+
+MODES: tuple[str, ...] = ("legacy", "clean")
+
+#: names of the physical metrics (metadata: :data:`hoibench.metrics.METRICS`)
+PHYSICAL_OUTPUTS: tuple[str, ...] = tuple(n for n, i in METRICS.items() if i.kind == "physical")
+
+
+@dataclass(frozen=True)
+class PhysicalConfig:
+    """Settings of the physical metrics (a protocol fixes them; see docs/metrics.md).
+
+    ``mode``: ``legacy`` (ChainHOI's FSR on x only, its CD/OCD averaging and PS floor shift)
+    or ``clean``. ``contact_mode``: thresholds of the predicted contact labels (contact IoU,
+    hand contact ratio), :func:`hoibench.contact.joint_thresholds` modes ``chainhoi`` or
+    ``surface``. ``body_surface``: ``"proxy"`` or ``"module:function"`` mapping joints
+    (T, 22, 3) to vertices (T, V, 3).
+    """
+
+    mode: str = "clean"
+    contact_mode: str = "chainhoi"
+    body_surface: str = "proxy"
+    ocd_length_tolerance: int = cm.OCD_LENGTH_TOLERANCE_FRAMES
+    fsr_height_m: float = mo.FSR_HEIGHT_M
+    fsr_displacement_m: float = mo.FSR_DISPLACEMENT_M
+    gmd_height_m: float = mo.GMD_HEIGHT_M
+    gmd_speed_mps: float = mo.GMD_SPEED_MPS
+    gmd_window_frames: int = mo.GMD_WINDOW_FRAMES
+    vertex_contact_m: float = cm.VERTEX_CONTACT_M
+    floor_tolerance_m: float = cm.FLOOR_TOLERANCE_M
+    floor_shift: bool | None = None          # None: True in legacy mode, False in clean
+    inside_test: str = "auto"
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f"mode: expected one of {MODES}, got {self.mode!r}")
+        if self.contact_mode not in ("chainhoi", "surface"):
+            raise ValueError(f"contact_mode: expected 'chainhoi' or 'surface', got {self.contact_mode!r}")
+        if self.body_surface != "proxy" and ":" not in self.body_surface:
+            raise ValueError(f"body_surface: expected 'proxy' or 'module:function', got {self.body_surface!r}")
+
+    @property
+    def shift_to_floor(self) -> bool:
+        return self.mode == "legacy" if self.floor_shift is None else bool(self.floor_shift)
+
+    @property
+    def body_label(self) -> str:
+        return PROXY_LABEL if self.body_surface == "proxy" else self.body_surface
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(eq=False)
+class ClipInput:
+    """One generated clip with what its metrics need (all arrays; picklable).
+
+    ``key``: unique key, e.g. ``(test id, sample index)``; ``joints`` (T, 22, 3) metres,
+    y-up; ``obj_rot`` (T, 3, 3), ``obj_trans`` (T, 3) (``v = R v_template + t``); the object
+    template (V, 3), (F, 3) and name (for contact thresholds); ``gt_contacts`` (T', 22) the
+    ground truth of the test id (None: CD, OCD and IoU undefined); ``group_contacts``: GT maps
+    of the other clips of its semantic group (OCD).
+    """
+
+    key: Any
+    joints: np.ndarray
+    fps: float
+    obj_rot: np.ndarray | None = None
+    obj_trans: np.ndarray | None = None
+    object_name: str = ""
+    template_vertices: np.ndarray | None = None
+    template_faces: np.ndarray | None = None
+    gt_contacts: np.ndarray | None = None
+    group_contacts: tuple = field(default_factory=tuple)
+
+
+def _body_fn(config: PhysicalConfig) -> Callable:
+    if config.body_surface == "proxy":
+        return proxy_vertices_from_joints
+    mod, _, attr = config.body_surface.partition(":")
+    return getattr(importlib.import_module(mod), attr)
+
+
+def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig()) -> dict:
+    """Sufficient statistics of every physical metric for one clip (pure; see the module)."""
+    J = np.asarray(inp.joints, dtype=np.float64)
+    if J.ndim != 3 or J.shape[1:] != (sk.NUM_JOINTS, 3):
+        raise ValueError(f"{inp.key}: joints: expected shape (T, 22, 3), got {J.shape}")
+    fps = float(inp.fps)
+    st: dict[str, Any] = {"frames": len(J)}
+    st["fsr_skating"], st["fsr_ground"] = mo.foot_skating_counts(
+        J, fps, config.mode, config.fsr_height_m, config.fsr_displacement_m)
+    st["gmd_skating"], st["gmd_frames"] = mo.gmd_skating_counts(
+        J, fps, config.gmd_height_m, config.gmd_speed_mps, config.gmd_window_frames)
+    st["jerk_sum"], st["jerk_count"] = mo.jitter_sums(J, fps)
+    if inp.template_vertices is None or inp.obj_rot is None:
+        st["has_object"] = False
+        return st
+    st["has_object"] = True
+    R = np.asarray(inp.obj_rot, dtype=np.float64)
+    t = np.asarray(inp.obj_trans, dtype=np.float64)
+    field_ = signed_distance_field(inp.template_vertices, inp.template_faces, inside_test=config.inside_test)
+    st["inside_test"] = field_.inside_test
+    d = cm.joint_object_distances(J, inp.template_vertices, inp.template_faces, R, t, field=field_)
+    if inp.gt_contacts is not None:
+        st["cd_sum"], st["cd_count"] = cm.contact_distance_sums(d, inp.gt_contacts)
+        st["ocd"] = cm.optimal_contact_distance(d, inp.gt_contacts, inp.group_contacts,
+                                                config.ocd_length_tolerance)
+    tau = joint_thresholds(inp.object_name, config.contact_mode, joints=J)
+    pred = cm.predicted_contacts(d, tau)
+    if inp.gt_contacts is not None:
+        st["iou_inter"], st["iou_union"] = cm.contact_iou_counts(pred, inp.gt_contacts)
+    st["hand_frames"], _ = cm.hand_contact_frames(pred)
+    # body surface: PS and penetration depth (on the floor-shifted body in legacy mode, as
+    # ChainHOI), body contact for object floating (always on the body as given)
+    shift = float(J[..., 1].min()) if config.shift_to_floor else 0.0
+    body = _body_fn(config)
+    neg = total = n_pen = 0
+    depth_max = depth_sum = 0.0
+    touching = np.zeros(len(J), bool)
+    margin = max(0.05, config.vertex_contact_m + 0.01)
+
+    def distances(joints, sl):
+        if config.body_surface == "proxy":
+            verts = proxy_vertices_from_joints(joints, frames=sl)
+        else:
+            verts = np.asarray(body(joints[sl]), dtype=np.float64)
+        return cm.body_object_distances(verts, inp.template_vertices, inp.template_faces, R[sl], t[sl],
+                                        margin_m=margin, field=field_)
+
+    chunk = 64
+    for s in range(0, len(J), chunk):
+        sl = slice(s, min(len(J), s + chunk))
+        dv = distances(J, sl)
+        touching[sl] = (dv < config.vertex_contact_m).any(axis=1)
+        if shift:
+            dv = distances(J - np.array([0.0, shift, 0.0]), sl)
+        a, b = cm.penetration_counts(dv)
+        mx, sm, n = cm.penetration_depth_stats(dv)
+        neg, total, n_pen = neg + a, total + b, n_pen + n
+        depth_max, depth_sum = max(depth_max, mx), depth_sum + sm
+    st.update(ps_neg=neg, ps_total=total, depth_max=depth_max, depth_sum=depth_sum, depth_count=n_pen)
+    low = cm.object_lowest_point(inp.template_vertices, R, t)
+    st["float_frames"], _ = cm.floating_frames(low, touching, config.floor_tolerance_m)
+    return st
+
+
+def _unit(inp: ClipInput, config: PhysicalConfig) -> tuple:
+    return inp.key, clip_physical_stats(inp, config)
+
+
+def _ratio(a, b) -> float:
+    return float(a / b) if b else float("nan")
+
+
+class PhysicalMetrics(Metric):
+    """Pools per-clip statistics (``reduce="keyed"`` by clip key) into the physical metrics.
+
+    ``update(key, stats)`` adds one clip's :func:`clip_physical_stats`; ``compute()`` returns
+    ``{name: value}`` for every name in :data:`PHYSICAL_OUTPUTS` plus ``clips``,
+    ``clips_with_contact`` and ``body_surface`` (the label). Sums run in sorted key order.
+    """
+
+    name = "physical"
+    higher_is_better = None
+    units = "see PHYSICAL_OUTPUTS"
+    paper_column = "CD, OCD, PS, FSR (ChainHOI)"
+
+    def __init__(self, mode: str = "clean", body_label: str = PROXY_LABEL):
+        super().__init__()
+        if mode not in MODES:
+            raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
+        self.mode, self.body_label = mode, body_label
+        self.add_state("clips", {}, "keyed")
+
+    def config(self) -> dict:
+        return {"mode": self.mode, "body_label": self.body_label}
+
+    def update(self, key, stats: Mapping[str, Any]) -> None:
+        if key in self.clips:
+            raise ValueError(f"key: clip {key!r} was already added")
+        self.clips[key] = dict(stats)
+
+    def per_clip(self) -> dict:
+        """Per-clip values ``{key: {cd, ocd, ps, fsr, fsr_gmd, jitter_mps3, ...}}``."""
+        out = {}
+        for k, s in sorted_items(self.clips):
+            row = {"fsr": _ratio(s["fsr_skating"], s["fsr_ground"]),
+                   "fsr_gmd": _ratio(s["gmd_skating"], s["gmd_frames"]),
+                   "jitter_mps3": _ratio(s["jerk_sum"], s["jerk_count"])}
+            if s.get("has_object"):
+                row.update(cd=_ratio(s.get("cd_sum", 0.0), s.get("cd_count", 0)),
+                           ocd=float(s.get("ocd", float("nan"))),
+                           ps=_ratio(s["ps_neg"], s["ps_total"]),
+                           penetration_depth_max_m=s["depth_max"],
+                           contact_iou=_ratio(s.get("iou_inter", 0), s.get("iou_union", 0)),
+                           hand_contact_ratio=_ratio(s["hand_frames"], s["frames"]),
+                           object_floating_ratio=_ratio(s["float_frames"], s["frames"]))
+            out[k] = row
+        return out
+
+    def compute(self) -> dict:
+        if not self.clips:
+            raise ValueError("PhysicalMetrics: no clips were added")
+        items = [s for _, s in sorted_items(self.clips)]
+        obj = [s for s in items if s.get("has_object")]
+        tot = lambda key, rows=items: sum(s.get(key, 0) for s in rows)  # noqa: E731
+        cds = [s["cd_sum"] / s["cd_count"] for s in obj if s.get("cd_count", 0)]
+        ocds = [s["ocd"] for s in obj if "ocd" in s and not np.isnan(s["ocd"])]
+        n_gt = sum(1 for s in obj if "cd_count" in s)
+        if self.mode == "legacy":      # ChainHOI: sum over clips with contact / all clips
+            cd = _ratio(sum(cds), n_gt)
+            ocd = _ratio(sum(ocds), n_gt)
+        else:
+            cd = _ratio(sum(cds), len(cds))
+            ocd = _ratio(sum(ocds), len(ocds))
+        gmd = [_ratio(s["gmd_skating"], s["gmd_frames"]) for s in items if s["gmd_frames"]]
+        out = {
+            "cd": cd, "ocd": ocd,
+            "ps": _ratio(tot("ps_neg", obj), tot("ps_total", obj)),
+            "penetration_depth_max_m": max((s["depth_max"] for s in obj), default=float("nan")),
+            "penetration_depth_mean_m": (_ratio(tot("depth_sum", obj), tot("depth_count", obj))
+                                         if tot("depth_count", obj) else (0.0 if obj else float("nan"))),
+            "fsr": _ratio(tot("fsr_skating"), tot("fsr_ground")),
+            "fsr_gmd": _ratio(sum(gmd), len(gmd)),
+            "contact_iou": _ratio(tot("iou_inter", obj), tot("iou_union", obj)),
+            "hand_contact_ratio": _ratio(tot("hand_frames", obj), tot("frames", obj)),
+            "object_floating_ratio": _ratio(tot("float_frames", obj), tot("frames", obj)),
+            "jitter_mps3": _ratio(tot("jerk_sum"), tot("jerk_count")),
+            "clips": len(items), "clips_with_contact": len(cds), "body_surface": self.body_label,
+        }
+        return out
+
+
+def evaluate_physical(inputs: Sequence[ClipInput], config: PhysicalConfig = PhysicalConfig(),
+                      executor: str = "serial", progress: str | None = None) -> PhysicalMetrics:
+    """Map :func:`clip_physical_stats` over ``inputs`` on ``executor`` (``serial``,
+    ``processes[:N]``, ``dask://...``; :mod:`hoibench.parallel`) and pool the results."""
+    metric = PhysicalMetrics(config.mode, config.body_label)
+    for key, stats in map_units(partial(_unit, config=config), list(inputs), executor, progress=progress):
+        metric.update(key, stats)
+    return metric
+
+
+# ===================================================================== from a store
+def load_groups(data) -> dict[str, list[str]] | None:
+    """Semantic groups ``{group id: [clip ids]}`` from ``DATA/annotations/index.json``
+    (written by ``hoibench annotate``), or None when the store is not annotated."""
+    p = Path(data) / "annotations" / "index.json"
+    if not p.is_file():
+        return None
+    return {g: list(ids) for g, ids in json.loads(p.read_text()).get("groups", {}).items()}
+
+
+def gt_contact_labels(store, clip: Mapping[str, np.ndarray], mode: str = "chainhoi") -> np.ndarray | None:
+    """Ground-truth joint contact labels (T, 22) of a store clip: its stored ``contacts``, else
+    :func:`hoibench.contact.joint_contact_labels` with ``mode`` thresholds; None without object."""
+    if "contacts" in clip:
+        return np.asarray(clip["contacts"], dtype=bool)
+    if "obj_rot" not in clip:
+        return None
+    from ..contact import joint_contact_labels
+    v, f = store.object_template(str(clip["object_name"]))
+    labels, _ = joint_contact_labels(clip["joints"], v, f, clip["obj_rot"], clip["obj_trans"],
+                                     str(clip["object_name"]), mode=mode)
+    return labels
+
+
+def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
+    if "obj_rot" in m:
+        return np.asarray(m["obj_rot"])
+    if "obj_rotvec" in m:
+        from ..geometry import axis_angle_to_matrix
+        return axis_angle_to_matrix(np.asarray(m["obj_rotvec"], dtype=np.float64))
+    return None
+
+
+def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: int | None = None,
+                groups: Mapping[str, Sequence[str]] | None = None, contact_mode: str = "chainhoi",
+                fps: float | None = None) -> list[ClipInput]:
+    """:class:`ClipInput` per generated motion, with the test clip's object, GT contacts and
+    group members' GT contacts from ``store`` (a :class:`hoibench.store.Store`).
+
+    ``motions``: test id -> ``{"joints" (T, 22, 3), "obj_rot" (T, 3, 3) or "obj_rotvec"
+    (T, 3), "obj_trans" (T, 3)}`` (one sample each). ``sample`` goes into the key ``(id,
+    sample)``. ``groups``: ``{group: [ids]}`` (:func:`load_groups`); only group members
+    among the ids of ``motions`` count (ChainHOI compares within the evaluated set).
+    ``fps``: default the store's.
+    """
+    fps = float(store.manifest["config"]["fps"]) if fps is None else float(fps)
+    member_of: dict[str, list[str]] = {}
+    for ids in (groups or {}).values():
+        for cid in ids:
+            member_of[cid] = [m for m in ids if m != cid and m in motions]
+    cache: dict[str, Any] = {}
+
+    def gt(cid):
+        if cid not in cache:
+            cache[cid] = gt_contact_labels(store, store.load(cid), contact_mode)
+        return cache[cid]
+
+    templates: dict[str, tuple] = {}
+    out = []
+    for cid in sorted(motions):
+        m = motions[cid]
+        clip = store.load(cid)
+        if cid not in cache:
+            cache[cid] = gt_contact_labels(store, clip, contact_mode)
+        name = str(clip["object_name"]) if "object_name" in clip else ""
+        if name and name not in templates:
+            templates[name] = store.object_template(name)
+        v, f = templates.get(name, (None, None))
+        group = tuple(g for g in (gt(x) for x in member_of.get(cid, [])) if g is not None)
+        out.append(ClipInput(
+            key=(cid, sample) if sample is not None else cid,
+            joints=np.asarray(m["joints"]), fps=fps,
+            obj_rot=_rotation(m),
+            obj_trans=None if "obj_trans" not in m else np.asarray(m["obj_trans"]),
+            object_name=name, template_vertices=v, template_faces=f,
+            gt_contacts=gt(cid), group_contacts=group))
+    return out
+
+
+__all__ = ["PHYSICAL_OUTPUTS", "PhysicalConfig", "ClipInput", "clip_physical_stats", "PhysicalMetrics",
+           "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs"]
