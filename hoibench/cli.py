@@ -142,6 +142,17 @@ def _cmd_submission(args) -> int:
     return main_submission_from_store(args.data, args.out, as_zip=args.zip)
 
 
+def _cmd_train_evaluator(args) -> int:
+    from .evaluator import main_train_evaluator
+    return main_train_evaluator(args.data, args.out, size=args.size, variant=args.variant,
+                                epochs=args.epochs, seed=args.seed)
+
+
+def _cmd_evaluator(args) -> int:
+    from .evaluator import main_show
+    return main_show(args.dir, as_json=args.json)
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -253,6 +264,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--zip", action="store_true")
     s.set_defaults(func=_cmd_submission)
+
+    s = sub.add_parser("train-evaluator", help="train the contrastive text-motion evaluator on a store",
+                       epilog="example: hoibench train-evaluator data --out evaluators/synthetic-tiny --size tiny")
+    s.add_argument("data", type=Path)
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--size", choices=["tiny", "paper"], default="tiny")
+    s.add_argument("--variant", choices=["human", "hoi"], default="human")
+    s.add_argument("--epochs", type=int, default=None)
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=_cmd_train_evaluator)
+
+    s = sub.add_parser("evaluator", help="show an evaluator card (and verify its id)",
+                       epilog="example: hoibench evaluator show evaluators/synthetic-tiny")
+    s.add_argument("action", choices=["show"])
+    s.add_argument("dir", type=Path)
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=_cmd_evaluator)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")

@@ -1,0 +1,55 @@
+"""Command-line entry points (wired into ``hoibench`` by :mod:`hoibench.cli`).
+
+Examples::
+
+    hoibench train-evaluator DATA --out EVAL --size tiny --variant human --epochs 60 --seed 0
+    hoibench show EVAL
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+
+def main_train_evaluator(data, out, size: str = "tiny", variant: str = "human", epochs: int | None = None,
+                         seed: int = 0, *, text_encoder: str | None = None, batch_size: int | None = None,
+                         control: str = "none", threads: int | None = None, text_unfreeze_epoch: int | None = None,
+                         resume: bool = True,
+                         checkpoint_every: int = 1, keep_checkpoint: bool = False) -> int:
+    """Train an evaluator; print its card summary. Returns 0 when it passes the sanity gate,
+    1 when it was written but failed the gate (the diagnostic is printed)."""
+    from .card import summary
+    from .config import preset
+    from .train import train_evaluator
+    cfg = preset(size, variant, epochs, seed, batch_size=batch_size, control=control, threads=threads,
+                 text_unfreeze_epoch=text_unfreeze_epoch)
+    res = train_evaluator(data, out, cfg, text_encoder=text_encoder, resume=resume,
+                          checkpoint_every=checkpoint_every, keep_checkpoint=keep_checkpoint)
+    print(summary(res.card, verified=True))
+    passed = bool(res.card.get("gate", {}).get("passed"))
+    if not passed:
+        print(f"evaluator written to {out} but it FAILED the sanity gate"
+              + (" (expected: this is a shuffled-text control)" if control != "none" else "")
+              + "; load_evaluator() will refuse it", file=sys.stderr)
+    return 0 if passed else 1
+
+
+def main_show(dir, as_json: bool = False) -> int:
+    """Print an evaluator's card (summary, or the raw card with ``as_json``). Returns 0 when
+    the folder verifies, 1 when its id does not match (tampered), 2 when it is not a folder."""
+    from .card import EvaluatorIntegrityError, read_card, summary, verify_folder
+    try:
+        card = read_card(dir)
+    except EvaluatorIntegrityError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        verify_folder(dir)
+        ok, err = True, None
+    except EvaluatorIntegrityError as exc:
+        ok, err = False, exc
+    print(json.dumps(card, indent=1, sort_keys=True) if as_json else summary(card, ok))
+    if not ok:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    return 0

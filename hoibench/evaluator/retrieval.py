@@ -1,0 +1,141 @@
+"""Ground-truth retrieval scores written in an evaluator's card.
+
+R-precision (top-1/2/3) and MM-Dist follow text-to-motion's ``calculate_R_precision`` /
+``euclidean_distance_matrix``: within a pool of ``P`` (motion, caption) pairs, each caption
+ranks the ``P`` motions by Euclidean distance between embeddings; top-k counts the captions
+whose own motion is among the k nearest. MM-Dist is the mean distance between a caption and
+its own motion. Embeddings are L2-normalised here, so distances lie in [0, 2] (the
+reference's unnormalised embeddings give larger MM-Dist values; compare within one
+evaluator only).
+
+Pools: the items are permuted with ``numpy.random.default_rng([seed, replication])`` and cut
+into consecutive pools of ``pool_size`` (32); an incomplete last pool is dropped. When the
+split has fewer than ``pool_size`` items, one pool of *all* items is used and the card says
+so (``pool_size`` then holds the actual size and chance is ``1 / pool_size``). Each
+replication also draws one caption per item from the same generator. Reported: mean over
+replications and the 95% CI ``1.96 * std / sqrt(replications)`` (population std).
+
+GT-vs-GT FID: the item embeddings are permuted with ``default_rng([seed, 'fid'])`` (the
+integer 4242 stands for 'fid') and split into two disjoint halves of ``floor(N / 2)``; the
+Frechet distance between Gaussians fitted to each half (``np.cov``, unbiased) is
+``|mu1 - mu2|^2 + tr(S1 + S2 - 2 (S1 S2)^(1/2))``, with the trace of the matrix square root
+computed from the eigenvalues of the symmetric ``S1^(1/2) S2 S1^(1/2)`` (the same quantity
+as the reference's ``sqrtm`` form, stable for the rank-deficient covariances of small splits).
+``fid_gt_relative`` divides it by ``2 * tr(S)`` of all items (the expected squared distance
+between two random items): a scale-free "near zero" (see :mod:`hoibench.evaluator.gate`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+FID_SEED_TAG = 4242
+
+
+def euclidean_distance_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, M) float64 Euclidean distances between rows of ``a`` and ``b``."""
+    a = np.asarray(a, np.float64)
+    b = np.asarray(b, np.float64)
+    d2 = (a * a).sum(1)[:, None] - 2.0 * a @ b.T + (b * b).sum(1)[None, :]
+    return np.sqrt(np.maximum(d2, 0.0))
+
+
+def pool_hits(text: np.ndarray, motion: np.ndarray, top_k: int = 3) -> tuple[np.ndarray, float]:
+    """(top_k,) number of captions whose motion ranks within 1..k, and the summed matched
+    distance, for one pool (row i of ``text`` belongs to row i of ``motion``)."""
+    d = euclidean_distance_matrix(text, motion)
+    own = np.diag(d)
+    # rank of the own motion = number of motions strictly closer (ties count in its favour)
+    rank = (d < own[:, None]).sum(1)
+    hits = np.array([(rank < k).sum() for k in range(1, top_k + 1)], np.float64)
+    return hits, float(own.sum())
+
+
+def _ci(values: np.ndarray) -> float:
+    return float(1.96 * np.std(values) / np.sqrt(len(values))) if len(values) > 1 else 0.0
+
+
+def retrieval_scores(motion: np.ndarray, text_sets: list[np.ndarray], pool_size: int = 32,
+                     replications: int = 20, seed: int = 0, top_k: int = 3) -> dict:
+    """R-precision top-1..k and MM-Dist of ``motion`` (N, D) against one caption per item
+    drawn from ``text_sets[i]`` (n_i, D).
+
+    Returns ``{"top1", "top2", "top3", "mm_dist"}`` (each ``{"mean", "ci95"}``) and the pool
+    facts: ``pool_size`` (actual), ``requested_pool_size``, ``pools_per_replication``,
+    ``replications``, ``items``, ``chance_top1``, ``pool_rule``.
+    """
+    n = len(motion)
+    if n < 2:
+        raise ValueError(f"retrieval: need at least 2 items, got {n}")
+    if len(text_sets) != n:
+        raise ValueError(f"text_sets: expected {n} entries, got {len(text_sets)}")
+    if n < pool_size:
+        size, rule = n, f"fewer than {pool_size} items: one pool of all {n}"
+    else:
+        size, rule = pool_size, f"pools of {pool_size} from a seeded permutation, remainder dropped"
+    per = n // size
+    tops, mm = [], []
+    for r in range(replications):
+        rng = np.random.default_rng([int(seed), r])
+        perm = rng.permutation(n)
+        choice = [int(rng.integers(len(text_sets[i]))) for i in range(n)]
+        texts = np.stack([text_sets[i][choice[i]] for i in range(n)])
+        hits, dist = np.zeros(top_k), 0.0
+        for p in range(per):
+            idx = perm[p * size:(p + 1) * size]
+            h, d = pool_hits(texts[idx], motion[idx], top_k)
+            hits += h
+            dist += d
+        tops.append(hits / (per * size))
+        mm.append(dist / (per * size))
+    tops = np.array(tops)
+    mm = np.array(mm)
+    out = {f"top{k + 1}": {"mean": float(tops[:, k].mean()), "ci95": _ci(tops[:, k])} for k in range(top_k)}
+    out["mm_dist"] = {"mean": float(mm.mean()), "ci95": _ci(mm)}
+    out.update(pool_size=size, requested_pool_size=pool_size, pools_per_replication=per,
+               replications=replications, items=n, chance_top1=1.0 / size, pool_rule=rule, seed=int(seed))
+    return out
+
+
+def _sqrt_psd(m: np.ndarray) -> np.ndarray:
+    w, v = np.linalg.eigh((m + m.T) / 2.0)
+    return (v * np.sqrt(np.clip(w, 0.0, None))) @ v.T
+
+
+def frechet_distance(mu1, sigma1, mu2, sigma2) -> float:
+    """Frechet distance between N(mu1, sigma1) and N(mu2, sigma2) (eigenvalue form)."""
+    diff = np.asarray(mu1, np.float64) - np.asarray(mu2, np.float64)
+    s1 = np.asarray(sigma1, np.float64)
+    s2 = np.asarray(sigma2, np.float64)
+    r1 = _sqrt_psd(s1)
+    w = np.linalg.eigvalsh(r1 @ s2 @ r1)
+    tr_covmean = float(np.sqrt(np.clip(w, 0.0, None)).sum())
+    return float(diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * tr_covmean)
+
+
+def gt_fid_halves(motion: np.ndarray, seed: int = 0) -> dict:
+    """FID between two disjoint seeded halves of ``motion`` (N, D) and its relative value."""
+    x = np.asarray(motion, np.float64)
+    n = len(x)
+    if n < 4:
+        raise ValueError(f"GT FID: need at least 4 items, got {n}")
+    perm = np.random.default_rng([int(seed), FID_SEED_TAG]).permutation(n)
+    h = n // 2
+    a, b = x[perm[:h]], x[perm[h:2 * h]]
+    fid = frechet_distance(a.mean(0), np.cov(a, rowvar=False), b.mean(0), np.cov(b, rowvar=False))
+    spread = float(2.0 * np.trace(np.cov(x, rowvar=False)))
+    return {"fid_gt_halves": fid, "half_size": h, "embedding_spread": spread,
+            "fid_gt_relative": fid / spread if spread > 0 else None}   # None: collapsed embeddings
+
+
+def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, seed: int = 0) -> dict:
+    """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`)."""
+    motion = evaluator.embed_motion([it.features for it in items])
+    caps = [c for it in items for c in it.captions]
+    emb = evaluator.embed_text(caps)
+    sets, k = [], 0
+    for it in items:
+        sets.append(emb[k:k + len(it.captions)])
+        k += len(it.captions)
+    out = retrieval_scores(motion, sets, pool_size, replications, seed)
+    out.update(gt_fid_halves(motion, seed))
+    return out

@@ -1,0 +1,396 @@
+"""Training an evaluator on a store's train split, with checkpoints and exact resume.
+
+Reproducibility: everything random is a function of ``(seed, epoch)``: the model is
+initialised after ``torch.manual_seed(seed)``; at the start of epoch ``e`` torch's generator
+is reseeded from ``(seed, e)`` (dropout) and ``numpy.random.default_rng([seed, e])`` draws the
+item order, the caption of each item and the crop window of motions longer than
+``max_frames``. A checkpoint (``OUT/checkpoint/last.pt``: model, AdamW and scheduler
+state, curve, torch RNG state) is written atomically every ``checkpoint_every`` epochs and
+after the last one, so a run interrupted at any point and restarted with the same arguments
+ends with the same weights, card and evaluator id as an uninterrupted run (tested).
+Training runs under ``torch.use_deterministic_algorithms(True, warn_only=True)`` with
+``threads`` CPU threads.
+
+While the sentence encoder is frozen (epochs < ``text_unfreeze_epoch``), its pooled outputs
+for every caption are computed once in eval mode and reused (exactly what it would compute,
+as a frozen encoder runs without dropout); from ``text_unfreeze_epoch`` on it is fine-tuned
+with ``text_lr`` after its own linear warm-up. The learning rate warms up linearly for
+``warmup_epochs`` and then follows a cosine to 10 % of its peak.
+
+At the end: GT retrieval on the test split (:mod:`hoibench.evaluator.retrieval`), the sanity
+gate (:mod:`hoibench.evaluator.gate`), and the evaluator folder (:mod:`hoibench.evaluator.card`).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+
+from .. import __version__
+from ..io import atomic_write_text
+from ..store import Store
+from . import card as card_mod
+from . import text as text_mod
+from .config import EvaluatorConfig, preset
+from .data import feature_key, load_items
+from .embed import Evaluator, deterministic
+from .features import FeatureStats, object_relative, object_stats
+from .gate import GateResult, sanity_gate
+from .model import TextMotionModel, contrastive_loss
+from .retrieval import gt_scores
+
+CHECKPOINT_DIR = "checkpoint"
+CHECKPOINT = "last.pt"
+CHECKPOINT_FORMAT = "hoibench-evaluator-checkpoint-1"
+_CONTROL_SEED_TAG = 777
+
+
+@dataclass
+class TrainResult:
+    out: Path
+    status: str                      # "trained" | "already_trained" | "interrupted"
+    evaluator_id: str | None
+    card: dict | None
+    gate: GateResult | None
+    epochs_run: int                  # epochs run by this call
+
+
+def manifest_sha256(manifest: dict) -> str:
+    return hashlib.sha256(json.dumps(manifest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def _epoch_seed(seed: int, epoch: int) -> int:
+    return int(np.random.SeedSequence([int(seed), int(epoch), 31337]).generate_state(1)[0])
+
+
+def feature_stats(store: Store, variant: str, train_clip_ids: list[str]) -> FeatureStats:
+    """The store's train-split hml263 statistics, plus object-relative ones for ``hoi``."""
+    ns = store.stats("hml263")
+    if variant == "human":
+        return FeatureStats(ns.mean, ns.std)
+    om, os_ = object_stats([object_relative(store.load(cid)["hoi269"]) for cid in sorted(train_clip_ids)])
+    return FeatureStats(ns.mean, ns.std, om, os_)
+
+
+def build_untrained(config: EvaluatorConfig, stats: FeatureStats, text_encoder: str | None = None,
+                    seed: int = 0) -> Evaluator:
+    """An evaluator with random motion/projection weights (for tests and the sanity gate)."""
+    name, path = text_mod.resolve_text_encoder(text_encoder)
+    tok, transformer = text_mod.load_pretrained(path)
+    torch.manual_seed(seed)
+    model = TextMotionModel(config.model, transformer, text_mod.pooling_mode(path))
+    card = {"text_encoder": {"name": name, "weights_sha256": text_mod.weights_sha256(path)}}
+    return Evaluator(config, model, tok, stats, card)
+
+
+def _lr_lambdas(cfg: EvaluatorConfig, steps_per_epoch: int):
+    t = cfg.train
+    total = t.epochs * steps_per_epoch
+    warm = max(1, t.warmup_epochs * steps_per_epoch)
+
+    def cosine(step: int) -> float:
+        p = min(1.0, max(0.0, (step - warm) / max(1, total - warm)))
+        return 0.1 + 0.9 * 0.5 * (1.0 + math.cos(math.pi * p))
+
+    def main(step: int) -> float:
+        return (step + 1) / warm if step < warm else cosine(step)
+
+    start = t.text_unfreeze_epoch * steps_per_epoch
+
+    def text(step: int) -> float:
+        if step < start:
+            return 0.0
+        k = step - start
+        return min(1.0, (k + 1) / warm) * cosine(step)
+
+    return main, text
+
+
+def _param_groups(model: TextMotionModel, cfg: EvaluatorConfig) -> list[dict]:
+    decay, no_decay = [], []
+    for name, p in model.named_parameters():
+        if name.startswith("text.transformer."):
+            continue
+        (decay if p.ndim >= 2 else no_decay).append(p)
+    t = cfg.train
+    return [{"params": decay, "lr": t.lr, "weight_decay": t.weight_decay},
+            {"params": no_decay, "lr": t.lr, "weight_decay": 0.0},
+            {"params": list(model.text.transformer.parameters()), "lr": t.text_lr, "weight_decay": t.weight_decay}]
+
+
+def _batches(perm: np.ndarray, batch_size: int) -> list[np.ndarray]:
+    out = [perm[i:i + batch_size] for i in range(0, len(perm), batch_size)]
+    return [b for b in out if len(b) >= 2]
+
+
+def _atomic_torch_save(obj, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _curve_summary(curve: list[dict]) -> dict:
+    if not curve:
+        return {}
+    return {"epochs": len(curve), "first_loss": curve[0]["loss"], "final_loss": curve[-1]["loss"],
+            "min_loss": min(c["loss"] for c in curve), "final_batch_top1": curve[-1]["batch_top1"],
+            "final_temperature": curve[-1]["temperature"]}
+
+
+def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None, title: str = "") -> None:
+    """Loss, in-batch top-1 and temperature per epoch, as a PNG (matplotlib, Agg)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ep = [c["epoch"] for c in curve]
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    for ax, key, label in zip(axes, ("loss", "batch_top1", "temperature"),
+                              ("symmetric InfoNCE loss", "in-batch top-1 (text -> motion)", "temperature")):
+        ax.plot(ep, [c[key] for c in curve], lw=1.5)
+        ax.set_xlabel("epoch")
+        ax.set_title(label, fontsize=10)
+        if unfreeze_epoch is not None and 0 < unfreeze_epoch < (ep[-1] if ep else 0):
+            ax.axvline(unfreeze_epoch, color="gray", ls="--", lw=1)
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig | None = None, *,
+                    text_encoder: str | None = None, resume: bool = True, checkpoint_every: int = 1,
+                    keep_checkpoint: bool = False, interrupt_after_epoch: int | None = None,
+                    pool_size: int = 32, replications: int = 20, device: str = "cpu",
+                    log: Callable[[str], None] | None = None) -> TrainResult:
+    """Train an evaluator on ``data`` (a store with ``DATA/texts/``) into the folder ``out``.
+
+    Args:
+        config: :func:`~hoibench.evaluator.config.preset` ``("tiny", "human")`` by default.
+        text_encoder: a local Hugging Face model folder; default the packaged all-MiniLM-L6-v2.
+        resume: continue from ``OUT/checkpoint/last.pt`` when it exists (else start over).
+        checkpoint_every: epochs between checkpoints (the last epoch is always saved).
+        keep_checkpoint: keep the checkpoint after the evaluator folder is written.
+        interrupt_after_epoch: stop after this many epochs, checkpoint written, no folder
+            (simulates an interruption; used by the resume test).
+        pool_size, replications: GT retrieval protocol (32 and 20 as in DESIGN section 8).
+        device: ``"cpu"`` or a torch device such as ``"cuda"`` (the card records neither the
+            device nor the machine; CUDA results are reproducible on the same GPU type when
+            ``CUBLAS_WORKSPACE_CONFIG=:4096:8`` is set before torch initialises CUDA).
+
+    Returns a :class:`TrainResult`. A folder that already holds this evaluator (same config
+    and dataset) is verified and returned as ``already_trained``; one that holds another
+    evaluator raises ``FileExistsError``.
+    """
+    cfg = config or preset()
+    mc, tc = cfg.model, cfg.train
+    log = log or (lambda s: print(s, file=sys.stderr, flush=True))
+    out = Path(out)
+    store = Store(data)
+    msha = manifest_sha256(store.manifest)
+
+    if (out / card_mod.CARD).exists():
+        card, _ = card_mod.verify_folder(out)
+        if card.get("config") == cfg.to_dict() and card.get("dataset", {}).get("manifest_sha256") == msha:
+            log(f"[train-evaluator] {out} already holds evaluator {card['evaluator_id'][:12]} for this config")
+            return TrainResult(out, "already_trained", card["evaluator_id"], card, None, 0)
+        raise FileExistsError(f"{out} already holds evaluator {card.get('evaluator_id', '?')[:12]} trained with "
+                              f"another config or dataset; choose another output folder")
+
+    variant = mc.variant
+    rep = store.manifest.get("representations", {}).get("hoi269", "")
+    if variant == "hoi" and "clean" not in rep:
+        raise ValueError(f"{store.root}: the hoi variant needs clean hoi269 rows (object rotation in the body's "
+                         f"canonical frame); this store has {rep!r}: prepare it with --mode clean")
+    train = load_items(store, "train", variant, tc.min_frames)
+    test = load_items(store, "test", variant, tc.min_frames)
+    if not train.items and not test.items:
+        raise FileNotFoundError(f"{store.root / 'texts'}: no caption files (<clip id>.txt, HumanML3D lines "
+                                f"'caption#tokens#start#end'); run `hoibench annotate` on the store first")
+    if len(train.items) < 2:
+        raise ValueError(f"train split: {len(train.items)} captioned items; at least 2 are needed "
+                         f"({len(train.missing_texts)} train clips have no text file)")
+    if len(test.items) < 4:
+        raise ValueError(f"test split: {len(test.items)} captioned items; at least 4 are needed for GT "
+                         f"retrieval and the GT-vs-GT FID")
+    for s in (train, test):
+        if s.missing_texts:
+            log(f"[train-evaluator] {len(s.missing_texts)} {s.split} clips have no caption file and are left out "
+                f"(e.g. {s.missing_texts[0]})")
+    if tc.control == "shuffled_texts":
+        perm = np.random.default_rng([tc.seed, _CONTROL_SEED_TAG]).permutation(len(train.items))
+        caps = [train.items[j].captions for j in perm]
+        for it, c in zip(train.items, caps):
+            it.captions = c
+
+    stats = feature_stats(store, variant, train.clip_ids)
+    recorded = store.manifest.get("stats", {}).get("hml263", {}).get("sha256")
+    if recorded and recorded != stats.sha256():
+        raise ValueError(f"{store.root}: stats/hml263.npz does not match the manifest's sha256 (store modified?)")
+    te_name, te_path = text_mod.resolve_text_encoder(text_encoder)
+    te_sha = text_mod.weights_sha256(te_path)
+    pooling = text_mod.pooling_mode(te_path)
+    tok, transformer = text_mod.load_pretrained(te_path)
+    tsha = text_mod.texts_sha256(store.root, sorted(set(train.clip_ids) | set(test.clip_ids)))
+    fine_tune = tc.text_unfreeze_epoch < tc.epochs
+    text_layers = tc.text_finetune_layers if fine_tune else None
+
+    ckpt_path = out / CHECKPOINT_DIR / CHECKPOINT
+    ident = {"format": CHECKPOINT_FORMAT, "config_sha256": cfg.sha256(), "manifest_sha256": msha,
+             "texts_sha256": tsha, "text_encoder_sha256": te_sha}
+    t_start = time.time()
+    with deterministic(tc.threads):
+        torch.manual_seed(tc.seed)
+        model = TextMotionModel(mc, transformer, pooling)
+        ev = Evaluator(cfg, model, tok, stats, device=device)
+        prepared = ev.prepare_motion([it.features for it in train.items], crop=False)
+        vocab = sorted({c for it in train.items for c in it.captions})
+        index = {c: i for i, c in enumerate(vocab)}
+        cap_idx = [[index[c] for c in it.captions] for it in train.items]
+        n = len(train.items)
+        steps = len(_batches(np.arange(n), tc.batch_size))
+        opt = torch.optim.AdamW(_param_groups(model, cfg), betas=(0.9, 0.98), eps=1e-6)
+        main_lr, text_lr = _lr_lambdas(cfg, steps)
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, [main_lr, main_lr, text_lr])   # one per param group
+        curve: list[dict] = []
+        start = 0
+        resumed_from = None
+        if resume and ckpt_path.exists():
+            ck = torch.load(ckpt_path, map_location=ev.device, weights_only=True)
+            if {k: ck.get(k) for k in ident} != ident:
+                raise ValueError(f"{ckpt_path}: checkpoint of another config, dataset, texts or text encoder; "
+                                 f"delete it to start over or use another output folder")
+            missing, unexpected = model.load_state_dict(ck["model"], strict=False)
+            if unexpected or any(not k.startswith("text.transformer.") for k in missing):
+                raise ValueError(f"{ckpt_path}: checkpoint tensors do not match the model")
+            opt.load_state_dict(ck["optimizer"])
+            sched.load_state_dict(ck["scheduler"])
+            torch.set_rng_state(ck["torch_rng"].cpu())   # (each epoch reseeds anyway)
+            curve = json.loads(ck["curve"])
+            start = resumed_from = int(ck["epoch"])
+            log(f"[train-evaluator] resuming from epoch {start} ({ckpt_path})")
+
+        cache = None
+        if start < tc.text_unfreeze_epoch:
+            with torch.inference_mode():
+                model.text.set_frozen(True)
+                cache = torch.cat([model.text.pooled(ev.tokenize(vocab[s:s + 128])) for s in range(0, len(vocab), 128)])
+            cache = cache.clone()
+        dev = ev.device
+        epochs_run = 0
+        params = [p for g in opt.param_groups for p in g["params"]]
+        for e in range(start, tc.epochs):
+            torch.manual_seed(_epoch_seed(tc.seed, e))
+            rng = np.random.default_rng([tc.seed, e])
+            perm = rng.permutation(n)
+            pick = rng.integers(0, 1 << 30, size=n)
+            crop_u = rng.random(n)
+            frozen = e < tc.text_unfreeze_epoch
+            model.text.set_frozen(frozen, tc.text_finetune_layers)
+            model.train()
+            tot_loss = tot_acc = 0.0
+            count = 0
+            for b in _batches(perm, tc.batch_size):
+                caps = torch.tensor([cap_idx[i][pick[i] % len(cap_idx[i])] for i in b])
+                crops = [int(crop_u[i] * (len(prepared[i][0]) - mc.max_frames + 1))
+                         if len(prepared[i][0]) > mc.max_frames else 0 for i in b]
+                body, lens, obj = ev._motion_batch([prepared[i] for i in b], crops)
+                m_emb = model.motion(body, lens, obj)
+                if frozen:
+                    pooled = cache[caps.to(dev)]
+                else:
+                    pooled = model.text.pooled(ev.tokenize([vocab[c] for c in caps.tolist()]))
+                t_emb = model.text.project(pooled)
+                same = (caps[:, None] == caps[None, :]).to(dev) if tc.negatives == "mask_same_caption" else None
+                loss, acc = contrastive_loss(t_emb, m_emb, model.scale(), same)
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_([p for p in params if p.grad is not None], 1.0)
+                opt.step()
+                sched.step()
+                tot_loss += float(loss.detach()) * len(b)
+                tot_acc += float(acc.detach()) * len(b)
+                count += len(b)
+            if not math.isfinite(tot_loss):
+                raise FloatingPointError(f"training diverged at epoch {e + 1} (loss {tot_loss}); lower lr "
+                                         f"(now {tc.lr}) or check the features for outliers")
+            curve.append({"epoch": e + 1, "loss": tot_loss / count, "batch_top1": tot_acc / count,
+                          "temperature": float(1.0 / model.scale().detach()), "lr": opt.param_groups[0]["lr"],
+                          "text_lr": opt.param_groups[2]["lr"], "text_frozen": frozen})
+            epochs_run += 1
+            c = curve[-1]
+            log(f"[train-evaluator] epoch {e + 1}/{tc.epochs} loss {c['loss']:.4f} batch top-1 "
+                f"{c['batch_top1']:.3f} temperature {c['temperature']:.4f}{' (text frozen)' if frozen else ''}")
+            stop = interrupt_after_epoch is not None and e + 1 >= interrupt_after_epoch and e + 1 < tc.epochs
+            if (e + 1) % max(1, checkpoint_every) == 0 or e + 1 == tc.epochs or stop:
+                _atomic_torch_save({**ident, "epoch": e + 1,
+                                    "model": model.own_state_dict(None if frozen else tc.text_finetune_layers),
+                                    "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                                    "torch_rng": torch.get_rng_state(), "curve": json.dumps(curve)}, ckpt_path)
+            if stop:
+                log(f"[train-evaluator] interrupted after epoch {e + 1} (checkpoint {ckpt_path})")
+                return TrainResult(out, "interrupted", None, None, None, epochs_run)
+
+        model.eval()
+        model.to("cpu")        # GT scores as a loaded evaluator computes them (CPU, EMBED_THREADS)
+        ev = Evaluator(cfg, model, tok, stats)
+        gt = gt_scores(ev, test.items, pool_size, replications, tc.seed)
+        tr = gt_scores(ev, train.items, pool_size, replications, tc.seed)
+    gate = sanity_gate(gt)
+    key = feature_key(variant)
+    card = {
+        "toolkit": "hoibench", "toolkit_version": __version__, "seed": tc.seed,
+        "config": cfg.to_dict(), "config_sha256": cfg.sha256(),
+        "dataset": {"name": store.manifest.get("dataset"), "manifest_sha256": msha,
+                    "representation": store.manifest.get("representations", {}).get(key), "features": key,
+                    "train_split": "train", "test_split": "test",
+                    "train_clips": len(train.clip_ids), "train_items": len(train.items),
+                    "test_clips": len(test.clip_ids), "test_items": len(test.items),
+                    "clips_without_texts": {"train": len(train.missing_texts), "test": len(test.missing_texts)},
+                    "skipped_segments": train.skipped_segments + test.skipped_segments,
+                    "train_captions": len(vocab), "texts_sha256": tsha},
+        "normalization": stats.to_card("store stats/hml263.npz (train split)" + (
+            "; object-relative statistics computed on the train split" if variant == "hoi" else "")),
+        "text_encoder": {"name": te_name, "weights_sha256": te_sha, "pooling": pooling,
+                         "hidden_size": model.text.hidden, "max_tokens": mc.text_max_tokens,
+                         "fine_tuned": fine_tune, "fine_tuned_layers": tc.text_finetune_layers if fine_tune else 0,
+                         "stored_in_weights": ("all fine-tuned transformer parameters" if fine_tune else
+                                               "none (the pretrained encoder, named by its weights_sha256)")},
+        "curve": {"summary": _curve_summary(curve), "epochs": curve},
+        "gt_retrieval": {"split": "test", **gt},
+        "train_retrieval": {"split": "train", "top1": tr["top1"], "top3": tr["top3"], "items": tr["items"],
+                            "pool_size": tr["pool_size"]},
+        "gate": gate.to_card(),
+        "libraries": text_mod.package_versions(),
+    }
+    eid = card_mod.write_folder(out, model.own_state_dict(text_layers), card)
+    card = card_mod.read_card(out)
+    try:
+        plot_curve(curve, out / card_mod.CURVE_PNG, tc.text_unfreeze_epoch,
+                   f"evaluator {eid[:12]} ({cfg.size}, {variant})")
+    except Exception as exc:  # a plot must never lose a trained evaluator
+        log(f"[train-evaluator] could not plot the curve: {exc}")
+    atomic_write_text(out / card_mod.TRAIN_LOG, json.dumps(
+        {"evaluator_id": eid, "wall_s_this_call": time.time() - t_start, "epochs_this_call": epochs_run,
+         "resumed_from_epoch": resumed_from, "threads": tc.threads}, indent=1) + "\n")
+    if not keep_checkpoint and ckpt_path.exists():
+        ckpt_path.unlink()
+        try:
+            ckpt_path.parent.rmdir()
+        except OSError:
+            pass
+    log(f"[train-evaluator] wrote evaluator {eid} to {out}; {gate.diagnostic()}")
+    return TrainResult(out, "trained", eid, card, gate, epochs_run)
