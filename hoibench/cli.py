@@ -79,7 +79,10 @@ def _cmd_prepare(args) -> int:
     from .store import PrepareConfig, prepare, summary_table
     import importlib
     loader = importlib.import_module(f".datasets.{args.dataset}", __package__)
-    cfg = PrepareConfig(args.dataset, fps=args.fps, mode=args.mode,
+    # hoibench's own synthetic data in a raw layout is named as such (its protocol differs)
+    synthetic = args.dataset == "behave" and (Path(args.root) / "hoibench_synthetic.json").exists()
+    name = "synthetic" if synthetic else args.dataset
+    cfg = PrepareConfig(name, fps=args.fps, mode=args.mode,
                         body_model_type="smplh" if args.dataset == "behave" else "smplx")
     jobs = loader.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
     manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
@@ -151,6 +154,12 @@ def _cmd_train_evaluator(args) -> int:
 def _cmd_evaluator(args) -> int:
     from .evaluator import main_show
     return main_show(args.dir, as_json=args.json)
+
+
+def _cmd_evaluate(args) -> int:
+    from .evaluate import main_evaluate
+    return main_evaluate(args.submission, args.data, args.evaluator, out=args.out,
+                         protocol=args.protocol, executor=args.executor)
 
 
 def _cmd_demo(args) -> int:
@@ -281,6 +290,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("dir", type=Path)
     s.add_argument("--json", action="store_true")
     s.set_defaults(func=_cmd_evaluator)
+
+    s = sub.add_parser("evaluate", help="score a submission under a protocol (writes a result JSON)",
+                       epilog="example: hoibench evaluate sub.zip --data data --evaluator ev --out result.json")
+    s.add_argument("submission", type=Path)
+    s.add_argument("--data", type=Path, required=True)
+    s.add_argument("--evaluator", type=Path, required=True)
+    s.add_argument("--protocol", default=None, help="protocol id (default: <dataset>-<mode> of the store)")
+    s.add_argument("--executor", default="serial")
+    s.add_argument("--out", type=Path, default=None)
+    s.set_defaults(func=_cmd_evaluate)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")
