@@ -122,3 +122,45 @@ def proxy_vertices_from_joints(joints, frames: slice | None = None) -> np.ndarra
         local = (v_template[idx] - rest[j]) * s                      # (n, 3)
         out[:, idx] = np.einsum("tab,nb->tna", R[:, j], local) + Jf[:, j, None, :]
     return out
+
+
+def proxy_object_distances(joints, frames: slice, field, template_vertices, obj_rot, obj_trans,
+                           margin_m: float) -> np.ndarray:
+    """Signed distances (T_frames, 6890) of the proxy body surface to the posed object,
+    culled per body part before any vertex is posed.
+
+    Each part (the vertices rigid to one joint) has a bounding sphere; the object has one
+    around its template. A part whose posed sphere is farther than ``margin_m`` from the
+    object's gets ``margin_m`` for all its vertices: a lower bound of their true, positive
+    distance (the part is outside the object's sphere by more than the margin). Other parts
+    are posed and queried with the field's own box culling (:meth:`SignedDistance.query`),
+    so signs are exact everywhere and values are exact below ``margin_m`` -- the same
+    contract as :func:`hoibench.metrics.contact_metrics.body_object_distances`, at a fraction
+    of the cost (most of the body is far from the object on most frames).
+    """
+    J = np.asarray(joints, dtype=np.float64)
+    v_template, _, rest, groups = _proxy()
+    s = body_scale(J)
+    Jf = J[frames]
+    R = joint_global_rotations(Jf, rest * s)
+    Ro, to = np.asarray(obj_rot, dtype=np.float64)[frames], np.asarray(obj_trans, dtype=np.float64)[frames]
+    tv = np.asarray(template_vertices, dtype=np.float64)
+    c_obj = 0.5 * (tv.min(0) + tv.max(0))
+    r_obj = float(np.linalg.norm(tv - c_obj, axis=1).max())
+    centre_obj = np.einsum("tab,b->ta", Ro, c_obj) + to
+    out = np.full((len(Jf), len(v_template)), float(margin_m))
+    for j, idx in groups:
+        if len(idx) == 0:
+            continue
+        local = (v_template[idx] - rest[j]) * s
+        c = local.mean(0)
+        r = float(np.linalg.norm(local - c, axis=1).max())
+        centre = np.einsum("tab,b->ta", R[:, j], c) + Jf[:, j]
+        near = np.flatnonzero(np.linalg.norm(centre - centre_obj, axis=1) <= r + r_obj + margin_m)
+        if len(near) == 0:
+            continue
+        pts = np.einsum("tab,nb->tna", R[near, j], local) + Jf[near, j, None, :]
+        loc = np.einsum("tnj,tjk->tnk", pts - to[near, None], Ro[near])      # R^T (p - t)
+        d, _ = field.query(loc.reshape(-1, 3), max_distance=margin_m)
+        out[np.ix_(near, idx)] = d.reshape(len(near), len(idx))
+    return out

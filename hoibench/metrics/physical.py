@@ -49,7 +49,7 @@ from ..parallel import map_units
 from . import METRICS
 from . import contact_metrics as cm
 from . import motion as mo
-from .body_surface import PROXY_LABEL, proxy_vertices_from_joints
+from .body_surface import PROXY_LABEL, proxy_object_distances, proxy_vertices_from_joints
 from .state import Metric, sorted_items
 
 MODES: tuple[str, ...] = ("legacy", "clean")
@@ -174,7 +174,7 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
 
     def distances(joints, sl):
         if config.body_surface == "proxy":
-            verts = proxy_vertices_from_joints(joints, frames=sl)
+            return proxy_object_distances(joints, sl, field_, inp.template_vertices, R, t, margin)
         else:
             verts = np.asarray(body(joints[sl]), dtype=np.float64)
         return cm.body_object_distances(verts, inp.template_vertices, inp.template_faces, R[sl], t[sl],
