@@ -38,21 +38,17 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
 
     from hoibench.annotate import annotate_store
-    from hoibench.datasets import behave
-    from hoibench.datasets.synthetic import write_behave_layout
+    from hoibench.datasets.synthetic_store import build_synthetic_store
     from hoibench.evaluator import load_evaluator, main_train_evaluator
     from hoibench.metrics import embedding as em
     from hoibench.metrics.physical import clip_inputs, evaluate_physical, load_groups
     from hoibench.protocol import get_protocol
     from hoibench.representations import hoi269
-    from hoibench.store import PrepareConfig, Store, prepare
+    from hoibench.store import Store
 
     tmp = Path(tempfile.mkdtemp(prefix="hoibench-eval-bench-"))
     try:
-        raw, data = tmp / "raw", tmp / "data"
-        write_behave_layout(raw, 44, seed=0, progress=False)
-        cfg = PrepareConfig("synthetic", fps=20.0)
-        prepare(behave.prepare_jobs(raw, raw / "body_models", data, cfg, split_file=raw / "split.json"), data, cfg)
+        _, data, _ = build_synthetic_store(tmp, 44, seed=0)
         annotate_store(data)
         main_train_evaluator(data, tmp / "ev", size="tiny", seed=0)
         store = Store(data)

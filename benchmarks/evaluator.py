@@ -26,33 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-VERB = {"lift": "lifts", "carry": "carries", "putdown": "puts down", "push": "pushes", "pull": "pulls",
-        "sit": "sits on", "kick": "kicks", "hold": "holds"}
-OBJ = {"boxsmall": "small box", "boxlarge": "large box", "chairwood": "wooden chair", "tablesmall": "small table",
-       "stool": "stool", "yogaball": "yoga ball", "yogamat": "yoga mat", "backpack": "backpack"}
-PARAPHRASES = ("a person {v} the {o}", "someone {v} a {o}", "the person {v} the {o} and then stands still",
-               "a human {v} the {o} in front of them")
-
-
-def write_template_texts(data: Path) -> None:
-    from hoibench.store import Store
-    store = Store(data)
-    (data / "texts").mkdir(exist_ok=True)
-    for cid in store.clip_ids():
-        _, _, obj, action = cid.split("_")[:4]
-        lines = [p.format(v=VERB[action], o=OBJ[obj]) for p in PARAPHRASES]
-        (data / "texts" / f"{cid}.txt").write_text("".join(f"{c}#-#0.0#0.0\n" for c in lines))
-
-
 def build_store(tmp: Path, clips: int) -> Path:
-    from hoibench.datasets import behave
-    from hoibench.datasets.synthetic import write_behave_layout
-    from hoibench.store import PrepareConfig, prepare
-    raw, data = tmp / "raw", tmp / "data"
+    from hoibench.datasets.synthetic_store import build_synthetic_store, write_template_texts
     t0 = time.perf_counter()
-    write_behave_layout(raw, clips, seed=0, progress=False)
-    cfg = PrepareConfig("synthetic", fps=20.0)
-    m = prepare(behave.prepare_jobs(raw, raw / "body_models", data, cfg, split_file=raw / "split.json"), data, cfg)
+    _, data, m = build_synthetic_store(tmp, clips, seed=0)
     write_template_texts(data)
     print(f"store: {m['counts']['clips']} clips {m['counts']['by_split']} in {time.perf_counter() - t0:.1f} s")
     return data

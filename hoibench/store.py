@@ -159,6 +159,20 @@ def run_unit(job: tuple) -> UnitResult:
         return UnitResult(clip_id, "failed", split, error=msg)
 
 
+def fail_unit(message: str):
+    """A job "loader" for a sequence that cannot be prepared: the unit records ``message``."""
+    raise ValueError(message)
+
+
+def unlisted_split_jobs(jobs: list[tuple], splits: dict[str, str], split_file, out, mode: str,
+                        where: str) -> list[tuple]:
+    """Failing jobs for ids a split file lists but ``jobs`` lack (``where``: what was searched)."""
+    present = {j[0] for j in jobs}
+    return [(name, splits[name], "", str(out), fail_unit,
+             (f"{name}: listed in split file {split_file} but {where}",), mode)
+            for name in sorted(set(splits) - present)]
+
+
 def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor: str = "serial",
             strict: bool = False, source: dict[str, Any] | None = None) -> dict:
     """Run ``jobs`` (see :func:`run_unit`) and write the manifest, stats and errors.

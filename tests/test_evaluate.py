@@ -14,17 +14,12 @@ pytest.importorskip("open3d")
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     from hoibench.annotate import annotate_store
-    from hoibench.datasets import behave
-    from hoibench.datasets.synthetic import write_behave_layout
+    from hoibench.datasets.synthetic_store import build_synthetic_store
     from hoibench.evaluator import main_train_evaluator
-    from hoibench.store import PrepareConfig, prepare
     from hoibench.submission import from_store
 
     base = tmp_path_factory.mktemp("evaluate")
-    raw, data = base / "raw", base / "data"
-    write_behave_layout(raw, 44, seed=0, progress=False)
-    cfg = PrepareConfig("synthetic", fps=20.0)
-    prepare(behave.prepare_jobs(raw, raw / "body_models", data, cfg, split_file=raw / "split.json"), data, cfg)
+    _, data, _ = build_synthetic_store(base, 44, seed=0)
     annotate_store(data)
     assert main_train_evaluator(data, base / "ev", size="tiny", seed=0) == 0
     from_store(data, base / "gt")

@@ -23,40 +23,15 @@ from hoibench.evaluator.features import FeatureStats, object_relative  # noqa: E
 from hoibench.evaluator.text import parse_text_file  # noqa: E402
 from hoibench.store import Store  # noqa: E402
 
-VERB = {"lift": "lifts", "carry": "carries", "putdown": "puts down", "push": "pushes", "pull": "pulls",
-        "sit": "sits on", "kick": "kicks", "hold": "holds"}
-OBJ = {"boxsmall": "small box", "boxlarge": "large box", "chairwood": "wooden chair", "tablesmall": "small table",
-       "stool": "stool", "yogaball": "yoga ball", "yogamat": "yoga mat", "backpack": "backpack"}
-PARAPHRASES = ("a person {v} the {o}", "someone {v} a {o}", "the person {v} the {o} and then stands still",
-               "a human {v} the {o} in front of them")
-
-
-def template_captions(clip_id: str) -> list[str]:
-    """Paraphrases from a synthetic name ``Date0X_SubYY_<object>_<action>[_<n>]``."""
-    _, _, obj, action = clip_id.split("_")[:4]
-    return [p.format(v=VERB[action], o=OBJ[obj]) for p in PARAPHRASES]
-
-
-def write_template_texts(data) -> None:
-    store = Store(data)
-    (store.root / "texts").mkdir(exist_ok=True)
-    for cid in store.clip_ids():
-        lines = [f"{c}#{c.split()[1]}/NOUN#0.0#0.0" for c in template_captions(cid)]
-        (store.root / "texts" / f"{cid}.txt").write_text("\n".join(lines) + "\n")
+from hoibench.datasets.synthetic_store import template_captions, write_template_texts  # noqa: E402,F401
 
 
 @pytest.fixture(scope="module")
 def store_root(tmp_path_factory):
     """A 48-clip synthetic store (34 train / 14 test) with template captions."""
     pytest.importorskip("smplx")
-    from hoibench.datasets import behave
-    from hoibench.datasets.synthetic import write_behave_layout
-    from hoibench.store import PrepareConfig, prepare
-    base = tmp_path_factory.mktemp("evaluator_store")
-    raw, data = base / "raw", base / "data"
-    write_behave_layout(raw, 48, seed=0, progress=False)
-    cfg = PrepareConfig("synthetic", fps=20.0)
-    prepare(behave.prepare_jobs(raw, raw / "body_models", data, cfg, split_file=raw / "split.json"), data, cfg)
+    from hoibench.datasets.synthetic_store import build_synthetic_store
+    _, data, _ = build_synthetic_store(tmp_path_factory.mktemp("evaluator_store"), 48, seed=0)
     write_template_texts(data)
     return data
 

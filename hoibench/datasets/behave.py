@@ -288,7 +288,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     The split is the official one (test = Date03) unless ``split_file`` names another; a
     sequence the split file does not list is an error for that sequence.
     """
-    from ..store import file_sha256
+    from ..store import file_sha256, unlisted_split_jobs
     root = Path(root)
     splits = load_split_file(split_file) if split_file else None
     jobs = []
@@ -310,10 +310,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         sha = file_sha256(files, extra=config.sha256())
         jobs.append((name, split, sha, str(out), loader, args, config.mode))
     if splits is not None:
-        present = {j[0] for j in jobs}
-        for name in sorted(set(splits) - present):
-            jobs.append((name, splits[name], "", str(out), _fail,
-                         (f"{name}: listed in split file {split_file} but no sequence folder",), config.mode))
+        jobs += unlisted_split_jobs(jobs, splits, split_file, out, config.mode, "no sequence folder")
     return jobs
 
 

@@ -341,7 +341,7 @@ def _text_dir(root: Path, data_root: Path) -> Path | None:
 
 def _sequence_sha(seq: Any, files: list[Path], extra: str) -> str:
     """sha256 over a sequence dict's arrays (key, dtype, shape, bytes) and ``files``."""
-    from ..store import file_sha256
+    from ..store import file_sha256, unlisted_split_jobs
     h = hashlib.sha256()
     if isinstance(seq, dict):
         for k in sorted(seq, key=str):
@@ -433,10 +433,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         sha = _sequence_sha(seq, files, config.sha256())
         jobs.append((cid, split, sha, str(out), loader, args, config.mode))
     if splits is not None:
-        present = {j[0] for j in jobs}
-        for name in sorted(set(splits) - present):
-            jobs.append((name, splits[name], "", str(out), _fail,
-                         (f"{name}: listed in split file {split_file} but in neither OMOMO pickle",), config.mode))
+        jobs += unlisted_split_jobs(jobs, splits, split_file, out, config.mode, "in neither OMOMO pickle")
     return jobs
 
 
