@@ -4,7 +4,8 @@ Stage 1 (representations): encodes generated clips into hml263 (legacy and clean
 and joint_level, decodes them again and reports round-trip errors and the legacy-vs-clean
 difference per feature group. Stage 2 (synthetic): writes the synthetic HOI dataset in the
 BEHAVE raw layout, prepares it with the BEHAVE loader into a processed store, prints the
-summary table, annotates it with contact-aware texts and renders one clip to a GIF.
+summary table, annotates it with contact-aware texts, trains a tiny evaluator, scores the
+ground-truth submission under the synthetic protocol and renders one clip to a GIF.
 """
 from __future__ import annotations
 
@@ -55,27 +56,33 @@ def representation_stage(out: Path, seed: int = 0, clips: int = 8, frames: int =
     return report
 
 
-def synthetic_stage(out: Path, seed: int = 0, clips: int = 12, executor: str = "serial") -> dict:
-    """synth (BEHAVE layout) -> prepare behave -> summary table -> a rendered GIF."""
-    from .datasets import behave
-    from .datasets.synthetic import write_behave_layout
-    from .store import PrepareConfig, prepare, summary_table
-
-    raw, data = out / "synthetic-raw", out / "synthetic"
-    t0 = time.perf_counter()
-    write_behave_layout(raw, clips, seed=seed, executor=executor)
-    t1 = time.perf_counter()
-    cfg = PrepareConfig("synthetic", fps=20.0, mode="clean")
-    manifest = prepare(behave.prepare_jobs(raw, raw / "body_models", data, cfg, split_file=raw / "split.json"),
-                       data, cfg, executor=executor, source={"root": str(raw), "generator": "hoibench synth"})
-    t2 = time.perf_counter()
-    print(f"[synthetic] generated {clips} clips in {t1 - t0:.1f} s, prepared in {t2 - t1:.1f} s")
-    print("  " + summary_table(manifest).replace("\n", "\n  "))
+def synthetic_stage(out: Path, seed: int = 0, clips: int = 44, executor: str = "serial") -> dict:
+    """synth (BEHAVE layout) -> prepare -> annotate -> train a tiny evaluator -> score the
+    ground-truth submission -> render one clip."""
     from .annotate import annotate_store, preview_table
+    from .datasets.synthetic_store import build_synthetic_store
+    from .evaluate import evaluate, format_result
+    from .evaluator import main_train_evaluator
+    from .store import summary_table
+    from .submission import from_store
+
+    t0 = time.perf_counter()
+    raw, data, manifest = build_synthetic_store(out, clips, seed=seed, executor=executor)
+    t1 = time.perf_counter()
+    print(f"[synthetic] generated and prepared {clips} clips in {t1 - t0:.1f} s")
+    print("  " + summary_table(manifest).replace("\n", "\n  "))
     annotate_store(data, executor=executor)
     print("  " + preview_table(data, 3).replace("\n", "\n  "))
-    report = {"raw": str(raw), "store": str(data), "counts": manifest["counts"],
-              "seconds": {"synth": round(t1 - t0, 2), "prepare": round(t2 - t1, 2)}}
+    report = {"raw": str(raw), "store": str(data), "counts": manifest["counts"]}
+    print("[evaluator] training a tiny contrastive text-motion evaluator on the train split")
+    ev_dir = out / "evaluator"
+    main_train_evaluator(data, ev_dir, size="tiny", seed=seed)
+    from_store(data, out / "gt_submission")
+    result = evaluate(out / "gt_submission", data, ev_dir, executor=executor)
+    atomic_write_json(out / "gt_result.json", result)
+    print("[evaluate] the ground-truth ('real motion') submission:")
+    print("  " + format_result(result).replace("\n", "\n  "))
+    report["gt_result"] = str(out / "gt_result.json")
     try:
         from .render import render_clip
         clip = next(c["id"] for c in manifest["clips"] if c["contact_frames"] > 0)
@@ -84,6 +91,7 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 12, executor: str = "
         print(f"  rendered {clip} -> {gif}")
     except ImportError as exc:  # pyvista is a dependency, but keep the demo useful without it
         print(f"  (render skipped: {exc})")
+    report["seconds"] = round(time.perf_counter() - t0, 1)
     return report
 
 
