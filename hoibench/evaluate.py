@@ -30,10 +30,15 @@ from .store import Store
 
 
 def _captions(data: Path, clip_id: str) -> list[str]:
+    """Whole-clip captions of a test clip (lines with start = end = 0; timed captions describe
+    a segment, not the clip), all captions when there is no whole-clip one."""
+    from .evaluator.text import parse_text_file
     path = data / "texts" / f"{clip_id}.txt"
     if not path.exists():
         return []
-    return [line.split("#")[0].strip() for line in path.read_text().splitlines() if line.strip()]
+    caps = parse_text_file(path.read_text())
+    whole = [c.text for c in caps if c.whole_clip]
+    return whole or [c.text for c in caps]
 
 
 def _index_pools(pools: Sequence[Sequence[str]], ids: Sequence[str]) -> list[list[int]]:
@@ -126,16 +131,20 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     if not mm_ok:
         notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs {proto.mm_samples}")
     fid_by_sample: dict[int, float] = {}   # FID depends on the sample index only
+    text_sets = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in ids]
+    where = {cid: i for i, cid in enumerate(ids)}
+    pools_for = lambda r: [[where[c] for c in p] for p in proto.pools(ids, r)]  # noqa: E731
+    retrieval = {}
+    for k in sorted({proto.sample_index(r, K) for r in range(proto.replications)}):
+        retrieval[k] = em.retrieval_replications(text_sets, gen[k], pools_for,
+                                                 lambda r: proto.seed_for("caption", r),
+                                                 proto.replications, proto.r_precision_top_k)
+        fid_by_sample[k] = em.fid(real, gen[k])
     for r in range(proto.replications):
         k = proto.sample_index(r, K)
-        if k not in fid_by_sample:
-            fid_by_sample[k] = em.fid(real, gen[k])
-        rng = np.random.default_rng(proto.seed_for("caption", r))
-        text = np.stack([cap_emb[captions[cid][rng.integers(len(captions[cid]))]] for cid in ids])
-        pools = _index_pools(proto.pools(ids, r), ids) or [list(range(len(ids)))]
-        rp = em.r_precision(text, gen[k], pools, proto.r_precision_top_k)
-        row = {f"r_precision_top{i + 1}": float(v) for i, v in enumerate(rp)}
-        row["mm_dist"] = em.mm_dist(text, gen[k], pools)
+        tops, mm = retrieval[k]
+        row = {f"r_precision_top{i + 1}": float(v) for i, v in enumerate(tops[r])}
+        row["mm_dist"] = float(mm[r])
         row["fid"] = fid_by_sample[k]
         pairs = proto.effective_diversity_pairs(len(ids))
         if pairs > 0:

@@ -36,6 +36,12 @@ def test_ground_truth_submission_scores_fid_zero_and_is_complete(setup, tmp_path
     assert len(res["per_replication"]) == 20 and res["evaluator_id"]
     for key in ("protocol_version", "protocol_sha256", "representation", "toolkit_version", "counts", "timings_s"):
         assert key in res
+    # the evaluator card's GT scores were computed with the same protocol draw: equal
+    card = json.loads((base / "ev" / "card.json").read_text())["gt_retrieval"]
+    assert card["protocol"] == "synthetic-clean@1.0"
+    for k in (1, 2, 3):
+        assert res["metrics"][f"r_precision_top{k}"]["mean"] == pytest.approx(card[f"top{k}"]["mean"], abs=1e-12)
+    assert res["metrics"]["mm_dist"]["mean"] == pytest.approx(card["mm_dist"]["mean"], rel=1e-6)
 
 
 def test_partial_submission_is_scored_on_valid_ids_and_marked_incomplete(setup, tmp_path):

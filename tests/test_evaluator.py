@@ -222,7 +222,9 @@ def test_loaded_evaluator_reproduces_the_card_scores(trained, store_root):
     out, res = trained
     ev = load_evaluator(out)
     assert ev.id == res.evaluator_id
-    again = gt_scores(ev, load_items(store_root, "test").items, replications=5, seed=0)
+    from hoibench.protocol import get_protocol
+    # the card's GT retrieval uses the store's protocol draw (synthetic-clean)
+    again = gt_scores(ev, load_items(store_root, "test").items, seed=0, protocol=get_protocol("synthetic-clean"))
     assert again["top1"]["mean"] == pytest.approx(res.card["gt_retrieval"]["top1"]["mean"], abs=1e-9)
     assert again["fid_gt_halves"] == pytest.approx(res.card["gt_retrieval"]["fid_gt_halves"], rel=1e-5, abs=1e-7)
 
@@ -273,7 +275,8 @@ def test_hoi_evaluator_round_trips_through_its_folder(store_root, tmp_path):
     norm = res.card["normalization"]
     assert len(norm["object"]["mean"]) == 15 and res.card["dataset"]["features"] == "hoi269"
     ev = load_evaluator(tmp_path / "hoi", allow_failed_gate=True)      # 3 epochs: the gate may fail
-    again = gt_scores(ev, load_items(store_root, "test", "hoi").items, replications=2)
+    from hoibench.protocol import get_protocol
+    again = gt_scores(ev, load_items(store_root, "test", "hoi").items, protocol=get_protocol("synthetic-clean"))
     assert again["mm_dist"]["mean"] == pytest.approx(res.card["gt_retrieval"]["mm_dist"]["mean"], abs=1e-6)
     assert ev.representation == "hoi269-clean-1.0"
 

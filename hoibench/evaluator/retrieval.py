@@ -127,8 +127,45 @@ def gt_fid_halves(motion: np.ndarray, seed: int = 0) -> dict:
             "fid_gt_relative": fid / spread if spread > 0 else None}   # None: collapsed embeddings
 
 
-def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, seed: int = 0) -> dict:
-    """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`)."""
+def protocol_retrieval_scores(motion: np.ndarray, text_sets: list[np.ndarray], ids: list[str], protocol) -> dict:
+    """R-precision and MM-Dist with ``protocol``'s pools and caption draws
+    (:func:`hoibench.metrics.embedding.retrieval_replications`), so that ``hoibench
+    evaluate`` of the ground-truth submission reproduces these numbers exactly."""
+    from ..metrics.embedding import retrieval_replications
+    where = {cid: i for i, cid in enumerate(ids)}
+    pools_for = lambda r: [[where[c] for c in p] for p in protocol.pools(ids, r)]  # noqa: E731
+    tops, mm = retrieval_replications(text_sets, motion, pools_for, lambda r: protocol.seed_for("caption", r),
+                                      protocol.replications, protocol.r_precision_top_k)
+    pools = protocol.pools(ids, 0)
+    size = len(pools[0]) if pools else len(ids)
+    out = {f"top{k + 1}": {"mean": float(tops[:, k].mean()), "ci95": _ci(tops[:, k])} for k in range(tops.shape[1])}
+    out["mm_dist"] = {"mean": float(mm.mean()), "ci95": _ci(mm)}
+    rule = (f"protocol {protocol.ref}: pools of {size}" if pools else
+            f"protocol {protocol.ref}: fewer than {protocol.r_precision_pool_size} items: one pool of all {len(ids)}")
+    out.update(pool_size=size, requested_pool_size=protocol.r_precision_pool_size,
+               pools_per_replication=max(1, len(pools)), replications=protocol.replications, items=len(ids),
+               chance_top1=1.0 / size, pool_rule=rule, seed=int(protocol.seed), protocol=protocol.ref)
+    return out
+
+
+def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, seed: int = 0,
+              protocol=None) -> dict:
+    """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`).
+
+    With ``protocol`` (a :class:`hoibench.protocol.Protocol`) and whole-clip items, the
+    retrieval uses the protocol's pools and caption draws (items sorted by clip id) instead
+    of ``pool_size``/``replications``/``seed``."""
+    if protocol is not None and not any(it.segment for it in items):
+        items = sorted(items, key=lambda it: it.clip_id)
+        motion = evaluator.embed_motion([it.features for it in items])
+        emb = evaluator.embed_text([c for it in items for c in it.captions])
+        sets, k = [], 0
+        for it in items:
+            sets.append(emb[k:k + len(it.captions)])
+            k += len(it.captions)
+        out = protocol_retrieval_scores(motion, sets, [it.clip_id for it in items], protocol)
+        out.update(gt_fid_halves(motion, seed))
+        return out
     motion = evaluator.embed_motion([it.features for it in items])
     caps = [c for it in items for c in it.captions]
     emb = evaluator.embed_text(caps)

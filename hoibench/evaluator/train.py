@@ -171,6 +171,17 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
     os.replace(tmp, path)
 
 
+def _store_protocol(store):
+    """The protocol ``hoibench evaluate`` uses by default for this store (``<dataset>-<mode>``),
+    or None when none is shipped: GT scores then use the trainer's own pools."""
+    from ..protocol import get_protocol
+    mode = store.manifest.get("config", {}).get("mode", "clean")
+    try:
+        return get_protocol(f"{store.manifest.get('dataset')}-{'legacy' if mode.startswith('legacy') else 'clean'}")
+    except KeyError:
+        return None
+
+
 def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig | None = None, *,
                     text_encoder: str | None = None, resume: bool = True, checkpoint_every: int = 1,
                     keep_checkpoint: bool = False, interrupt_after_epoch: int | None = None,
@@ -186,7 +197,11 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
         keep_checkpoint: keep the checkpoint after the evaluator folder is written.
         interrupt_after_epoch: stop after this many epochs, checkpoint written, no folder
             (simulates an interruption; used by the resume test).
-        pool_size, replications: GT retrieval protocol (32 and 20 as in DESIGN section 8).
+        pool_size, replications: GT retrieval pools and replications (32 and 20 as in DESIGN
+            section 8) for the train-split scores, and for the test split when no protocol
+            ships for the store (``<dataset>-<mode>``); otherwise the test split is scored
+            with that protocol's pools and caption draws, exactly as ``hoibench evaluate``
+            scores the ground-truth submission.
         device: ``"cpu"`` or a torch device such as ``"cuda"`` (the card records neither the
             device nor the machine; CUDA results are reproducible on the same GPU type when
             ``CUBLAS_WORKSPACE_CONFIG=:4096:8`` is set before torch initialises CUDA).
@@ -347,7 +362,8 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
         model.eval()
         model.to("cpu")        # GT scores as a loaded evaluator computes them (CPU, EMBED_THREADS)
         ev = Evaluator(cfg, model, tok, stats)
-        gt = gt_scores(ev, test.items, pool_size, replications, tc.seed)
+        proto = _store_protocol(store)
+        gt = gt_scores(ev, test.items, pool_size, replications, tc.seed, protocol=proto)
         tr = gt_scores(ev, train.items, pool_size, replications, tc.seed)
     gate = sanity_gate(gt)
     key = feature_key(variant)

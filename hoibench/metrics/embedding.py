@@ -413,3 +413,27 @@ class MultiModality(Metric):
         if len(shapes) != 1:
             raise ValueError(f"MultiModality: every text needs the same number of samples, got {sorted(shapes)}")
         return multimodality(np.stack(items), self.times, seed)
+
+
+# ===================================================================== replications
+def retrieval_replications(text_sets: Sequence[np.ndarray], motion, pools_for, caption_seed_for,
+                           replications: int, top_k: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """R-precision top-1..k and MM-Dist per replication, the one draw every hoibench number
+    uses (``hoibench evaluate`` and an evaluator card's GT scores).
+
+    Replication r draws one caption per item, in item order, with
+    ``numpy.random.default_rng(caption_seed_for(r))`` (``text_sets[i]`` holds item i's
+    caption embeddings), and scores ``motion`` (N, D) over ``pools_for(r)`` (row-index pools;
+    empty = one pool of all rows). Returns ``(tops (R, top_k), mm (R,))``.
+    """
+    m = _as_2d(motion, "motion")
+    if len(text_sets) != len(m):
+        raise ValueError(f"text_sets: expected {len(m)} entries, got {len(text_sets)}")
+    tops, mm = [], []
+    for r in range(int(replications)):
+        rng = np.random.default_rng(caption_seed_for(r))
+        text = np.stack([ts[rng.integers(len(ts))] for ts in text_sets])
+        pools = pools_for(r) or [list(range(len(m)))]
+        tops.append(r_precision(text, m, pools, top_k))
+        mm.append(mm_dist(text, m, pools))
+    return np.array(tops), np.array(mm)
