@@ -159,8 +159,10 @@ def proxy_object_distances(joints, frames: slice, field, template_vertices, obj_
         near = np.flatnonzero(np.linalg.norm(centre - centre_obj, axis=1) <= r + r_obj + margin_m)
         if len(near) == 0:
             continue
-        pts = np.einsum("tab,nb->tna", R[near, j], local) + Jf[near, j, None, :]
-        loc = np.einsum("tnj,tjk->tnk", pts - to[near, None], Ro[near])      # R^T (p - t)
+        # template frame in one step: Ro^T (R_j v + J_j - t) = (Ro^T R_j) v + Ro^T (J_j - t)
+        M = np.einsum("tba,tbc->tac", Ro[near], R[near, j])
+        b = np.einsum("tba,tb->ta", Ro[near], Jf[near, j] - to[near])
+        loc = np.einsum("tab,nb->tna", M, local) + b[:, None, :]
         d, _ = field.query(loc.reshape(-1, 3), max_distance=margin_m)
         out[np.ix_(near, idx)] = d.reshape(len(near), len(idx))
     return out

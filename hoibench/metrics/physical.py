@@ -170,7 +170,9 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     neg = total = n_pen = 0
     depth_max = depth_sum = 0.0
     touching = np.zeros(len(J), bool)
-    margin = max(0.05, config.vertex_contact_m + 0.01)
+    # exact distances are needed below vertex_contact_m only (the body-contact test); farther
+    # vertices keep a lower bound, and signs are exact everywhere
+    margin = config.vertex_contact_m + 0.005
 
     def distances(joints, sl):
         if config.body_surface == "proxy":
