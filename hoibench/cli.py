@@ -3,8 +3,14 @@
 Examples::
 
     hoibench demo --out demo-out
-    hoibench represent joints.npy --format hml263 --mode clean --fps 20 --out feats.npy
-    hoibench representations ls
+    hoibench synth --out raw --clips 48
+    hoibench prepare behave --root raw --body-models raw/body_models --split-file raw/split.json --out data
+    hoibench annotate data
+    hoibench train-evaluator data --out ev
+    hoibench validate sub.zip --data data
+    hoibench evaluate sub.zip --data data --evaluator ev --out result.json
+
+Each subcommand's --help has its own example.
 """
 from __future__ import annotations
 
