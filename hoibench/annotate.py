@@ -732,11 +732,8 @@ def _render(spec: AnnotatorSpec, rng: random.Random, object_name: str, actions: 
 
 def _free_text_tokens(caption: str) -> str:
     """HumanML3D tokens of a human-written caption that came without them
-    (:mod:`hoibench.text_tokens` when present, else none)."""
-    try:
-        from . import text_tokens
-    except ImportError:   # pragma: no cover - optional sibling module
-        return ""
+    (:func:`hoibench.text_tokens.tokens`: spaCy when installed, else its rule-based fallback)."""
+    from . import text_tokens
     return " ".join(text_tokens.tokens(caption))
 
 

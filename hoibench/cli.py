@@ -68,14 +68,14 @@ def _parse_defects(items: list[str]) -> dict:
 def _cmd_synth(args) -> int:
     if args.layout == "behave":
         from .datasets.synthetic import write_behave_layout
-        manifest = write_behave_layout(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect),
-                                       executor=args.executor)
+        write_behave_layout(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect),
+                            executor=args.executor)
     else:
         if args.defect:
             raise ValueError("--defect: defects are injected in the behave layout only")
         from .datasets import synthetic_layouts
         writer = getattr(synthetic_layouts, f"write_{args.layout}_layout")
-        manifest = writer(args.out, args.clips, seed=args.seed)
+        writer(args.out, args.clips, seed=args.seed)
     print(f"wrote {args.clips} synthetic clips to {args.out} in the {args.layout} layout; "
           f"body models in {Path(args.out) / 'body_models'}")
     return 0

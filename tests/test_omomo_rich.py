@@ -366,3 +366,18 @@ def test_rich_bad_frame_pickles_fail_their_clip_and_the_rest_are_prepared(rich_r
     ok = set(Store(out).clip_ids())
     assert f"{seqname}_{sub}_{gapped['runs'][0][0]:05d}" in ok        # the other run still prepared
     assert manifest_out["counts"]["clips"] == len(jobs) - 2 == len(ok)
+
+
+def test_omomo_split_file_with_unknown_and_unlisted_sequences_is_reported(omomo_raw, tmp_path):
+    import json
+    root, manifest = omomo_raw
+    names = sorted(c["name"] if "name" in c else c["seq_name"] for c in manifest["clips"])
+    split = tmp_path / "split.json"
+    split.write_text(json.dumps({"train": names[1:] + ["sub99_ghost_000"], "test": []}))
+    cfg = PrepareConfig("omomo", fps=20.0, body_model_type="smplx")
+    jobs = omomo.prepare_jobs(root, root / "body_models", tmp_path / "out", cfg, split_file=split)
+    by_id = {j[0]: j for j in jobs}
+    with pytest.raises(ValueError, match="sub99_ghost_000: listed in split file"):
+        by_id["sub99_ghost_000"][4](*by_id["sub99_ghost_000"][5])
+    with pytest.raises(ValueError, match=f"{names[0]}: not listed in split file"):
+        by_id[names[0]][4](*by_id[names[0]][5])

@@ -288,7 +288,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     The split is the official one (test = Date03) unless ``split_file`` names another; a
     sequence the split file does not list is an error for that sequence.
     """
-    from ..store import file_sha256, unlisted_split_jobs
+    from ..store import fail_unit, file_sha256, unlisted_split_jobs
     root = Path(root)
     splits = load_split_file(split_file) if split_file else None
     jobs = []
@@ -298,9 +298,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         try:
             split = splits[name] if splits is not None else official_split(name)
         except KeyError:
-            split, loader, args = "unknown", _fail, (f"{name}: not listed in split file {split_file}",)
+            split, loader, args = "unknown", fail_unit, (f"{name}: not listed in split file {split_file}",)
         except SequenceError as exc:
-            split, loader, args = "unknown", _fail, (str(exc),)
+            split, loader, args = "unknown", fail_unit, (str(exc),)
         try:
             obj = json.loads((seq / "info.json").read_text()).get("cat") or parse_name(name).object
             template = object_template_path(root / "objects", obj)
@@ -313,6 +313,3 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         jobs += unlisted_split_jobs(jobs, splits, split_file, out, config.mode, "no sequence folder")
     return jobs
 
-
-def _fail(message: str):
-    raise SequenceError(message)

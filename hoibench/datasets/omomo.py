@@ -341,7 +341,7 @@ def _text_dir(root: Path, data_root: Path) -> Path | None:
 
 def _sequence_sha(seq: Any, files: list[Path], extra: str) -> str:
     """sha256 over a sequence dict's arrays (key, dtype, shape, bytes) and ``files``."""
-    from ..store import file_sha256, unlisted_split_jobs
+    from ..store import file_sha256
     h = hashlib.sha256()
     if isinstance(seq, dict):
         for k in sorted(seq, key=str):
@@ -370,6 +370,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     ``split_file`` (``{"train": [seq_name, ...], "test": [...]}``) names another; a
     sequence it does not list is an error for that sequence. Clip id = ``seq_name``.
     """
+    from ..store import fail_unit, unlisted_split_jobs
     root = Path(root)
     data_root = _data_root(root)
     objects_root = data_root / "captured_objects"
@@ -410,7 +411,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         seen[cid] = seen.get(cid, 0) + 1
         if seen[cid] > 1:
             dup = f"{cid}_dup{seen[cid]}"
-            jobs.append((dup, "unknown", "", str(out), _fail,
+            jobs.append((dup, "unknown", "", str(out), fail_unit,
                          (f"{dup}: duplicate seq_name {cid!r} (again in {fname})",), config.mode))
             continue
         m = _NAME.match(cid)
@@ -425,9 +426,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         try:
             split = splits[cid] if splits is not None else official_split(cid)
         except KeyError:
-            split, loader, args = "unknown", _fail, (f"{cid}: not listed in split file {split_file}",)
+            split, loader, args = "unknown", fail_unit, (f"{cid}: not listed in split file {split_file}",)
         except SequenceError as exc:
-            split, loader, args = "unknown", _fail, (f"{exc} (in {fname})",)
+            split, loader, args = "unknown", fail_unit, (f"{exc} (in {fname})",)
         files = [object_template_path(objects_root, obj) if obj else objects_root / "<no template>"]
         files += [Path(p) for p in (text_file, gt_file) if p]
         sha = _sequence_sha(seq, files, config.sha256())
@@ -436,6 +437,3 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         jobs += unlisted_split_jobs(jobs, splits, split_file, out, config.mode, "in neither OMOMO pickle")
     return jobs
 
-
-def _fail(message: str):
-    raise SequenceError(message)

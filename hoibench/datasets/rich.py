@@ -518,7 +518,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     clip ids) names another; a clip it does not list is an error for that clip. A subject
     of a sequence with no run long enough for one clip is reported as a failed unit.
     """
-    from ..store import file_sha256
+    from ..store import fail_unit, file_sha256
     root = Path(root)
     data_root = _data_root(root)
     resource = _resource_dir(root, data_root)
@@ -546,7 +546,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                     cid = f"{seq}_{sub}"
                     msg = (f"{cid}: no run of consecutive frames long enough for a {min(CLIP_LENGTHS)}-frame clip "
                            f"at {fps:g} fps (runs of {', '.join(str(len(r)) for r in runs)} source frames)")
-                    jobs.append((cid, split_path.name, "", str(out), _fail, (msg,), config.mode))
+                    jobs.append((cid, split_path.name, "", str(out), fail_unit, (msg,), config.mode))
                     continue
                 for run, a, L in clips:
                     t0, t1 = a / fps, (a + L - 1) / fps
@@ -565,14 +565,11 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                     if splits is not None:
                         split = splits.get(cid, splits.get(seq, "unknown"))
                         if split == "unknown":
-                            loader, args = _fail, (f"{cid}: neither the clip nor {seq} is listed in split file "
+                            loader, args = fail_unit, (f"{cid}: neither the clip nor {seq} is listed in split file "
                                                    f"{split_file}",)
                     if gender not in ("male", "female", "neutral"):
-                        loader, args = _fail, (f"{cid}: gender unknown for subject {sub} of {seq}: put rich_toolkit's "
+                        loader, args = fail_unit, (f"{cid}: gender unknown for subject {sub} of {seq}: put rich_toolkit's "
                                                f"resource/gender.json or resource/meta/*.txt under {root}",)
                     jobs.append((cid, split, sha, str(out), loader, args, config.mode))
     return jobs
 
-
-def _fail(message: str):
-    raise SequenceError(message)
