@@ -21,15 +21,14 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
-import traceback
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from . import __version__
-from .io import atomic_save_npz, atomic_write_json, atomic_write_text
+from .io import atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text
 from .parallel import map_units
 from .representations import hml263, hoi269, joint_level, normalization
 
@@ -123,11 +122,17 @@ class Store:
         return normalization.NormStats.from_npz(self.root / "stats" / f"{name}.npz")
 
 
-def _stored_sha(path: Path) -> str | None:
+def _stored_result(path: Path, clip_id: str, split: str, sha: str) -> UnitResult | None:
+    """The already-prepared clip at ``path`` when its ``source_sha256`` equals ``sha`` (one
+    read of the file); None when it is missing, unreadable or stale."""
     try:
         with np.load(path, allow_pickle=False) as z:
-            return str(z["source_sha256"]) if "source_sha256" in z.files else None
-    except Exception:
+            if "source_sha256" not in z.files or str(z["source_sha256"]) != sha:
+                return None
+            contacts = int(z["contacts"].any(-1).sum()) if "contacts" in z.files else 0
+            return UnitResult(clip_id, "skipped", split, int(len(z["joints"])), sha,
+                              str(z["object_name"]) if "object_name" in z.files else "", contacts)
+    except Exception:   # missing or truncated file: prepare it again
         return None
 
 
@@ -136,11 +141,9 @@ def run_unit(job: tuple) -> UnitResult:
     (clip_id, split, source_sha256, out_dir, loader, loader_args, mode)."""
     clip_id, split, sha, out_dir, loader, loader_args, mode = job
     path = Path(out_dir) / "clips" / f"{clip_id}.npz"
-    if path.exists() and _stored_sha(path) == sha:
-        with np.load(path, allow_pickle=False) as z:
-            contacts = int(z["contacts"].any(-1).sum()) if "contacts" in z.files else 0
-            return UnitResult(clip_id, "skipped", split, int(len(z["joints"])), sha,
-                              str(z["object_name"]) if "object_name" in z.files else "", contacts)
+    done = _stored_result(path, clip_id, split, sha) if path.exists() else None
+    if done is not None:
+        return done
     try:
         seq = loader(*loader_args)
         arrays = clip_arrays(seq, mode, split, sha)
@@ -233,7 +236,7 @@ def _write_stats(out: Path, train_ids: list[str], config: PrepareConfig) -> dict
                     clips.append(z[key])
         if clips:
             st = normalization.compute_stats(clips, mode=stat_mode)
-            atomic_save_npz(out / "stats" / f"{key}.npz", mean=st.mean, std=st.std, count=np.int64(st.count))
+            atomic_write_bytes(out / "stats" / f"{key}.npz", st.to_npz_bytes())
             written[key] = {"sha256": st.sha256(), "frames": st.count, "split": "train"}
     return written
 

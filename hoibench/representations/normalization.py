@@ -13,7 +13,6 @@ computed on the train split only; :meth:`NormStats.sha256` names them in evaluat
 from __future__ import annotations
 
 import hashlib
-import io
 from dataclasses import dataclass
 from typing import Iterable
 
@@ -50,9 +49,9 @@ class NormStats:
         return h.hexdigest()
 
     def to_npz_bytes(self) -> bytes:
-        buf = io.BytesIO()
-        np.savez(buf, mean=self.mean, std=self.std, count=np.int64(self.count))
-        return buf.getvalue()
+        """Byte-reproducible .npz (``mean``, ``std``, ``count``) that :meth:`from_npz` reads."""
+        from ..io import npz_bytes
+        return npz_bytes({"mean": self.mean, "std": self.std, "count": np.int64(self.count)})
 
     @classmethod
     def from_npz(cls, path) -> "NormStats":
