@@ -8,6 +8,8 @@ its own motion. Embeddings are L2-normalised here, so distances lie in [0, 2] (t
 reference's unnormalised embeddings give larger MM-Dist values; compare within one
 evaluator only).
 
+Per-pool hits come from :func:`hoibench.metrics.embedding.pool_hits` (the metrics' own code).
+
 Pools: the items are permuted with ``numpy.random.default_rng([seed, replication])`` and cut
 into consecutive pools of ``pool_size`` (32); an incomplete last pool is dropped. When the
 split has fewer than ``pool_size`` items, one pool of *all* items is used and the card says
@@ -28,26 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..metrics.embedding import pool_hits
+
 FID_SEED_TAG = 4242
-
-
-def euclidean_distance_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, M) float64 Euclidean distances between rows of ``a`` and ``b``."""
-    a = np.asarray(a, np.float64)
-    b = np.asarray(b, np.float64)
-    d2 = (a * a).sum(1)[:, None] - 2.0 * a @ b.T + (b * b).sum(1)[None, :]
-    return np.sqrt(np.maximum(d2, 0.0))
-
-
-def pool_hits(text: np.ndarray, motion: np.ndarray, top_k: int = 3) -> tuple[np.ndarray, float]:
-    """(top_k,) number of captions whose motion ranks within 1..k, and the summed matched
-    distance, for one pool (row i of ``text`` belongs to row i of ``motion``)."""
-    d = euclidean_distance_matrix(text, motion)
-    own = np.diag(d)
-    # rank of the own motion = number of motions strictly closer (ties count in its favour)
-    rank = (d < own[:, None]).sum(1)
-    hits = np.array([(rank < k).sum() for k in range(1, top_k + 1)], np.float64)
-    return hits, float(own.sum())
 
 
 def _ci(values: np.ndarray) -> float:
