@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .geometry import matrix_to_axis_angle
 from .io import atomic_save_npy, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text
 from .representations import hml263
 from .store import Store
@@ -75,7 +76,6 @@ def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
             if "hoi269" not in clip:
                 raise ValueError(f"{cid}: no object: the hoidiff layout needs HOI clips")
             atomic_save_npy(root / "sequences_263_rep" / cid / "hoi_motion.npy", clip["hoi269"].astype(np.float32))
-            from .geometry import matrix_to_axis_angle
             atomic_save_npz(root / "sequences" / cid / "object_motion.npz", name=clip["object_name"],
                             angles=matrix_to_axis_angle(clip["obj_rot"].astype(np.float64)),
                             trans=clip["obj_trans"].astype(np.float64))
