@@ -141,6 +141,15 @@ def _o3d():
     return o3d
 
 
+def _threads() -> int:
+    """Threads for open3d's queries: ``OMP_NUM_THREADS`` when set (open3d's own pool ignores
+    it; worker processes of :mod:`hoibench.parallel` set it to 1), else 0 = every core."""
+    try:
+        return max(0, int(os.environ.get("OMP_NUM_THREADS", "0")))
+    except ValueError:
+        return 0
+
+
 def _check_points(points, name: str = "points") -> np.ndarray:
     p = np.asarray(points)
     if p.ndim < 1 or p.shape[-1] != 3:
@@ -511,6 +520,97 @@ class SignedDistance:
             d[near] = self._exact(flat[near])
         return d.reshape(p.shape[:-1]), near.reshape(p.shape[:-1])
 
+    # -- bounds from a coarse grid (cheap; used to skip exact queries)
+    #: grid spacing (m), raised for large objects so the grid has at most GRID_MAX_NODES nodes
+    GRID_STEP_M = 0.01
+    GRID_MAX_NODES = 300_000
+    #: the grid covers the bounding box grown by at least this much on every side (m)
+    GRID_PAD_M = 0.05
+    #: slack (m) added to every bound for the float32 rounding of open3d's distances
+    BOUND_SLACK_M = 1e-6
+
+    def _grid(self) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+        """``(origin (3,), step, shape (3,), signed values at the nodes (nx*ny*nz,))``, built
+        on first use with :meth:`__call__` at every node (so with this field's inside test)."""
+        if getattr(self, "_grid_cache", None) is None:
+            ext0 = self.box_max - self.box_min
+            h = self.GRID_STEP_M
+            for _ in range(2):   # the pad depends on the step, the step on the padded volume
+                pad = max(self.GRID_PAD_M, h)
+                h = max(self.GRID_STEP_M, float(np.cbrt(np.prod(ext0 + 2 * pad) / self.GRID_MAX_NODES)))
+            pad = max(self.GRID_PAD_M, h)
+            origin = self.box_min - pad
+            shape = np.ceil((ext0 + 2 * pad) / h).astype(np.int64) + 1
+            axes = [origin[i] + h * np.arange(shape[i]) for i in range(3)]
+            nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+            closest = None
+            if self.method == "open3d" and not self.inside_test.endswith("per-component"):
+                o3d = _o3d()
+                res = self._scene.compute_closest_points(
+                    o3d.core.Tensor(np.ascontiguousarray(nodes, dtype=np.float32)), nthreads=_threads())
+                closest = res["points"].numpy()
+            self._grid_cache = (origin, h, shape, self._exact(nodes), pad, closest)
+        return self._grid_cache[:4]
+
+    def distance_upper(self, points) -> np.ndarray:
+        """Upper bounds (N,) of the unsigned distances of points (N, 3) to the mesh:
+        ``|p - c(n)|`` with ``c(n)`` the surface point closest to the nearest grid node (any
+        surface point bounds the distance; this one is nearly the closest for points near
+        the node). ``inf`` outside the grid, and for per-component inside tests (their depth
+        is measured to one component's surface, which a point of the whole mesh does not
+        bound)."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        origin, h, shape, _ = self._grid()
+        closest = self._grid_cache[5]
+        if closest is None:
+            return np.full(len(p), np.inf)
+        k = np.rint((p - origin) * (1.0 / h)).astype(np.int64)
+        out = ~((k >= 0) & (k < shape)).all(axis=1)
+        np.clip(k, 0, shape - 1, out=k)
+        c = closest[k @ np.array([shape[1] * shape[2], shape[2], 1])]
+        u = np.sqrt(np.square(p - c).sum(1)) + self.BOUND_SLACK_M
+        u[out] = np.inf
+        return u
+
+    def bracket(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Guaranteed bounds ``lo <= d <= hi`` (N,) of the signed distances of points (N, 3).
+
+        The signed distance is 1-Lipschitz, so with ``n`` the nearest node of a grid around the
+        mesh (spacing ``GRID_STEP_M``, values computed exactly once per field),
+        ``d(p) in [d(n) - |p - n|, d(n) + |p - n|]`` (plus ``BOUND_SLACK_M``). The sign is
+        therefore known wherever the interval excludes 0: everywhere but within ~0.9 grid
+        steps of the surface. Points outside the grid (which extends ``pad = max(GRID_PAD_M,
+        step)`` beyond the bounding box) are farther than ``pad`` from the box: they get
+        ``[max(pad, box distance), inf)``. Where the inside test is not consistent with a distance
+        field (open meshes under ray votes), the grid's sign is the one of its node.
+        """
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        origin, h, shape, values = self._grid()
+        q = (p - origin) * (1.0 / h)                     # grid coordinates
+        ijk = np.rint(q)
+        k = ijk.astype(np.int64)
+        q -= ijk
+        e = np.sqrt(np.einsum("ij,ij->i", q, q)) * h + self.BOUND_SLACK_M
+        out = ~((k >= 0) & (k < shape)).all(axis=1)
+        np.clip(k, 0, shape - 1, out=k)
+        v = values[k @ np.array([shape[1] * shape[2], shape[2], 1])]
+        lo, hi = v - e, v + e
+        if out.any():
+            lo[out] = np.maximum(self._grid_cache[4], self.box_distance(p[out]))
+            hi[out] = np.inf
+        return lo, hi
+
+    def contains(self, points) -> np.ndarray:
+        """Inside test alone (N,) bool for points (N, 3) in the template frame: the sign of
+        :meth:`__call__` without the distance (about 3x cheaper with open3d). A point the test
+        puts inside counts as inside even at distance 0."""
+        p = _check_points(points).reshape(-1, 3)
+        if len(p) == 0:
+            return np.zeros(0, bool)
+        if self.method == "trimesh":
+            return self._exact(p) < 0
+        return self._inside(p, with_depth=False)[0]
+
     # -- internals
     def _exact(self, p: np.ndarray) -> np.ndarray:
         if len(p) == 0:
@@ -520,39 +620,47 @@ class SignedDistance:
             return -np.asarray(trimesh.proximity.signed_distance(self._tm, p), dtype=np.float64)
         o3d = _o3d()
         pt = o3d.core.Tensor(np.ascontiguousarray(p, dtype=np.float32))
-        dist = self._scene.compute_distance(pt).numpy().astype(np.float64)
+        dist = self._scene.compute_distance(pt, nthreads=_threads()).numpy().astype(np.float64)
+        inside, depth = self._inside(p, with_depth=True)
+        return np.where(inside, -(dist if depth is None else depth), dist)
+
+    def _inside(self, p: np.ndarray, with_depth: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(inside (N,), depth)``: the inside test; ``depth`` is the per-component depth
+        (the largest distance to the surface of a component that contains the point) for
+        per-component tests when ``with_depth``, else None (depth = distance to the mesh)."""
+        o3d = _o3d()
         test = self.report.inside_test
+        inside = np.zeros(len(p), bool)
         if test.endswith("per-component"):
-            inside = np.zeros(len(p), bool)
-            depth = np.zeros(len(p))
+            depth = np.zeros(len(p)) if with_depth else None
             for lo, hi, scene in self._parts:  # only points in the part's box can be inside it
                 idx = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
                 if len(idx) == 0:
                     continue
                 sub = o3d.core.Tensor(np.ascontiguousarray(p[idx], dtype=np.float32))
-                occ = scene.compute_occupancy(sub, nsamples=self.nsamples).numpy() > 0.5
+                occ = scene.compute_occupancy(sub, nsamples=self.nsamples, nthreads=_threads()).numpy() > 0.5
                 idx = idx[occ]
                 if len(idx):
-                    sub = o3d.core.Tensor(np.ascontiguousarray(p[idx], dtype=np.float32))
-                    depth[idx] = np.maximum(depth[idx], scene.compute_distance(sub).numpy())
                     inside[idx] = True
-            return np.where(inside, -depth, dist)
+                    if with_depth:
+                        sub = o3d.core.Tensor(np.ascontiguousarray(p[idx], dtype=np.float32))
+                        depth[idx] = np.maximum(depth[idx], scene.compute_distance(sub, nthreads=_threads()).numpy())
+            return inside, depth
         # every other test: a point outside the bounding box is outside
         inbox = np.flatnonzero(np.all((p >= self.box_min) & (p <= self.box_max), axis=1))
-        inside = np.zeros(len(p), bool)
         if len(inbox) == 0:
-            return dist
+            return inside, None
         q = p[inbox]
         if test.startswith("open3d-occupancy"):
             qt = o3d.core.Tensor(np.ascontiguousarray(q, dtype=np.float32))
-            inside[inbox] = self._scene.compute_occupancy(qt, nsamples=self.nsamples).numpy() > 0.5
+            inside[inbox] = self._scene.compute_occupancy(qt, nsamples=self.nsamples, nthreads=_threads()).numpy() > 0.5
         elif test == "winding-number":
             inside[inbox] = np.abs(winding_number(q, self.vertices, self.faces)) >= 0.5
         else:  # ray-vote[-5dirs+winding-number]
             k = len(self._dirs)
             rays = np.concatenate([np.repeat(q.astype(np.float32)[:, None], k, 1),
                                    np.broadcast_to(self._dirs, (len(q), k, 3))], -1)
-            hits = self._scene.count_intersections(o3d.core.Tensor(rays.reshape(-1, 6))).numpy()
+            hits = self._scene.count_intersections(o3d.core.Tensor(rays.reshape(-1, 6)), nthreads=_threads()).numpy()
             votes = (hits.reshape(-1, k) % 2 == 1).sum(1)
             res = votes > k // 2
             if test.endswith("winding-number"):
@@ -560,7 +668,7 @@ class SignedDistance:
                 if split.any():
                     res[split] = np.abs(winding_number(q[split], self.vertices, self.faces)) >= 0.5
             inside[inbox] = res
-        return np.where(inside, -dist, dist)
+        return inside, None
 
 
 _FIELD_CACHE: dict = {}

@@ -15,6 +15,7 @@ first ``min(T, T')`` frames (ChainHOI evaluates at the ground-truth length).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -56,6 +57,98 @@ def body_object_distances(vertices, template_vertices, faces, obj_rot, obj_trans
                                             np.asarray(obj_trans)[sl], max_distance=margin_m,
                                             field=field, **options)
     return out
+
+
+@dataclass(frozen=True)
+class SurfaceFrames:
+    """Per-frame penetration and contact of a body surface (V vertices) against the object.
+
+    ``penetrating`` (T,) int: vertices with signed distance ``d < 0``; ``depth`` (T,) m: the
+    deepest penetration ``max(-d)`` over the frame's vertices (0 when none penetrates);
+    ``touching`` (T,) bool: some vertex has ``d < contact_m``. Fields not asked for are None.
+    """
+
+    vertices: int
+    penetrating: np.ndarray | None
+    depth: np.ndarray | None
+    touching: np.ndarray | None
+
+
+def surface_frames(field, points, index=None, shape: tuple[int, int] | None = None,
+                   contact_m: float = VERTEX_CONTACT_M, penetration: bool = True,
+                   touching: bool = True) -> SurfaceFrames:
+    """Exact :class:`SurfaceFrames` of body-surface points in the object's template frame, with
+    as few exact distance queries as the answers need.
+
+    ``field``: the object's :class:`hoibench.contact.SignedDistance`. ``points``: (T, V, 3),
+    or (N, 3) with ``index`` (N,) their flat indices ``frame * V + vertex`` and ``shape =
+    (T, V)`` -- vertices not listed must be known to lie farther than ``contact_m`` from the
+    object (e.g. culled body parts). Every point first gets guaranteed bounds ``lo <= d <=
+    hi`` from :meth:`SignedDistance.bracket`; exact signed distances
+    (:meth:`SignedDistance.__call__`) are then computed only
+
+    * the inside test alone (:meth:`SignedDistance.contains`) where the bounds straddle 0
+      (points within ~1 grid step of the surface);
+    * for the deepest point of each frame by its lower bound, then for the inside points whose
+      upper bounds (``-lo`` and :meth:`SignedDistance.distance_upper`) exceed the deepest
+      exact depth so far (the per-frame maximum);
+    * on frames not yet decided by the bounds, for points with ``lo < contact_m`` (touching).
+
+    The result equals computing every signed distance exactly (same inside test, same open3d
+    distances) and reducing per frame -- a vertex penetrates when the inside test contains it
+    (also at distance 0, where ``d < 0`` would not count it); ``tests/test_metrics.py``
+    checks that it does.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if index is None:
+        if pts.ndim != 3 or pts.shape[-1] != 3:
+            raise ValueError(f"points: expected shape (T, V, 3), got {pts.shape}")
+        T, V = pts.shape[:2]
+        pts = pts.reshape(-1, 3)
+        frame = np.repeat(np.arange(T), V)
+    else:
+        T, V = shape
+        frame = np.asarray(index, dtype=np.int64) // V
+    lo, hi = field.bracket(pts) if len(pts) else (np.zeros(0), np.zeros(0))
+    exact = np.zeros(len(pts), bool)
+
+    def resolve(mask):
+        where = np.flatnonzero(mask & ~exact)
+        if len(where):
+            lo[where] = hi[where] = field(pts[where])
+            exact[where] = True
+
+    def frame_max(values, mask):
+        out = np.full(T, -np.inf)
+        np.maximum.at(out, frame[mask], values[mask])
+        return out
+
+    pen = depth = touch = None
+    if penetration:
+        inside = hi < 0
+        band = np.flatnonzero((lo < 0) & (hi >= 0))           # sign unknown: the inside test
+        if len(band):
+            got = field.contains(pts[band])
+            inside[band] = got
+            hi[band[got]] = 0.0                               # inside: d <= 0
+            lo[band[~got]] = 0.0                              # outside: d >= 0
+        pen = np.bincount(frame[inside], minlength=T)
+        if inside.any():
+            lower = frame_max(-hi, inside)                    # depth >= -hi
+            resolve(inside & (-hi == lower[frame]))           # each frame's deepest lower bound
+            best = frame_max(-hi, inside & exact)
+            cand = np.flatnonzero(inside & ~exact & (-lo > best[frame]))   # depth <= -lo
+            if len(cand):                                     # depth <= |p - surface point|
+                cand = cand[field.distance_upper(pts[cand]) > best[frame[cand]]]
+                hit = np.zeros(len(pts), bool)
+                hit[cand] = True
+                resolve(hit)
+        depth = np.maximum(frame_max(-hi, inside), 0.0)
+    if touching:
+        decided = np.bincount(frame[hi < contact_m], minlength=T) > 0
+        resolve(~decided[frame] & (lo < contact_m))
+        touch = np.bincount(frame[hi < contact_m], minlength=T) > 0
+    return SurfaceFrames(V, pen, depth, touch)
 
 
 def object_lowest_point(template_vertices, obj_rot, obj_trans) -> np.ndarray:
@@ -136,13 +229,27 @@ def penetration_counts(vertex_distances) -> tuple[int, int]:
 
 
 def penetration_depth_stats(vertex_distances) -> tuple[float, float, int]:
-    """``(max depth, sum of depths, penetrating vertex-frames)`` of one clip, metres; depth =
-    ``-d`` of penetrating vertices. Mean depth = sum / count pooled over clips (0 when nothing
-    penetrates). Inside unions of overlapping parts the depth is a lower bound (see
-    :mod:`hoibench.contact`)."""
+    """``(max depth, sum of per-frame depths, penetrating frames)`` of one clip, metres, from
+    signed distances (T, V).
+
+    The depth of a frame is its deepest penetration ``max_v(-d_tv)`` over vertices with
+    ``d < 0``; a frame penetrates when one vertex does. ``penetration_depth_max_m`` = the
+    largest frame depth, ``penetration_depth_mean_m`` = sum / count pooled over clips (mean
+    depth of penetrating frames; 0 when nothing penetrates). Per frame, not per vertex, so
+    the value does not depend on how densely the body surface is sampled (the proxy's hands
+    hold 25% of its vertices). Inside unions of overlapping parts the depth is a lower bound
+    (see :mod:`hoibench.contact`)."""
     d = np.asarray(vertex_distances, dtype=np.float64)
-    neg = -d[d < 0]
-    return (float(neg.max()) if neg.size else 0.0), float(neg.sum()), int(neg.size)
+    depth = np.where(d < 0, -d, 0.0).max(axis=1) if d.size else np.zeros(len(d))
+    return frame_depth_stats(depth, (d < 0).any(axis=1) if d.size else np.zeros(len(d), bool))
+
+
+def frame_depth_stats(depth, penetrating) -> tuple[float, float, int]:
+    """``(max, sum over penetrating frames, penetrating frames)`` of per-frame depths (T,)
+    (:func:`penetration_depth_stats`)."""
+    depth = np.asarray(depth, dtype=np.float64)
+    pen = np.asarray(penetrating, dtype=bool)
+    return (float(depth[pen].max()) if pen.any() else 0.0), float(depth[pen].sum()), int(pen.sum())
 
 
 # ===================================================================== contact labels

@@ -10,8 +10,8 @@ output                     definition (module)                           units  
 ``cd``                     contact distance (contact_metrics)            m^2     lower
 ``ocd``                    CD minimised over the semantic group          m^2     lower
 ``ps``                     penetrating body-surface vertex-frames        frac.   lower
-``penetration_depth_max_m`` deepest penetrating vertex                   m       lower
-``penetration_depth_mean_m`` mean depth of penetrating vertex-frames     m       lower
+``penetration_depth_max_m`` deepest penetration of a frame (max -d)      m       lower
+``penetration_depth_mean_m`` mean over penetrating frames of that depth  m       lower
 ``fsr``                    ChainHOI foot skating ratio (motion)          frac.   lower
 ``fsr_gmd``                GMD / HOI-Diff velocity-based skating ratio   frac.   lower
 ``contact_iou``            joint contact labels vs ground truth          frac.   higher
@@ -44,12 +44,12 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .. import skeleton as sk
-from ..contact import joint_thresholds, signed_distance_field
+from ..contact import joint_thresholds, signed_distance_field, to_template_frame
 from ..parallel import map_units
 from . import METRICS
 from . import contact_metrics as cm
 from . import motion as mo
-from .body_surface import PROXY_LABEL, proxy_object_distances, proxy_vertices_from_joints
+from .body_surface import PROXY_LABEL, PROXY_VERTICES, proxy_template_points, proxy_vertices_from_joints
 from .state import Metric, sorted_items
 
 MODES: tuple[str, ...] = ("legacy", "clean")
@@ -170,29 +170,30 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     neg = total = n_pen = 0
     depth_max = depth_sum = 0.0
     touching = np.zeros(len(J), bool)
-    # exact distances are needed below vertex_contact_m only (the body-contact test); farther
-    # vertices keep a lower bound, and signs are exact everywhere
+    # parts farther than the margin from the object cannot touch it (< vertex_contact_m)
     margin = config.vertex_contact_m + 0.005
 
-    def distances(joints, sl):
+    def surface(joints, sl, **what):
+        n = sl.stop - sl.start
         if config.body_surface == "proxy":
-            return proxy_object_distances(joints, sl, field_, inp.template_vertices, R, t, margin)
-        else:
-            verts = np.asarray(body(joints[sl]), dtype=np.float64)
-        return cm.body_object_distances(verts, inp.template_vertices, inp.template_faces, R[sl], t[sl],
-                                        margin_m=margin, field=field_)
+            index, points = proxy_template_points(joints, sl, field_, R, t, margin)
+            return cm.surface_frames(field_, points, index, (n, PROXY_VERTICES), config.vertex_contact_m, **what)
+        verts = np.asarray(body(joints[sl]), dtype=np.float64)
+        return cm.surface_frames(field_, to_template_frame(verts, R[sl], t[sl]),
+                                 contact_m=config.vertex_contact_m, **what)
 
-    chunk = 64
+    chunk = 256
     for s in range(0, len(J), chunk):
         sl = slice(s, min(len(J), s + chunk))
-        dv = distances(J, sl)
-        touching[sl] = (dv < config.vertex_contact_m).any(axis=1)
         if shift:
-            dv = distances(J - np.array([0.0, shift, 0.0]), sl)
-        a, b = cm.penetration_counts(dv)
-        mx, sm, n = cm.penetration_depth_stats(dv)
-        neg, total, n_pen = neg + a, total + b, n_pen + n
-        depth_max, depth_sum = max(depth_max, mx), depth_sum + sm
+            touching[sl] = surface(J, sl, penetration=False).touching
+            sf = surface(J - np.array([0.0, shift, 0.0]), sl, touching=False)
+        else:
+            sf = surface(J, sl)
+            touching[sl] = sf.touching
+        neg, total = neg + int(sf.penetrating.sum()), total + sf.penetrating.size * sf.vertices
+        mx, sm, n = cm.frame_depth_stats(sf.depth, sf.penetrating > 0)
+        n_pen, depth_max, depth_sum = n_pen + n, max(depth_max, mx), depth_sum + sm
     st.update(ps_neg=neg, ps_total=total, depth_max=depth_max, depth_sum=depth_sum, depth_count=n_pen)
     low = cm.object_lowest_point(inp.template_vertices, R, t)
     st["float_frames"], _ = cm.floating_frames(low, touching, config.floor_tolerance_m)
