@@ -596,7 +596,7 @@ class SignedDistance:
         v = values[k @ np.array([shape[1] * shape[2], shape[2], 1])]
         lo, hi = v - e, v + e
         if out.any():
-            lo[out] = np.maximum(self._grid_cache[4], self.box_distance(p[out]))
+            lo[out] = np.maximum(self._grid_cache[4], self.box_distance(p[out])) - self.BOUND_SLACK_M
             hi[out] = np.inf
         return lo, hi
 

@@ -146,6 +146,31 @@ def test_sphere_with_holes_is_signed_like_the_analytic_sphere():
     assert np.all((field(p)[clear] < 0) == (exact[clear] < 0))
 
 
+@pytest.mark.parametrize("name", ["boxsmall", "yogaball", "stool", "chairwood"])
+def test_grid_bounds_contain_the_exact_signed_distance(name):
+    """bracket() (grid + Lipschitz) brackets the exact value, contains() is its sign,
+    distance_upper() bounds |d|; on one-piece and per-component meshes, near and far."""
+    obj = syn.build_object(name)
+    field = C.SignedDistance(obj.vertices, obj.faces)
+    rng = np.random.default_rng(3)
+    p = rng.uniform(field.box_min - 0.3, field.box_max + 0.3, (20000, 3))
+    near = obj.vertices[rng.integers(0, len(obj.vertices), 5000)] + rng.normal(0, 3e-3, (5000, 3))
+    p = np.vstack([p, near])
+    d = field(p)
+    lo, hi = field.bracket(p)
+    assert np.all(lo <= d) and np.all(d <= hi)
+    decided = (hi < 0) | (lo > 0)
+    assert decided[:20000].mean() > 0.9                     # the sign is known without a query
+    fin = np.isfinite(hi)                                    # in the grid: width <= one cell diagonal
+    assert fin.sum() > 5000 and np.all((hi - lo)[fin] <= np.sqrt(3) * field._grid()[1] + 3e-6)
+    np.testing.assert_array_equal(field.contains(p), d < 0)
+    u = field.distance_upper(p)
+    assert np.all(np.abs(d) <= u)
+    if not field.inside_test.endswith("per-component"):
+        ing = np.isfinite(u)
+        assert np.median(u[ing] - np.abs(d[ing])) < 2e-3      # nearly tight near the nodes
+
+
 def test_degenerate_and_duplicate_faces_are_reported_and_removed():
     v = np.vstack([BOX_V, [[0.4, 0, 0], [0.5, 0, 0], [0.6, 0, 0]]])
     f = np.vstack([BOX_F, [[8, 9, 10]], BOX_F[:1], [[0, 0, 1]]])       # collinear, duplicate, repeated index

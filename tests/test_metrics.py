@@ -346,8 +346,86 @@ def test_a_body_pushed_a_known_depth_into_a_box_gives_the_known_ps():
     neg, total = cm.penetration_counts(dv)
     expected = int((v_rest[:, 1] - sole < depth).sum())
     assert (neg, total) == (3 * expected, 3 * len(v_rest))
-    mx, _, n = cm.penetration_depth_stats(dv)
-    assert mx == pytest.approx(depth, abs=1e-5) and n == neg
+    mx, sm, n = cm.penetration_depth_stats(dv)
+    assert mx == pytest.approx(depth, abs=1e-5) and n == 3 and sm == pytest.approx(3 * depth, abs=3e-5)
+    from hoibench.contact import signed_distance_field
+    sf = cm.surface_frames(signed_distance_field(big, BOX_F), verts)     # the fast path
+    np.testing.assert_array_equal(sf.penetrating, [expected] * 3)
+    np.testing.assert_allclose(sf.depth, depth, atol=1e-5)
+    assert sf.touching.all()
+
+
+def test_penetration_depth_is_the_deepest_vertex_of_each_frame():
+    d = np.array([[-0.1, -0.3, 0.5], [0.2, 0.1, 0.0], [-0.05, 1.0, 1.0]])
+    mx, sm, n = cm.penetration_depth_stats(d)
+    assert (mx, n) == (0.3, 2) and sm == pytest.approx(0.35)
+    assert cm.penetration_counts(d) == (3, 9)
+
+
+def _posed_bodies(obj, rng, frames=24):
+    """Proxy rest bodies (frames, 6890, 3) in the object's frame, each rigidly placed with a
+    random vertex at a random point within 8 cm of the object's box: some frames penetrate,
+    some touch, some are clear."""
+    from hoibench.bodies import ProxyBody
+    v = ProxyBody().v_template
+    out = []
+    for _ in range(frames):
+        a = rng.uniform(0, 2 * np.pi)
+        R = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+        anchor = v[rng.integers(len(v))]
+        target = rng.uniform(obj.vertices.min(0) - 0.08, obj.vertices.max(0) + 0.08)
+        out.append((v - anchor) @ R.T + target)
+    return np.stack(out)
+
+
+def _exact_frames(d, contact_m=cm.VERTEX_CONTACT_M):
+    return (d < 0).sum(1), np.where(d < 0, -d, 0.0).max(1), (d < contact_m).any(1)
+
+
+@needs_open3d
+@pytest.mark.parametrize("name", ["boxlarge", "yogaball", "stool", "chairwood"])
+def test_surface_frames_equal_exact_distances_of_every_vertex(name):
+    """The bounded fast path (few exact queries) equals querying all 6,890 x T vertices."""
+    from hoibench.contact import signed_distance_field
+    from hoibench.datasets.synthetic import build_object
+    obj = build_object(name)
+    field = signed_distance_field(obj.vertices, obj.faces)
+    local = _posed_bodies(obj, np.random.default_rng(5))
+    pen, depth, touch = _exact_frames(field(local))
+    assert pen.any() and (pen == 0).any() and touch.any() and (~touch).any()
+    sf = cm.surface_frames(field, local)
+    np.testing.assert_array_equal(sf.penetrating, pen)
+    np.testing.assert_array_equal(sf.depth, depth)
+    np.testing.assert_array_equal(sf.touching, touch)
+    only = cm.surface_frames(field, local, touching=False)
+    assert only.touching is None and np.array_equal(only.depth, depth)
+
+
+@needs_open3d
+@pytest.mark.parametrize("clip", [11, 5, 13])
+def test_culled_proxy_points_give_the_exact_surface_frames(clip):
+    """proxy_template_points skips clusters that cannot come within the margin; the frames it
+    yields equal the exact per-vertex computation on the whole posed proxy body."""
+    from hoibench.contact import signed_distance_field, to_template_frame
+    from hoibench.datasets.synthetic import Defect, generate_clip, plan_clips
+    from hoibench.metrics.body_surface import (PROXY_VERTICES, proxy_template_points,
+                                               proxy_vertices_from_joints)
+    c = generate_clip(plan_clips(16, 0)[clip], (0, clip), Defect("penetration", 0.01))
+    field = signed_distance_field(c.object.vertices, c.object.faces)
+    T = len(c.joints)
+    index, pts = proxy_template_points(c.joints, slice(0, T), field, c.obj_rot, c.obj_trans, 0.025)
+    local = to_template_frame(proxy_vertices_from_joints(c.joints), c.obj_rot, c.obj_trans)
+    np.testing.assert_allclose(pts, local.reshape(-1, 3)[index], atol=1e-12)
+    d = field(local)
+    skipped = np.ones(T * PROXY_VERTICES, bool)
+    skipped[index] = False
+    assert skipped.any() and np.all(d.reshape(-1)[skipped] > 0.025)
+    pen, depth, touch = _exact_frames(d)
+    assert pen.sum() > 0
+    sf = cm.surface_frames(field, pts, index, (T, PROXY_VERTICES))
+    np.testing.assert_array_equal(sf.penetrating, pen)
+    np.testing.assert_array_equal(sf.depth, depth)
+    np.testing.assert_array_equal(sf.touching, touch)
 
 
 def test_floating_and_hand_contact_counts():
