@@ -1,21 +1,24 @@
 """Cost of evaluating 1,000 samples of 196 frames with every metric and 20 replications.
 
-    python benchmarks/evaluate.py [--samples 1000] [--frames 196] [--physical-samples 100]
+    python benchmarks/evaluate.py [--samples 1000] [--frames 196] [--physical-samples N]
                                   [--executor processes:2] [--trimesh-samples 2]
 
 Builds clips from a synthetic store (each test clip looped in time to ``--frames``), then
 times the parts of ``hoibench evaluate`` separately: embedding all samples with a tiny
 evaluator, the 20 replications of the embedding metrics, and the physical metrics
-(CD, OCD, PS, FSR, extras) on ``--physical-samples`` of them (extrapolated linearly to
-``--samples``, and said so). PS vertex-queries/s are compared side by side with a
+(CD, OCD, PS, FSR, extras) on all samples, or on ``--physical-samples`` of them
+(extrapolated linearly to ``--samples``, and said so). PS vertex-queries/s are compared side by side with a
 straightforward trimesh PS (``trimesh.proximity.signed_distance`` on every proxy body vertex)
-on ``--trimesh-samples`` clips. Peak memory is the process's max RSS.
+on ``--trimesh-samples`` clips. Peak memory is the process's max RSS (the evaluator is
+trained in a child process beforehand) and the largest child's (workers).
 """
 from __future__ import annotations
 
 import argparse
 import resource
 import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -28,18 +31,22 @@ def _loop(a: np.ndarray, n: int) -> np.ndarray:
     return a[np.resize(idx, n)]
 
 
+def _peak_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--samples", type=int, default=1000)
     ap.add_argument("--frames", type=int, default=196)
-    ap.add_argument("--physical-samples", type=int, default=100)
+    ap.add_argument("--physical-samples", type=int, default=None)
     ap.add_argument("--executor", default="processes:2")
     ap.add_argument("--trimesh-samples", type=int, default=2)
     args = ap.parse_args(argv)
 
     from hoibench.annotate import annotate_store
     from hoibench.datasets.synthetic_store import build_synthetic_store
-    from hoibench.evaluator import load_evaluator, main_train_evaluator
+    from hoibench.evaluator import load_evaluator
     from hoibench.metrics import embedding as em
     from hoibench.metrics.physical import clip_inputs, evaluate_physical, load_groups
     from hoibench.protocol import get_protocol
@@ -50,7 +57,9 @@ def main(argv=None) -> None:
     try:
         _, data, _ = build_synthetic_store(tmp, 44, seed=0)
         annotate_store(data)
-        main_train_evaluator(data, tmp / "ev", size="tiny", seed=0)
+        # in a child process, so that training's memory is not in this process's peak RSS
+        subprocess.run([sys.executable, "-m", "hoibench.cli", "train-evaluator", str(data), "--out",
+                        str(tmp / "ev"), "--size", "tiny", "--seed", "0"], check=True, stdout=subprocess.DEVNULL)
         store = Store(data)
         proto = get_protocol("behave-clean")           # full-size protocol: pools of 32, 200 pairs
         ev = load_evaluator(tmp / "ev")
@@ -79,10 +88,11 @@ def main(argv=None) -> None:
             em.mm_dist(text, gen, pools)
             em.diversity(gen, proto.effective_diversity_pairs(len(ids)), proto.seed_for("diversity", r))
         t_rep = time.perf_counter() - t0
+        print(f"peak RSS so far (store, annotations, embeddings): {_peak_mib():.0f} MiB")
         print(f"encode hoi269: {t_enc:6.1f} s   embed (tiny evaluator): {t_emb:6.1f} s   "
               f"20 replications (R-precision, MM-Dist, Diversity; FID once {fid:.3g}): {t_rep:6.2f} s")
 
-        n = min(args.physical_samples, args.samples)
+        n = args.samples if args.physical_samples is None else min(args.physical_samples, args.samples)
         motions = {ids[i]: {"joints": joints[i], "obj_rot": rots[i], "obj_trans": trans[i]} for i in range(n)}
 
         class _Alias:   # the physical metrics look up each sample's test clip by id
@@ -106,10 +116,12 @@ def main(argv=None) -> None:
         phys = evaluate_physical(inputs, proto.physical_config(), executor=args.executor).compute()
         t_phys = time.perf_counter() - t0
         vq = n * args.frames * 6890 / t_phys
-        print(f"physical metrics on {n} samples ({args.executor}): {t_phys:6.1f} s -> "
-              f"{t_phys * args.samples / n:7.1f} s for {args.samples} (linear); {vq / 1e6:.2f} M body-vertex-frames/s "
-              f"(PS {phys['ps']:.4f})")
+        scaled = "" if n == args.samples else f" -> {t_phys * args.samples / n:7.1f} s for {args.samples} (linear)"
+        print(f"physical metrics on {n} samples ({args.executor}): {t_phys:6.1f} s{scaled}; "
+              f"{vq / 1e6:.2f} M body-vertex-frames/s (PS {phys['ps']:.4f}, depth max "
+              f"{phys['penetration_depth_max_m']:.3f} m)")
 
+        print(f"peak RSS after the physical metrics: {_peak_mib():.0f} MiB")
         import trimesh
 
         from hoibench.metrics.body_surface import proxy_vertices_from_joints
@@ -129,8 +141,11 @@ def main(argv=None) -> None:
         print(f"trimesh PS: {tot / t_tm / 1e3:7.1f} k vertex-queries/s ({m} samples, every 4th frame) vs "
               f"hoibench {vq / 1e3:7.1f} k/s -> {vq / (tot / t_tm):.0f}x")
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        worker = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
         total = t_enc + t_emb + t_rep + t_phys * args.samples / n
-        print(f"estimated total for {args.samples} samples: {total:.0f} s; peak RSS {peak:.0f} MiB")
+        word = "total" if n == args.samples else "estimated total"
+        print(f"{word} for {args.samples} samples: {total:.0f} s; peak RSS {peak:.0f} MiB "
+              f"(largest child process: {worker:.0f} MiB, including the evaluator training run)")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -3,7 +3,10 @@
 * Signed distances (m, negative inside) from points to a triangle mesh:
   :class:`SignedDistance` (one open3d raycasting scene per object template, reused for every
   frame), :func:`signed_distance`, :func:`signed_distance_frames` (world points of T frames
-  moved into the template frame, bounding-box culling), :func:`prepare_mesh` (checks,
+  moved into the template frame, bounding-box culling), guaranteed bounds from a coarse grid
+  (:meth:`SignedDistance.bracket`, :meth:`SignedDistance.distance_upper`) and the inside
+  test alone (:meth:`SignedDistance.contains`) for callers that need exact answers to
+  questions about many points rather than every distance, :func:`prepare_mesh` (checks,
   pymeshlab repair, and the inside test used -- reported, never silent),
   :func:`winding_number`.
 * Contact labels: :func:`joint_contact_labels` (T, 22) and :func:`vertex_contact_labels`

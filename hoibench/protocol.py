@@ -11,7 +11,7 @@ interval ``1.96 * std / sqrt(replications)`` (population std, as text-to-motion'
 ``get_metric_statistics``) -- see :func:`summarize`.
 
 Registry: :func:`list_protocols`, :func:`get_protocol` (``"behave-clean"``,
-``"behave-clean@1.0"`` or a path to a YAML file). CLI: :func:`main_protocols`
+``"behave-clean@1.1"`` or a path to a YAML file). CLI: :func:`main_protocols`
 (``hoibench protocols ls`` / ``hoibench protocols show behave-clean``).
 
 Seeds are derived, never taken from worker rank: :meth:`Protocol.seed_for` hashes
@@ -217,7 +217,7 @@ def list_protocols() -> list[Protocol]:
 
 
 def get_protocol(name: str | Path | Protocol) -> Protocol:
-    """A protocol by id (``"behave-clean"``), id and version (``"behave-clean@1.0"``) or path
+    """A protocol by id (``"behave-clean"``), id and version (``"behave-clean@1.1"``) or path
     to a YAML file. ``KeyError`` listing the known ids otherwise."""
     if isinstance(name, Protocol):
         return name

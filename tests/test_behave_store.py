@@ -193,3 +193,16 @@ def test_parse_executor_errors():
     for bad in ["threads", "processes:0", "processes:x", "dask://"]:
         with pytest.raises(ValueError, match="--executor"):
             parse_executor(bad)
+
+
+def test_worker_processes_start_with_one_library_thread(monkeypatch):
+    """Workers get OMP/BLAS = 1 thread from their first import on; the parent's setting
+    comes back afterwards (open3d reads OMP_NUM_THREADS through hoibench.contact)."""
+    import os
+
+    from hoibench.parallel import map_units
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "7")
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    got = list(map_units(os.getenv, ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"], "processes:1"))
+    assert got == ["1", "1", "1"]
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "7" and "OMP_NUM_THREADS" not in os.environ

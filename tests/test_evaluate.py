@@ -38,7 +38,7 @@ def test_ground_truth_submission_scores_fid_zero_and_is_complete(setup, tmp_path
         assert key in res
     # the evaluator card's GT scores were computed with the same protocol draw: equal
     card = json.loads((base / "ev" / "card.json").read_text())["gt_retrieval"]
-    assert card["protocol"] == "synthetic-clean@1.0"
+    assert card["protocol"] == "synthetic-clean@1.1"
     for k in (1, 2, 3):
         assert res["metrics"][f"r_precision_top{k}"]["mean"] == pytest.approx(card[f"top{k}"]["mean"], abs=1e-12)
     assert res["metrics"]["mm_dist"]["mean"] == pytest.approx(card["mm_dist"]["mean"], rel=1e-6)

@@ -39,7 +39,7 @@ def test_shipped_protocols_fix_the_design_numbers():
             assert (p.mm_texts, p.mm_samples, p.mm_pairs) == (100, 30, 10)
             assert p.diversity_pairs == (200 if p.dataset == "behave" else 300)
     assert protos["behave-clean"].representation == "hml263-clean-1.0"
-    assert P.get_protocol("behave-clean@1.0") == protos["behave-clean"]
+    assert P.get_protocol("behave-clean@1.1") == protos["behave-clean"]
     assert len({p.sha256 for p in protos.values()}) == len(protos)
 
 

@@ -101,9 +101,10 @@ register(MetricInfo("ps", "physical", False, "fraction", "PS (ChainHOI)",
                     "penetrating body-surface vertex-frames / all vertex-frames (proxy body by default)",
                     f"{_C}:penetration_counts"))
 register(MetricInfo("penetration_depth_max_m", "physical", False, "m", None, "signed distance < 0",
-                    "deepest penetrating body-surface vertex", f"{_C}:penetration_depth_stats"))
+                    "deepest penetration of any frame (max over vertices of -d)", f"{_C}:penetration_depth_stats"))
 register(MetricInfo("penetration_depth_mean_m", "physical", False, "m", None, "signed distance < 0",
-                    "mean depth of penetrating body-surface vertex-frames", f"{_C}:penetration_depth_stats"))
+                    "mean over penetrating frames of the frame's deepest penetration",
+                    f"{_C}:penetration_depth_stats"))
 register(MetricInfo("fsr", "physical", False, "fraction", "FSR (ChainHOI)",
                     "feet 10, 11; height < 0.05 m at t+1; step > 0.025 m (legacy: |dx|; clean: xz, 0.5 m/s)",
                     "skating foot-frames / ground-contact foot-frames", f"{_M}:foot_skating_counts"))
