@@ -563,17 +563,26 @@ class SignedDistance:
         is measured to one component's surface, which a point of the whole mesh does not
         bound)."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        origin, h, shape, _ = self._grid()
+        self._grid()
         closest = self._grid_cache[5]
         if closest is None:
             return np.full(len(p), np.inf)
-        k = np.rint((p - origin) * (1.0 / h)).astype(np.int64)
-        out = ~((k >= 0) & (k < shape)).all(axis=1)
-        np.clip(k, 0, shape - 1, out=k)
-        c = closest[k @ np.array([shape[1] * shape[2], shape[2], 1])]
-        u = np.sqrt(np.square(p - c).sum(1)) + self.BOUND_SLACK_M
+        node, _, out = self._nearest_node(p)
+        u = np.sqrt(np.square(p - closest[node]).sum(1)) + self.BOUND_SLACK_M
         u[out] = np.inf
         return u
+
+    def _nearest_node(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(flat node index (N,), p - node (N, 3), outside the grid (N,))`` for points (N, 3);
+        points outside the grid get the clamped node (their offset is then meaningless)."""
+        origin, h, shape, _ = self._grid()
+        q = (p - origin) * (1.0 / h)                     # grid coordinates
+        ijk = np.rint(q)
+        k = ijk.astype(np.int64)
+        q -= ijk
+        out = ~((k >= 0) & (k < shape)).all(axis=1)
+        np.clip(k, 0, shape - 1, out=k)
+        return k @ np.array([shape[1] * shape[2], shape[2], 1]), q * h, out
 
     def bracket(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Guaranteed bounds ``lo <= d <= hi`` (N,) of the signed distances of points (N, 3).
@@ -588,15 +597,9 @@ class SignedDistance:
         field (open meshes under ray votes), the grid's sign is the one of its node.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        origin, h, shape, values = self._grid()
-        q = (p - origin) * (1.0 / h)                     # grid coordinates
-        ijk = np.rint(q)
-        k = ijk.astype(np.int64)
-        q -= ijk
-        e = np.sqrt(np.einsum("ij,ij->i", q, q)) * h + self.BOUND_SLACK_M
-        out = ~((k >= 0) & (k < shape)).all(axis=1)
-        np.clip(k, 0, shape - 1, out=k)
-        v = values[k @ np.array([shape[1] * shape[2], shape[2], 1])]
+        node, offset, out = self._nearest_node(p)
+        e = np.sqrt(np.einsum("ij,ij->i", offset, offset)) + self.BOUND_SLACK_M
+        v = self._grid()[3][node]
         lo, hi = v - e, v + e
         if out.any():
             lo[out] = np.maximum(self._grid_cache[4], self.box_distance(p[out])) - self.BOUND_SLACK_M
