@@ -236,13 +236,15 @@ def get_protocol(name: str | Path | Protocol) -> Protocol:
 def summarize(values: Iterable, replications: int | None = None) -> dict:
     """Mean and 95% CI over replications: ``ci95 = 1.96 * std / sqrt(n)``, ``std`` the
     population standard deviation (``np.std``, ddof 0), ``n`` = ``replications`` (default:
-    the number of values). Works per component for vector values (R-precision top-1..3).
+    the number of values); equal values (the physical metrics, computed once) give exactly 0.
+    Works per component for vector values (R-precision top-1..3).
     Returns ``{"mean", "ci95", "std", "n"}`` (floats or lists)."""
     v = np.asarray(list(values), dtype=np.float64)
     if v.size == 0:
         raise ValueError("values: need at least one replication")
     n = len(v) if replications is None else int(replications)
     mean, std = v.mean(axis=0), v.std(axis=0)
+    std = np.where(np.all(v == v[0], axis=0), 0.0, std)    # equal values: exactly 0, not 1e-17
     ci = CI_Z * std / np.sqrt(n)
     tolist = (lambda x: x.tolist()) if v.ndim > 1 else float
     return {"mean": tolist(mean), "ci95": tolist(ci), "std": tolist(std), "n": int(n)}

@@ -61,6 +61,9 @@ def test_summaries_use_the_population_std():
     assert s["mean"] == 2.5 and s["ci95"] == pytest.approx(1.96 * np.std([1, 2, 3, 4]) / 2)
     rep = P.summarize_replications([{"fid": 1.0, "mm": 2.0}, {"fid": 3.0, "mm": float("nan")}])
     assert rep["fid"]["mean"] == 2.0 and rep["mm"]["n"] == 1
+    assert np.std([0.071999] * 20) > 0                      # rounding in the mean ...
+    assert P.summarize([0.071999] * 20)["ci95"] == 0.0       # ... is not reported as spread
+    assert P.summarize([[0.1, 0.2], [0.1, 0.3]])["ci95"][0] == 0.0
 
 
 def test_invalid_protocol_names_file_and_field(tmp_path):
