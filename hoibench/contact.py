@@ -417,6 +417,20 @@ def _sphere_directions(k: int) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------- the field
+@dataclass(frozen=True)
+class _Grid:
+    """Nodes ``origin + step * (i, j, k)``, ``0 <= (i, j, k) < shape``, covering the bounding
+    box grown by ``pad``; ``values`` the exact signed distances at the nodes (flat, C order),
+    ``closest`` the closest surface point of each node (None where it bounds nothing)."""
+
+    origin: np.ndarray
+    step: float
+    shape: np.ndarray
+    values: np.ndarray
+    pad: float
+    closest: np.ndarray | None
+
+
 class SignedDistance:
     """Signed distance to one (template) triangle mesh, built once and queried many times.
 
@@ -532,9 +546,9 @@ class SignedDistance:
     #: slack (m) added to every bound for the float32 rounding of open3d's distances
     BOUND_SLACK_M = 1e-6
 
-    def _grid(self) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
-        """``(origin (3,), step, shape (3,), signed values at the nodes (nx*ny*nz,))``, built
-        on first use with :meth:`__call__` at every node (so with this field's inside test)."""
+    def _grid(self) -> "_Grid":
+        """The bounds grid, built on first use with :meth:`__call__` at every node (so with
+        this field's inside test)."""
         if getattr(self, "_grid_cache", None) is None:
             ext0 = self.box_max - self.box_min
             h = self.GRID_STEP_M
@@ -552,8 +566,8 @@ class SignedDistance:
                 res = self._scene.compute_closest_points(
                     o3d.core.Tensor(np.ascontiguousarray(nodes, dtype=np.float32)), nthreads=_threads())
                 closest = res["points"].numpy()
-            self._grid_cache = (origin, h, shape, self._exact(nodes), pad, closest)
-        return self._grid_cache[:4]
+            self._grid_cache = _Grid(origin, h, shape, self._exact(nodes), pad, closest)
+        return self._grid_cache
 
     def distance_upper(self, points) -> np.ndarray:
         """Upper bounds (N,) of the unsigned distances of points (N, 3) to the mesh:
@@ -563,8 +577,7 @@ class SignedDistance:
         is measured to one component's surface, which a point of the whole mesh does not
         bound)."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        self._grid()
-        closest = self._grid_cache[5]
+        closest = self._grid().closest
         if closest is None:
             return np.full(len(p), np.inf)
         node, _, out = self._nearest_node(p)
@@ -575,7 +588,8 @@ class SignedDistance:
     def _nearest_node(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(flat node index (N,), p - node (N, 3), outside the grid (N,))`` for points (N, 3);
         points outside the grid get the clamped node (their offset is then meaningless)."""
-        origin, h, shape, _ = self._grid()
+        g = self._grid()
+        origin, h, shape = g.origin, g.step, g.shape
         q = (p - origin) * (1.0 / h)                     # grid coordinates
         ijk = np.rint(q)
         k = ijk.astype(np.int64)
@@ -599,10 +613,10 @@ class SignedDistance:
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         node, offset, out = self._nearest_node(p)
         e = np.sqrt(np.einsum("ij,ij->i", offset, offset)) + self.BOUND_SLACK_M
-        v = self._grid()[3][node]
+        v = self._grid().values[node]
         lo, hi = v - e, v + e
         if out.any():
-            lo[out] = np.maximum(self._grid_cache[4], self.box_distance(p[out])) - self.BOUND_SLACK_M
+            lo[out] = np.maximum(self._grid().pad, self.box_distance(p[out])) - self.BOUND_SLACK_M
             hi[out] = np.inf
         return lo, hi
 

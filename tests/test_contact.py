@@ -162,7 +162,7 @@ def test_grid_bounds_contain_the_exact_signed_distance(name):
     decided = (hi < 0) | (lo > 0)
     assert decided[:20000].mean() > 0.9                     # the sign is known without a query
     fin = np.isfinite(hi)                                    # in the grid: width <= one cell diagonal
-    assert fin.sum() > 5000 and np.all((hi - lo)[fin] <= np.sqrt(3) * field._grid()[1] + 3e-6)
+    assert fin.sum() > 5000 and np.all((hi - lo)[fin] <= np.sqrt(3) * field._grid().step + 3e-6)
     np.testing.assert_array_equal(field.contains(p), d < 0)
     u = field.distance_upper(p)
     assert np.all(np.abs(d) <= u)

@@ -23,6 +23,7 @@ followed by :func:`hoibench.bodies.body_forward`) and label it.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -54,11 +55,26 @@ def _proxy():
 CLUSTER_RADIUS_M = 0.07
 
 
+@dataclass(frozen=True)
+class _Clusters:
+    """The proxy's vertices in compact clusters, each rigid to one joint, at body scale 1:
+    cluster ``k`` holds vertices ``members[k]`` (offsets ``offsets[k]`` from ``joint[k]``),
+    inside the sphere ``centre[k]`` (relative to the joint), ``radius[k]``;
+    ``part_centre`` / ``part_radius`` (22,) enclose each joint's clusters (0 without any)."""
+
+    joint: np.ndarray
+    members: tuple
+    offsets: tuple
+    centre: np.ndarray
+    radius: np.ndarray
+    part_centre: np.ndarray
+    part_radius: np.ndarray
+
+
 @lru_cache(maxsize=1)
-def _clusters() -> list[tuple[int, np.ndarray, np.ndarray, float]]:
-    """The proxy's vertices in compact clusters, each rigid to one joint: ``(joint, vertex
-    indices, centre relative to the joint (3,), radius)`` at body scale 1. Each part is split
-    in halves along its longest extent until every piece fits in ``CLUSTER_RADIUS_M``."""
+def _clusters() -> _Clusters:
+    """:class:`_Clusters`: each part is split in halves along its longest extent until every
+    piece fits in ``CLUSTER_RADIUS_M``."""
     v_template, _, rest, groups = _proxy()
     out = []
 
@@ -67,7 +83,7 @@ def _clusters() -> list[tuple[int, np.ndarray, np.ndarray, float]]:
         c = 0.5 * (x.min(0) + x.max(0))
         r = float(np.linalg.norm(x - c, axis=1).max())
         if r <= CLUSTER_RADIUS_M or len(idx) < 8:
-            out.append((j, idx, c, r))
+            out.append((j, idx, x, c, r))
             return
         axis = int(np.argmax(x.max(0) - x.min(0)))
         order = np.argsort(x[:, axis], kind="stable")
@@ -78,7 +94,18 @@ def _clusters() -> list[tuple[int, np.ndarray, np.ndarray, float]]:
     for j, idx in groups:
         if len(idx):
             split(j, idx)
-    return out
+    joint = np.array([c[0] for c in out])
+    centre = np.array([c[3] for c in out])
+    radius = np.array([c[4] for c in out])
+    part_centre, part_radius = np.zeros((sk.NUM_JOINTS, 3)), np.zeros(sk.NUM_JOINTS)
+    for j in np.unique(joint):
+        sel = joint == j
+        lo = (centre[sel] - radius[sel, None]).min(0)
+        hi = (centre[sel] + radius[sel, None]).max(0)
+        part_centre[j] = 0.5 * (lo + hi)
+        part_radius[j] = (np.linalg.norm(centre[sel] - part_centre[j], axis=1) + radius[sel]).max()
+    return _Clusters(joint, tuple(c[1] for c in out), tuple(c[2] for c in out), centre, radius,
+                     part_centre, part_radius)
 
 
 def proxy_faces() -> np.ndarray:
@@ -184,50 +211,32 @@ def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
         object.
     """
     J = np.asarray(joints, dtype=np.float64)
-    v_template, _, rest, groups = _proxy()
-    V = len(v_template)
+    V, rest = PROXY_VERTICES, _proxy()[2]
     s = body_scale(J)
     Jf = J[frames]
     Ro, to = np.asarray(obj_rot, dtype=np.float64)[frames], np.asarray(obj_trans, dtype=np.float64)[frames]
     # every joint's rigid map to the template frame, (T, 22, 3, 3) and (T, 22, 3)
     M = np.swapaxes(Ro, 1, 2)[:, None] @ joint_global_rotations(Jf, rest * s)
     b = (np.swapaxes(Ro, 1, 2)[:, None] @ (Jf - to[:, None, :])[..., None])[..., 0]
-    clusters = _clusters()
-    joint = np.array([c[0] for c in clusters])
-    centre = np.array([c[2] for c in clusters]) * s
-    radius = np.array([c[3] for c in clusters]) * s
-    # parts first (one sphere around each part's clusters), then the clusters of near parts
-    part_c, part_r = _part_spheres(clusters, joint, centre, radius)
-    lo, _ = field.bracket(np.einsum("tjab,jb->tja", M, part_c) + b)
-    near_part = lo.reshape(len(Jf), -1) <= part_r + margin_m                 # (T, 22)
-    tt, kk = np.nonzero(near_part[:, joint])
-    near_cluster = np.zeros((len(Jf), len(clusters)), bool)
+    cl = _clusters()
+    # parts first (one sphere around each part's clusters), then the clusters of near parts;
+    # every offset and radius scales with the body
+    lo, _ = field.bracket(np.einsum("tjab,jb->tja", M, cl.part_centre * s) + b)
+    near_part = lo.reshape(len(Jf), -1) <= cl.part_radius * s + margin_m     # (T, 22)
+    tt, kk = np.nonzero(near_part[:, cl.joint])
+    near_cluster = np.zeros((len(Jf), len(cl.joint)), bool)
     if len(tt):
-        jj = joint[kk]
-        lo, _ = field.bracket(np.einsum("nab,nb->na", M[tt, jj], centre[kk]) + b[tt, jj])
-        near_cluster[tt, kk] = lo <= radius[kk] + margin_m
+        jj = cl.joint[kk]
+        lo, _ = field.bracket(np.einsum("nab,nb->na", M[tt, jj], cl.centre[kk] * s) + b[tt, jj])
+        near_cluster[tt, kk] = lo <= cl.radius[kk] * s + margin_m
     index, points = [], []
-    for c, (j, idx, _, _) in enumerate(clusters):
+    for c, (j, idx, offsets) in enumerate(zip(cl.joint, cl.members, cl.offsets)):
         near = np.flatnonzero(near_cluster[:, c])
         if len(near) == 0:
             continue
-        part = (v_template[idx] - rest[j]) * s
-        points.append(_rigid(M[near, j], b[near, j], part).reshape(-1, 3))
+        points.append(_rigid(M[near, j], b[near, j], offsets * s).reshape(-1, 3))
         index.append((near[:, None] * V + idx[None, :]).reshape(-1))
     if not index:
         return np.zeros(0, np.int64), np.zeros((0, 3))
     return np.concatenate(index), np.concatenate(points)
 
-
-def _part_spheres(clusters, joint, centre, radius) -> tuple[np.ndarray, np.ndarray]:
-    """Spheres ``(centres (22, 3), radii (22,))`` around each joint's clusters (radius 0 and
-    centre 0 for a joint without vertices)."""
-    c = np.zeros((sk.NUM_JOINTS, 3))
-    r = np.zeros(sk.NUM_JOINTS)
-    for j in np.unique(joint):
-        sel = joint == j
-        lo = (centre[sel] - radius[sel, None]).min(0)
-        hi = (centre[sel] + radius[sel, None]).max(0)
-        c[j] = 0.5 * (lo + hi)
-        r[j] = (np.linalg.norm(centre[sel] - c[j], axis=1) + radius[sel]).max()
-    return c, r

@@ -84,11 +84,13 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
     or (N, 3) with ``index`` (N,) their flat indices ``frame * V + vertex`` and ``shape =
     (T, V)`` -- vertices not listed must be known to lie farther than ``contact_m`` from the
     object (e.g. culled body parts). Every point first gets guaranteed bounds ``lo <= d <=
-    hi`` from :meth:`SignedDistance.bracket`; exact signed distances
-    (:meth:`SignedDistance.__call__`) are then computed only
+    hi`` from :meth:`SignedDistance.bracket`; then only
 
-    * the inside test alone (:meth:`SignedDistance.contains`) where the bounds straddle 0
-      (points within ~1 grid step of the surface);
+    * where the bounds straddle 0 (points within ~1 grid step of the surface), the inside test
+      alone (:meth:`SignedDistance.contains`);
+
+    and exact signed distances (:meth:`SignedDistance.__call__`) only
+
     * for the deepest point of each frame by its lower bound, then for the inside points whose
       upper bounds (``-lo`` and :meth:`SignedDistance.distance_upper`) exceed the deepest
       exact depth so far (the per-frame maximum);
@@ -112,8 +114,9 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
     lo, hi = field.bracket(pts) if len(pts) else (np.zeros(0), np.zeros(0))
     exact = np.zeros(len(pts), bool)
 
-    def resolve(mask):
-        where = np.flatnonzero(mask & ~exact)
+    def resolve(where):
+        """Exact values for the points ``where`` (indices) that are not exact yet."""
+        where = where[~exact[where]]
         if len(where):
             lo[where] = hi[where] = field(pts[where])
             exact[where] = True
@@ -135,18 +138,15 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
         pen = np.bincount(frame[inside], minlength=T)
         if inside.any():
             lower = frame_max(-hi, inside)                    # depth >= -hi
-            resolve(inside & (-hi == lower[frame]))           # each frame's deepest lower bound
+            resolve(np.flatnonzero(inside & (-hi == lower[frame])))   # each frame's deepest lower bound
             best = frame_max(-hi, inside & exact)
             cand = np.flatnonzero(inside & ~exact & (-lo > best[frame]))   # depth <= -lo
             if len(cand):                                     # depth <= |p - surface point|
-                cand = cand[field.distance_upper(pts[cand]) > best[frame[cand]]]
-                hit = np.zeros(len(pts), bool)
-                hit[cand] = True
-                resolve(hit)
+                resolve(cand[field.distance_upper(pts[cand]) > best[frame[cand]]])
         depth = np.maximum(frame_max(-hi, inside), 0.0)
     if touching:
         decided = np.bincount(frame[hi < contact_m], minlength=T) > 0
-        resolve(~decided[frame] & (lo < contact_m))
+        resolve(np.flatnonzero(~decided[frame] & (lo < contact_m)))
         touch = np.bincount(frame[hi < contact_m], minlength=T) > 0
     return SurfaceFrames(V, pen, depth, touch)
 
