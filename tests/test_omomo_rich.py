@@ -201,12 +201,16 @@ def _write_pickle(path, data):
     joblib.dump(data, path)
 
 
-def test_omomo_bad_input_fails_the_sequence_and_the_rest_are_prepared(omomo_raw, tmp_path):
-    src, _ = omomo_raw
+def _editable_omomo_copy(omomo_raw, tmp_path):
+    """A copy of the generated OMOMO download to damage: ``(root, train pickle path, its data)``."""
     root = tmp_path / "raw"
-    shutil.copytree(src, root)
+    shutil.copytree(omomo_raw[0], root)
     pkl = root / "train_diffusion_manip_seq_joints24.p"
-    data = _read_pickle(pkl)
+    return root, pkl, _read_pickle(pkl)
+
+
+def test_omomo_bad_input_fails_the_sequence_and_the_rest_are_prepared(omomo_raw, tmp_path):
+    root, pkl, data = _editable_omomo_copy(omomo_raw, tmp_path)
     names = [d["seq_name"] for d in data.values()]
     keyless, two_part, no_template = names[0], names[1], names[2]
     del data[0]["obj_rot"]
@@ -229,11 +233,7 @@ def test_omomo_bad_input_fails_the_sequence_and_the_rest_are_prepared(omomo_raw,
 
 
 def test_omomo_one_template_name_per_object_scale(omomo_raw, tmp_path):
-    src, _ = omomo_raw
-    root = tmp_path / "raw"
-    shutil.copytree(src, root)
-    pkl = root / "train_diffusion_manip_seq_joints24.p"
-    data = _read_pickle(pkl)
+    root, pkl, data = _editable_omomo_copy(omomo_raw, tmp_path)
     twin = dict(data[0])
     sub, obj, take = omomo.parse_name(twin["seq_name"])
     twin["seq_name"] = f"sub{sub}_{obj}_999"
