@@ -539,3 +539,22 @@ def test_local_dask_equals_serial(clip_inputs_synthetic):
     cfg = ph.PhysicalConfig("clean")
     serial = ph.evaluate_physical(clip_inputs_synthetic[:2], cfg).compute()
     assert same(ph.evaluate_physical(clip_inputs_synthetic[:2], cfg, executor="dask://local:2").compute(), serial)
+
+
+@needs_open3d
+def test_user_body_surface_path_agrees_with_the_proxy_path_and_bad_output_is_named():
+    """``body_surface="module:function"`` (all vertices, no culling) gives the proxy path's
+    counts; a callable returning the wrong shape fails naming the clip and the setting."""
+    from hoibench.datasets.synthetic import Defect, generate_clip, plan_clips
+    c = generate_clip(plan_clips(16, 0)[11], (0, 11), Defect("penetration", 0.01))
+    inp = ph.ClipInput("clip-11", c.joints, c.fps, c.obj_rot, c.obj_trans, c.spec.object, c.object.vertices,
+                       c.object.faces, c.contacts)
+    proxy = ph.clip_physical_stats(inp, ph.PhysicalConfig("clean"))
+    user = ph.clip_physical_stats(inp, ph.PhysicalConfig(
+        "clean", body_surface="hoibench.metrics.body_surface:proxy_vertices_from_joints"))
+    assert proxy["ps_neg"] > 0
+    for k in ("ps_neg", "ps_total", "depth_count", "float_frames"):
+        assert user[k] == proxy[k], k
+    assert user["depth_max"] == pytest.approx(proxy["depth_max"], abs=1e-6)
+    with pytest.raises(ValueError, match=r"clip-11: body_surface numpy:transpose: expected finite vertices"):
+        ph.clip_physical_stats(inp, ph.PhysicalConfig("clean", body_surface="numpy:transpose"))

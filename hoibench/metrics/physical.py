@@ -179,6 +179,9 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
             index, points = proxy_template_points(joints, sl, field_, R, t, margin)
             return cm.surface_frames(field_, points, index, (n, PROXY_VERTICES), config.vertex_contact_m, **what)
         verts = np.asarray(body(joints[sl]), dtype=np.float64)
+        if verts.ndim != 3 or verts.shape[0] != n or verts.shape[2] != 3 or not np.isfinite(verts).all():
+            raise ValueError(f"{inp.key}: body_surface {config.body_surface}: expected finite vertices "
+                             f"({n}, V, 3) for {n} frames, got shape {verts.shape}")
         return cm.surface_frames(field_, to_template_frame(verts, R[sl], t[sl]),
                                  contact_m=config.vertex_contact_m, **what)
 
