@@ -36,8 +36,37 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def strict_json_dumps(obj, **kwargs) -> str:
+    """``json.dumps`` that refuses NaN and infinities (``allow_nan=False``): the JSON
+    standard has no such tokens, and a number that is not finite must be caught where it
+    is made, not written as ``NaN``/``Infinity`` for another tool to choke on."""
+    try:
+        return json.dumps(obj, allow_nan=False, **kwargs)
+    except ValueError as e:
+        raise ValueError(f"refusing to write JSON with a non-finite number ({e}): {_first_nonfinite(obj)}") from None
+
+
+def _first_nonfinite(obj, path: str = "$") -> str:
+    """Where the first NaN/inf sits in a JSON-like object (for the error message)."""
+    import math
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return f"{path} = {obj}"
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            hit = _first_nonfinite(v, f"{path}.{k}")
+            if hit:
+                return hit
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            hit = _first_nonfinite(v, f"{path}[{i}]")
+            if hit:
+                return hit
+    return ""
+
+
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
-    return atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=True) + "\n")
+    """Write ``obj`` as strict JSON (no NaN/Infinity tokens), atomically."""
+    return atomic_write_text(path, strict_json_dumps(obj, indent=2, sort_keys=True) + "\n")
 
 
 def atomic_save_npy(path: str | os.PathLike, array: np.ndarray) -> Path:
