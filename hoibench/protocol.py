@@ -112,6 +112,13 @@ class Protocol:
         more motions than pairs); results record it next to the value."""
         return max(0, min(self.diversity_pairs, int(n) - 1))
 
+    @property
+    def max_samples_per_prompt(self) -> int:
+        """K cap for submissions: ``max(replications, mm_samples)``. Replication r uses
+        sample ``r mod K`` and MultiModality the first ``mm_samples``, so no metric reads a
+        sample beyond this; larger files are refused before loading (docs/security.md)."""
+        return max(int(self.replications), int(self.mm_samples))
+
     @staticmethod
     def sample_index(replication: int, samples_per_prompt: int) -> int:
         """Which of a submission's K samples per prompt replication r uses: ``r mod K``.
@@ -232,6 +239,31 @@ def get_protocol(name: str | Path | Protocol) -> Protocol:
     return found[-1]
 
 
+def default_protocol_id(manifest: dict) -> str:
+    """The protocol a store is scored under by default: ``<dataset>-<legacy|clean>``."""
+    mode = str(manifest.get("config", {}).get("mode", "clean"))
+    return f"{manifest.get('dataset', '?')}-{'legacy' if mode.startswith('legacy') else 'clean'}"
+
+
+def protocol_mismatches(protocol: Protocol, manifest: dict) -> list[str]:
+    """Why ``protocol`` does not fit the store ``manifest`` (dataset, mode, fps,
+    representation); empty when it fits."""
+    mode = "legacy" if str(manifest.get("config", {}).get("mode", "clean")).startswith("legacy") else "clean"
+    out = []
+    if protocol.dataset != manifest.get("dataset"):
+        out.append(f"protocol {protocol.ref} is for dataset {protocol.dataset!r}, the store holds "
+                   f"{manifest.get('dataset')!r}")
+    if protocol.mode != mode:
+        out.append(f"protocol {protocol.ref} is a {protocol.mode} protocol, the store was prepared in {mode} mode")
+    fps = manifest.get("config", {}).get("fps")
+    if isinstance(fps, (int, float)) and abs(protocol.fps - float(fps)) > 1e-6:
+        out.append(f"protocol {protocol.ref} evaluates at {protocol.fps:g} fps, the store holds {fps:g} fps clips")
+    rep = manifest.get("representations", {}).get("hml263")
+    if rep and protocol.representation != rep:
+        out.append(f"protocol {protocol.ref} names representation {protocol.representation}, the store holds {rep}")
+    return out
+
+
 # ====================================================================== results
 def summarize(values: Iterable, replications: int | None = None) -> dict:
     """Mean and 95% CI over replications: ``ci95 = 1.96 * std / sqrt(n)``, ``std`` the
@@ -299,5 +331,5 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
         return 2
 
 
-__all__ = ["Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
+__all__ = ["default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
            "summarize", "summarize_replications", "format_table", "main_protocols"]

@@ -35,6 +35,7 @@ import re
 import stat
 import sys
 import zipfile
+import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Iterable, Mapping
@@ -42,14 +43,32 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from . import __version__
-from .io import atomic_write_bytes, npz_bytes
+from .ids import ID_PATTERN as _ID_PATTERN
+from .ids import ID_RULE, check_id, is_valid_id
+from .io import atomic_write_bytes, load_json_bytes, npz_bytes, read_regular_file
 
 SUBMISSION_JSON = "submission.json"
 SAMPLES_DIR = "samples"
-MAX_ARRAY_BYTES = 2 * 1024 ** 3            # per .npz file, all its arrays together
+#: fallback per-file cap when no store is known (``npz_headers`` called directly)
+MAX_ARRAY_BYTES = 2 * 1024 ** 3
 MAX_JSON_BYTES = 1024 ** 2
-ID_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,199}$")
+#: the id rule (:mod:`hoibench.ids`)
+ID_PATTERN = _ID_PATTERN
 KNOWN_ARRAYS = ("joints", "obj_rot", "obj_rotvec", "obj_trans", "hml263")
+#: values per frame of every known array (joints 66, obj_rot 9, obj_trans 3, hml263 263);
+#: obj_rotvec (3) is the alternative to obj_rot, so 9 bounds both
+VALUES_PER_FRAME = 22 * 3 + 9 + 3 + 263
+#: the widest accepted dtype (float64): budgets assume it
+BYTES_PER_VALUE = 8
+#: arrays an .npz may hold besides the known ones (warned about, never loaded)
+MAX_EXTRA_ARRAYS = 8
+#: slack per file for zip and .npy headers
+FILE_OVERHEAD_BYTES = 1024 ** 2
+#: K cap when no protocol is known
+DEFAULT_MAX_SAMPLES_PER_PROMPT = 32
+#: central directory of a submission .zip larger than this is refused before it is parsed
+MAX_ZIP_DIRECTORY_BYTES = 64 * 1024 ** 2
+ACCEPTED_DTYPES = (np.dtype("float32"), np.dtype("float64"))
 REQUIRED_FIELDS = {"method": str, "version": str, "representation": str, "fps": (int, float)}
 FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_selection": str}
 #: height of the proxy body (the SMPL mean shape), metres; a skeleton's height is estimated as
@@ -57,7 +76,17 @@ FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_se
 MEAN_BODY_HEIGHT_M = 1.72
 BODY_HEIGHT_RANGE_M = (0.5, 3.0)
 ROTATION_TOL = 1e-3
+#: median object-pelvis distance above which a sample is in the wrong units
 MAX_OBJECT_DISTANCE_M = 20.0
+#: object-pelvis distance no single frame may exceed
+MAX_OBJECT_DISTANCE_FRAME_M = 100.0
+#: no joint or object coordinate may lie further than this from the origin, metres
+MAX_ABS_COORD_M = 1000.0
+#: root (pelvis) and object speed no frame may exceed, metres per second
+MAX_SPEED_MPS = 50.0
+#: bound on |obj_rotvec| (radians) and on every hml263 value
+MAX_ROTVEC_RAD = 100.0
+MAX_FEATURE_ABS = 1e6
 
 
 @dataclass(frozen=True)
@@ -98,63 +127,120 @@ def _fmt_bytes(n: int) -> str:
     return f"{n / 1024 ** 3:.1f} GiB" if n >= 1024 ** 3 else f"{n / 1024 ** 2:.1f} MiB"
 
 
+# ====================================================================== budgets
+def max_frames(gt_frames: int, fps: float) -> int:
+    """Longest sample accepted for a test clip of ``gt_frames`` frames:
+    ``max(4 * gt_frames, gt_frames + 10 s * fps)``."""
+    return int(max(4 * gt_frames, gt_frames + 10 * fps))
+
+
+@dataclass(frozen=True)
+class SubmissionLimits:
+    """Byte budgets derived from a store's test split and a protocol's K cap.
+
+    Per test id: ``K cap x max_frames(gt) x VALUES_PER_FRAME x 8 bytes + 1 MiB`` (every
+    known array at float64, the longest accepted length, the most samples a protocol uses);
+    the whole submission: the sum over test ids. The budgets bound what any header may
+    claim, how many bytes are read or decompressed per file, and so peak memory: validate
+    and evaluate hold one file at a time. ``max_files``: members or folder entries
+    (``2 x ids + 64``)."""
+
+    per_id_bytes: Mapping[str, int]
+    total_bytes: int
+    max_samples: int
+    max_files: int
+
+    def for_id(self, sid: str) -> int:
+        return int(self.per_id_bytes.get(sid, 0))
+
+    @property
+    def largest_file_bytes(self) -> int:
+        return max(self.per_id_bytes.values(), default=0)
+
+
+def limits_for(rows: Mapping[str, Mapping], fps: float, max_samples: int) -> SubmissionLimits:
+    """:class:`SubmissionLimits` for test ``rows`` (id -> manifest row with ``frames``)."""
+    per = {sid: max_samples * max_frames(int(r["frames"]), fps) * VALUES_PER_FRAME * BYTES_PER_VALUE
+           + FILE_OVERHEAD_BYTES for sid, r in rows.items()}
+    return SubmissionLimits(per, sum(per.values()), int(max_samples), 2 * len(rows) + 64)
+
+
 # ====================================================================== safe .npz reading
+def _read_npy_header(f) -> tuple:
+    version = np.lib.format.read_magic(f)
+    if version == (1, 0):
+        return np.lib.format.read_array_header_1_0(f)
+    if version in ((2, 0), (3, 0)):   # 2.0 and 3.0 share the header layout
+        return np.lib.format.read_array_header_2_0(f)
+    raise ValueError(f"unsupported .npy format version {version}")
+
+
 def npz_headers(source, max_array_bytes: int = MAX_ARRAY_BYTES) -> dict[str, ArrayHeader]:
     """Parse every member header of an ``.npz`` (path, bytes or binary file) without loading
-    any data. ``SubmissionError`` when it is not a zip of ``.npy`` files, a member holds
-    Python objects, or the claimed shapes need more than ``max_array_bytes`` together or
-    more bytes than a member holds."""
+    any data. ``SubmissionError`` when it is not a zip of ``.npy`` files, a member name
+    repeats, a member holds Python objects, a dimension is negative or zero, or the claimed
+    shapes need more than ``max_array_bytes`` together or more bytes than a member holds."""
     src = io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else source
     try:
         zf = zipfile.ZipFile(src)
-    except (zipfile.BadZipFile, OSError) as e:
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
         raise SubmissionError(f"not a valid .npz (zip) file: {e}") from None
     out: dict[str, ArrayHeader] = {}
     total = 0
     with zf:
-        for info in zf.infolist():
+        infos = [i for i in zf.infolist() if not i.is_dir()]
+        if len(infos) > len(KNOWN_ARRAYS) + MAX_EXTRA_ARRAYS:
+            raise SubmissionError(f"{len(infos)} members: an .npz holds at most "
+                                  f"{len(KNOWN_ARRAYS) + MAX_EXTRA_ARRAYS} arrays")
+        for info in infos:
             name = info.filename
-            if info.is_dir():
-                continue
             if not name.endswith(".npy") or "/" in name or "\\" in name or name.startswith("."):
                 raise SubmissionError(f"unexpected member {name!r}: an .npz holds only NAME.npy arrays")
             key = name[:-4]
+            if key in out:
+                raise SubmissionError(f"array {key!r} appears twice in the .npz: refused (which copy counts "
+                                      "would be up to the reader)")
+            if info.flag_bits & 0x1:
+                raise SubmissionError(f"array {key!r} is encrypted: not read")
             try:
                 with zf.open(info) as f:
-                    version = np.lib.format.read_magic(f)
-                    if version == (1, 0):
-                        shape, fortran, dtype = np.lib.format.read_array_header_1_0(f)
-                    else:  # 2.0 and 3.0 share the header layout
-                        shape, fortran, dtype = np.lib.format.read_array_header_2_0(f)
-                    header_len = f.tell() if hasattr(f, "tell") else 0
-            except Exception as e:  # malformed header of any kind
-                raise SubmissionError(f"array {key!r}: not a valid .npy header ({e})") from None
+                    shape, fortran, dtype = _read_npy_header(f)
+                    header_len = f.tell()
+            except Exception as e:  # malformed header, unsupported compression, corrupt data
+                raise SubmissionError(f"array {key!r}: not a valid .npy header ({type(e).__name__}: {e})") from None
             if dtype.hasobject:
                 raise SubmissionError(
                     f"array {key!r} holds Python objects (dtype {dtype}), i.e. pickled data; hoibench "
                     "never unpickles submissions: save plain numeric arrays (np.save(..., allow_pickle=False))")
-            nbytes = math.prod(int(s) for s in shape) * dtype.itemsize
+            dims = tuple(int(s) for s in shape)
+            if any(d < 0 for d in dims):
+                raise SubmissionError(f"array {key!r} claims a negative dimension {dims}: not a valid array")
+            if any(d == 0 for d in dims):
+                raise SubmissionError(f"array {key!r} has shape {dims}: an empty dimension (no samples or frames)")
+            nbytes = math.prod(dims) * dtype.itemsize
             total += nbytes
             if total > max_array_bytes:
                 raise SubmissionError(
-                    f"array {key!r} claims shape {tuple(shape)} {dtype} = {_fmt_bytes(nbytes)}; the file's "
-                    f"arrays would need {_fmt_bytes(total)}, over the {_fmt_bytes(max_array_bytes)} limit "
-                    "(not loaded)")
-            if header_len and info.file_size < header_len + nbytes:
+                    f"array {key!r} claims shape {dims} {dtype} = {_fmt_bytes(nbytes)}; the file's arrays "
+                    f"would need {_fmt_bytes(total)}, over this file's {_fmt_bytes(max_array_bytes)} limit "
+                    "(not loaded; see docs/security.md for the budgets)")
+            if info.file_size < header_len + nbytes:
                 raise SubmissionError(f"array {key!r} is truncated: its header claims {nbytes} bytes of data, "
                                       f"the member holds {max(0, info.file_size - header_len)}")
-            out[key] = ArrayHeader(key, tuple(int(s) for s in shape), dtype, bool(fortran), nbytes)
+            out[key] = ArrayHeader(key, dims, dtype, bool(fortran), nbytes)
     return out
 
 
-def load_npz(source, max_array_bytes: int = MAX_ARRAY_BYTES) -> dict[str, np.ndarray]:
-    """Load an ``.npz`` safely: :func:`npz_headers` first, then ``np.load(allow_pickle=False)``.
-    ``SubmissionError`` on any failure."""
+def load_npz(source, max_array_bytes: int = MAX_ARRAY_BYTES,
+             keys: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+    """Load an ``.npz`` safely: :func:`npz_headers` first, then ``np.load(allow_pickle=False)``
+    of ``keys`` only (default: every array). ``SubmissionError`` on any failure."""
     data = source if isinstance(source, (bytes, bytearray)) else None
     headers = npz_headers(io.BytesIO(data) if data is not None else source, max_array_bytes)
+    wanted = [k for k in headers if keys is None or k in set(keys)]
     try:
         with np.load(io.BytesIO(data) if data is not None else source, allow_pickle=False) as z:
-            return {k: z[k] for k in headers}
+            return {k: z[k] for k in wanted}
     except Exception as e:
         raise SubmissionError(f"could not read the arrays: {type(e).__name__}: {e}") from None
 
@@ -169,57 +255,128 @@ def _unsafe_member(name: str) -> str | None:
         return "starts with a drive letter"
     if any(part == ".." for part in PurePosixPath(name).parts):
         return "contains '..' (path traversal)"
+    if "\0" in name:
+        return "contains a NUL byte"
     return None
+
+
+def zip_directory_size(path: str | Path) -> tuple[int, int]:
+    """(entries, central directory bytes) of a ``.zip`` from its end records, read before
+    ``zipfile`` parses (and holds in memory) the whole directory; (-1, -1) when no end
+    record is found (``zipfile`` then reports the archive as invalid)."""
+    with open(path, "rb") as f:
+        f.seek(0, 2)
+        size = f.tell()
+        tail_len = min(size, 22 + 65535)
+        f.seek(size - tail_len)
+        tail = f.read(tail_len)
+        at = tail.rfind(b"PK\x05\x06")
+        if at < 0 or at + 22 > len(tail):
+            return -1, -1
+        entries = int.from_bytes(tail[at + 10:at + 12], "little")
+        cd_size = int.from_bytes(tail[at + 12:at + 16], "little")
+        if entries == 0xFFFF or cd_size == 0xFFFFFFFF:       # zip64: read its end record
+            loc = at - 20
+            if loc >= 0 and tail[loc:loc + 4] == b"PK\x06\x07":
+                f.seek(int.from_bytes(tail[loc + 8:loc + 16], "little"))
+                rec = f.read(56)
+                if rec[:4] == b"PK\x06\x06" and len(rec) == 56:
+                    entries = int.from_bytes(rec[32:40], "little")
+                    cd_size = int.from_bytes(rec[40:48], "little")
+        return entries, cd_size
+
+
+_READ_ERRORS = (zipfile.BadZipFile, OSError, KeyError, ValueError, EOFError, NotImplementedError, RuntimeError,
+                zlib.error)
 
 
 class Submission:
     """Read access to a submission directory or ``.zip`` (never extracted).
 
-    ``problems`` lists what was wrong with the container itself (unsafe zip members,
-    symlinks leaving the folder, unreadable ``submission.json``); ``meta`` is the parsed
-    ``submission.json`` (None when missing or invalid); ``ids`` the sample ids found.
-    Use as a context manager, or call :meth:`close`.
+    ``problems`` lists what was wrong with the container itself (unsafe or repeated zip
+    members, links leaving the folder, special files, unreadable ``submission.json``);
+    ``meta`` is the parsed ``submission.json`` (None when missing or invalid); ``ids`` the
+    sample ids found. Only regular files are read (a FIFO, socket or device never blocks).
+    ``limits`` (:class:`SubmissionLimits`, from the store's test split) bounds what is read
+    per file; without it, ``max_array_bytes`` per file. Use as a context manager, or call
+    :meth:`close`.
     """
 
-    def __init__(self, path: str | Path, max_array_bytes: int = MAX_ARRAY_BYTES):
+    def __init__(self, path: str | Path, max_array_bytes: int = MAX_ARRAY_BYTES,
+                 limits: SubmissionLimits | None = None):
         self.path = Path(path)
         self.max_array_bytes = int(max_array_bytes)
+        self.limits = limits
         self.problems: list[Problem] = []
         self.meta: dict | None = None
         self._zip: zipfile.ZipFile | None = None
         self._files: dict[str, object] = {}       # id -> Path or ZipInfo
         self._json: object = None
-        if self.path.is_dir():
+        self._claimed: dict[str, int] = {}       # id -> bytes its headers claim
+        try:
+            st = self.path.stat()
+        except OSError:
+            st = None
+        if st is not None and stat.S_ISDIR(st.st_mode):
             self.kind = "directory"
             self._scan_dir()
-        elif self.path.is_file():
+        elif st is not None and stat.S_ISREG(st.st_mode):
             self.kind = "zip"
             self._scan_zip()
+        elif st is not None:
+            self.kind = "special"
+            self.problems.append(Problem("*", "path", f"{self.path} is neither a folder nor a regular file "
+                                                      "(a FIFO, socket or device?): not read"))
         else:
             self.kind = "missing"
             self.problems.append(Problem("*", "path", f"no submission at {self.path} (expected a folder or a .zip)"))
         self._read_meta()
 
+    @property
+    def _max_files(self) -> int:
+        return self.limits.max_files if self.limits is not None else 1_000_000
+
+    def budget(self, sid: str) -> int:
+        """Bytes the arrays of ``samples/<sid>.npz`` may claim (the id's budget)."""
+        if self.limits is not None and sid in self.limits.per_id_bytes:
+            return self.limits.for_id(sid)
+        return self.max_array_bytes
+
     # -- containers
     def _scan_dir(self) -> None:
         root = self.path.resolve()
         js = self.path / SUBMISSION_JSON
-        self._json = js if js.exists() else None
+        self._json = js if js.exists() or js.is_symlink() else None
         if self._json is not None and not self._inside(js, root):
             self.problems.append(Problem("*", SUBMISSION_JSON, "is a link leaving the submission folder: not read"))
             self._json = None
         samples = self.path / SAMPLES_DIR
         if not samples.is_dir():
             return
-        for p in sorted(samples.iterdir()):
+        if not self._inside(samples, root):
+            self.problems.append(Problem("*", SAMPLES_DIR, "is a link leaving the submission folder: not read"))
+            return
+        for n, p in enumerate(sorted(samples.iterdir())):
+            if n >= self._max_files:
+                self.problems.append(Problem("*", SAMPLES_DIR, f"more than {self._max_files} entries (2 per test id "
+                                                               "+ 64): the rest were not read"))
+                break
             if p.name.startswith("."):
                 continue
             if p.suffix != ".npz":
                 self.problems.append(Problem("*", SAMPLES_DIR, f"ignored {p.name!r}: not an .npz", "warning"))
                 continue
-            if not self._inside(p, root) or not p.is_file():
-                self.problems.append(Problem(p.stem, "file", "is a link leaving the submission folder or not a "
-                                                              "regular file: not read"))
+            if not self._inside(p, root):
+                self.problems.append(Problem(p.stem, "file", "is a link leaving the submission folder: not read"))
+                continue
+            try:
+                mode = p.stat().st_mode
+            except OSError as e:
+                self.problems.append(Problem(p.stem, "file", f"cannot be read: {e.strerror or e}"))
+                continue
+            if not stat.S_ISREG(mode):
+                self.problems.append(Problem(p.stem, "file", "is not a regular file (a FIFO, socket, device or "
+                                                             "folder): not read"))
                 continue
             self._files[p.stem] = p
 
@@ -228,25 +385,44 @@ class Submission:
         try:
             p.resolve().relative_to(root)
             return True
-        except (ValueError, OSError):
+        except (ValueError, OSError, RuntimeError):
             return False
 
     def _scan_zip(self) -> None:
         try:
+            entries, cd_size = zip_directory_size(self.path)
+            if cd_size > MAX_ZIP_DIRECTORY_BYTES or entries > self._max_files + 2:
+                self.problems.append(Problem("*", "zip", f"{self.path.name}: {entries} entries "
+                                                         f"({_fmt_bytes(max(cd_size, 0))} of directory): over the "
+                                                         f"limit of {self._max_files} files; not read"))
+                return
             self._zip = zipfile.ZipFile(self.path)
-        except (zipfile.BadZipFile, OSError) as e:
+        except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
             self.problems.append(Problem("*", "path", f"{self.path.name}: neither a folder nor a valid .zip ({e})"))
+            self._zip = None
             return
-        safe = []
+        safe, seen = [], {}
         for info in self._zip.infolist():
             why = _unsafe_member(info.filename)
             if why is None and stat.S_ISLNK(info.external_attr >> 16):
                 why = "is a symbolic link"
+            if why is None and info.flag_bits & 0x1:
+                why = "is encrypted"
             if why:
                 self.problems.append(Problem("*", "zip", f"member {info.filename!r} {why}: rejected, not read"))
                 continue
-            if not info.is_dir():
-                safe.append(info)
+            if info.is_dir():
+                continue
+            seen[info.filename] = seen.get(info.filename, 0) + 1
+            safe.append(info)
+        dup = {n for n, c in seen.items() if c > 1}
+        for name in sorted(dup):
+            leaf = PurePosixPath(name).name
+            sid = leaf[:-4] if leaf.endswith(".npz") else "*"
+            self.problems.append(Problem(sid, "file" if sid != "*" else "zip",
+                                         f"member {name!r} appears {seen[name]} times in the zip: refused (which "
+                                         "copy counts would be up to the reader)"))
+        safe = [i for i in safe if i.filename not in dup]
         names = {i.filename for i in safe}
         prefix = ""
         if SUBMISSION_JSON not in names:   # allow one top-level folder around everything
@@ -264,24 +440,31 @@ class Submission:
                     self.problems.append(Problem("*", SAMPLES_DIR, f"ignored member {info.filename!r}", "warning"))
                     continue
                 self._files[leaf[:-4]] = info
+        if dup & {f"{prefix}{SUBMISSION_JSON}"}:
+            self._json = "duplicate"
 
     def _read_meta(self) -> None:
-        if self.kind == "missing" or (self.kind == "zip" and self._zip is None):
+        if self.kind in ("missing", "special") or (self.kind == "zip" and self._zip is None):
             return
+        if self._json == "duplicate":
+            return      # already reported
         if self._json is None:
             self.problems.append(Problem("*", SUBMISSION_JSON, f"missing: the submission needs a {SUBMISSION_JSON}"))
             return
         try:
-            size = self._json.file_size if isinstance(self._json, zipfile.ZipInfo) else self._json.stat().st_size
-            if size > MAX_JSON_BYTES:
-                raise SubmissionError(f"{_fmt_bytes(size)}, over the {_fmt_bytes(MAX_JSON_BYTES)} limit")
-            raw = self._zip.read(self._json) if isinstance(self._json, zipfile.ZipInfo) else self._json.read_bytes()
-            meta = json.loads(raw.decode("utf-8"))
+            if isinstance(self._json, zipfile.ZipInfo):
+                if self._json.file_size > MAX_JSON_BYTES:
+                    raise SubmissionError(f"{_fmt_bytes(self._json.file_size)}, over the "
+                                          f"{_fmt_bytes(MAX_JSON_BYTES)} limit")
+                raw = self._zip.read(self._json)
+            else:
+                raw = read_regular_file(self._json, MAX_JSON_BYTES, SUBMISSION_JSON)
+            meta = load_json_bytes(raw, SUBMISSION_JSON)
             if not isinstance(meta, dict):
                 raise SubmissionError("expected a JSON object")
             self.meta = meta
-        except (SubmissionError, ValueError, OSError, zipfile.BadZipFile) as e:
-            self.problems.append(Problem("*", SUBMISSION_JSON, f"not readable: {e}"))
+        except _READ_ERRORS as e:
+            self.problems.append(Problem("*", SUBMISSION_JSON, f"not readable: {_reason(e)}"))
 
     # -- access
     @property
@@ -290,27 +473,41 @@ class Submission:
 
     def _source(self, sid: str):
         ref = self._files[sid]
+        limit = self.budget(sid) + FILE_OVERHEAD_BYTES
         if isinstance(ref, zipfile.ZipInfo):
-            if ref.file_size > self.max_array_bytes + 1024 ** 2:
-                raise SubmissionError(f"samples/{sid}.npz is {_fmt_bytes(ref.file_size)}, over the limit")
+            if ref.file_size > limit:
+                raise SubmissionError(f"samples/{sid}.npz is {_fmt_bytes(ref.file_size)}, over this id's "
+                                      f"{_fmt_bytes(limit)} budget: not read")
             return self._zip.read(ref)
-        return ref
+        return read_regular_file(ref, limit, f"samples/{sid}.npz")
 
     def headers(self, sid: str) -> dict[str, ArrayHeader]:
         """Array headers of ``samples/<sid>.npz`` (no data loaded); ``SubmissionError``."""
         try:
             src = self._source(sid)
-        except (zipfile.BadZipFile, OSError, KeyError) as e:
-            raise SubmissionError(f"could not read the file: {e}") from None
-        return npz_headers(src, self.max_array_bytes)
+        except SubmissionError:
+            raise
+        except _READ_ERRORS as e:
+            raise SubmissionError(f"could not read the file: {_reason(e)}") from None
+        headers = npz_headers(src, self.budget(sid))
+        if sid not in self._claimed:
+            self._claimed[sid] = sum(h.nbytes for h in headers.values())
+            total = sum(self._claimed.values())
+            if self.limits is not None and total > self.limits.total_bytes:
+                raise SubmissionError(f"the submission's arrays claim {_fmt_bytes(total)} up to this file, over "
+                                      f"the whole-submission budget of {_fmt_bytes(self.limits.total_bytes)}")
+        return headers
 
-    def load(self, sid: str) -> dict[str, np.ndarray]:
-        """Arrays of ``samples/<sid>.npz`` (safe loading, see :func:`load_npz`)."""
+    def load(self, sid: str, keys: Iterable[str] | None = KNOWN_ARRAYS) -> dict[str, np.ndarray]:
+        """Arrays of ``samples/<sid>.npz`` (safe loading, see :func:`load_npz`); by default
+        only the known arrays (others are never loaded)."""
         try:
             src = self._source(sid)
-        except (zipfile.BadZipFile, OSError, KeyError) as e:
-            raise SubmissionError(f"could not read the file: {e}") from None
-        return load_npz(src, self.max_array_bytes)
+        except SubmissionError:
+            raise
+        except _READ_ERRORS as e:
+            raise SubmissionError(f"could not read the file: {_reason(e)}") from None
+        return load_npz(src, self.budget(sid), keys)
 
     def close(self) -> None:
         if self._zip is not None:
@@ -322,6 +519,19 @@ class Submission:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _reason(e: BaseException) -> str:
+    """One line for a read error (zip, zlib, OS, JSON)."""
+    if isinstance(e, NotImplementedError):
+        return f"unsupported zip feature ({e})"
+    if isinstance(e, RuntimeError) and "encrypted" in str(e):
+        return f"encrypted member ({e})"
+    if isinstance(e, zlib.error):
+        return f"corrupt compressed data ({e})"
+    if isinstance(e, KeyError):
+        return f"missing member {e.args[0] if e.args else ''}"
+    return str(e) if isinstance(e, (ValueError, zipfile.BadZipFile)) else f"{type(e).__name__}: {e}"
 
 
 # ====================================================================== validation
@@ -359,6 +569,10 @@ class ValidationReport:
                 "problems": [p.to_dict() for p in self.problems]}
 
 
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _check_meta(meta: dict | None, store_fps: float, protocol) -> list[Problem]:
     if meta is None:
         return []
@@ -381,7 +595,9 @@ def _check_meta(meta: dict | None, store_fps: float, protocol) -> list[Problem]:
         if isinstance(flags.get("samples_per_prompt"), int) and flags["samples_per_prompt"] < 1:
             out.append(Problem("*", SUBMISSION_JSON, "flags.samples_per_prompt must be >= 1"))
     fps = meta.get("fps")
-    if isinstance(fps, (int, float)) and not isinstance(fps, bool) and abs(float(fps) - store_fps) > 1e-6:
+    if _is_number(fps) and not (math.isfinite(fps) and fps > 0):
+        out.append(Problem("*", SUBMISSION_JSON, f"field 'fps' must be a positive finite number, got {fps!r}"))
+    elif _is_number(fps) and abs(float(fps) - store_fps) > 1e-6:
         out.append(Problem("*", SUBMISSION_JSON, f"fps {fps} but the store is evaluated at {store_fps:g} fps: "
                                                  "resample by time (not by dropping every n-th frame) first"))
     if protocol is not None and abs(protocol.fps - store_fps) > 1e-6:
@@ -390,8 +606,7 @@ def _check_meta(meta: dict | None, store_fps: float, protocol) -> list[Problem]:
     return out
 
 
-def _expect_shape(h: ArrayHeader | None, tail: tuple, name: str, sid: str, floating: bool = True,
-                  dtype: str | None = None) -> list[Problem]:
+def _expect_shape(h: ArrayHeader | None, tail: tuple, name: str, sid: str, dtype: str | None = None) -> list[Problem]:
     if h is None:
         return []
     out = []
@@ -402,18 +617,31 @@ def _expect_shape(h: ArrayHeader | None, tail: tuple, name: str, sid: str, float
     if dtype is not None and h.dtype != np.dtype(dtype):
         out.append(Problem(sid, name, f"expected dtype {dtype}, got {h.dtype} "
                                       f"(convert with .astype(np.{dtype}))"))
-    elif floating and not np.issubdtype(h.dtype, np.floating):
-        out.append(Problem(sid, name, f"expected a floating-point dtype, got {h.dtype}"))
+    elif h.dtype not in ACCEPTED_DTYPES:
+        out.append(Problem(sid, name, f"expected float32 or float64, got {h.dtype} (half precision, extended "
+                                      "precision, integer and complex arrays are not accepted)"))
     return out
 
 
-def _check_clip(sub: Submission, sid: str, gt_frames: int, has_object: bool, fps: float,
-                uses_gt_length: bool) -> tuple[list[Problem], int | None]:
-    """Problems of one sample file and its K (None when unknown)."""
+@dataclass(frozen=True)
+class ClipContext:
+    """What checking one sample file needs from the store and the submission."""
+
+    gt_frames: int
+    has_object: bool
+    fps: float
+    uses_gt_length: bool
+    max_samples: int
+    mode: str = "clean"            # representation mode used to encode (hoi269 clean|legacy)
+
+
+def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Problem], int | None, str | None]:
+    """Problems of one sample file, its K (None when unknown) and the up axis its joints
+    suggest (None when y-up or undecided)."""
     try:
         headers = sub.headers(sid)
     except SubmissionError as e:
-        return [Problem(sid, "file", str(e))], None
+        return [Problem(sid, "file", str(e))], None, None
     probs: list[Problem] = []
     for k in headers:
         if k not in KNOWN_ARRAYS:
@@ -421,7 +649,7 @@ def _check_clip(sub: Submission, sid: str, gt_frames: int, has_object: bool, fps
                                  "warning"))
     if "joints" not in headers:
         probs.append(Problem(sid, "joints", "missing: every sample file needs joints (K, T, 22, 3)"))
-    if has_object:
+    if ctx.has_object:
         if "obj_trans" not in headers:
             probs.append(Problem(sid, "obj_trans", "missing: the object's translation (K, T, 3) is required"))
         if "obj_rot" not in headers and "obj_rotvec" not in headers:
@@ -453,60 +681,108 @@ def _check_clip(sub: Submission, sid: str, gt_frames: int, has_object: bool, fps
         elif tt != T:
             probs.append(Problem(sid, k, f"{tt} frames but joints has {T}"))
             bad.add(k)
+    gt, fps = ctx.gt_frames, ctx.fps
     if K is not None:
-        if K < 1:
-            probs.append(Problem(sid, "joints", "no samples (K = 0)"))
+        if K > ctx.max_samples:
+            probs.append(Problem(sid, "joints", f"K = {K} samples per prompt, over the protocol's cap of "
+                                                f"{ctx.max_samples} (no metric uses more): not loaded"))
+            return probs, K, None
         if T < 2:
             probs.append(Problem(sid, "joints", f"{T} frame(s): at least 2 are needed"))
-        elif uses_gt_length and T != gt_frames:
+        elif ctx.uses_gt_length and T != gt:
             probs.append(Problem(sid, "joints", f"{T} frames, but submission.json says uses_gt_length and the "
-                                                f"ground truth has {gt_frames}"))
-        elif T > max(4 * gt_frames, gt_frames + 10 * fps):
-            probs.append(Problem(sid, "joints", f"{T} frames, more than 4x the ground truth's {gt_frames} at "
+                                                f"ground truth has {gt}"))
+        elif T > max_frames(gt, fps):
+            probs.append(Problem(sid, "joints", f"{T} frames, more than max(4x, +10 s) the ground truth's {gt} at "
                                                 f"{fps:g} fps: wrong frame rate?"))
-        elif not (gt_frames / 2 <= T <= 2 * gt_frames):
-            probs.append(Problem(sid, "joints", f"{T} frames vs {gt_frames} in the ground truth (outside 0.5x-2x)",
+        elif not (gt / 2 <= T <= 2 * gt):
+            probs.append(Problem(sid, "joints", f"{T} frames vs {gt} in the ground truth (outside 0.5x-2x)",
                                  "warning"))
     ok = [k for k in present if k not in bad]
-    if not ok or K is None or K < 1:
-        return probs, K
+    if not ok or K is None or any(p.severity == "error" and p.field == "joints" for p in probs):
+        return probs, K, None
     try:
-        arrays = sub.load(sid)
+        arrays = sub.load(sid, ok)
     except SubmissionError as e:
-        return probs + [Problem(sid, "file", str(e))], K
-    for k in ok:
-        a = arrays[k]
-        nonfinite = int((~np.isfinite(a)).sum())
-        if nonfinite:
-            first = np.argwhere(~np.isfinite(a))[0]
-            probs.append(Problem(sid, k, f"{nonfinite} non-finite value(s) (NaN or inf), first at index "
+        return probs + [Problem(sid, "file", str(e))], K, None
+    value_probs, up = check_arrays(sid, arrays, ctx)
+    return probs + value_probs, K, up
+
+
+def check_arrays(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> tuple[list[Problem], str | None]:
+    """Value checks of one sample file's arrays (shapes already checked): finite values,
+    plausibility bounds per sample and per frame, rotations, and that every sample encodes
+    to finite features (what evaluate computes). Returns (problems, up-axis guess)."""
+    probs: list[Problem] = []
+    good = {}
+    for k, a in arrays.items():
+        nonfinite = ~np.isfinite(a)
+        if nonfinite.any():
+            first = np.argwhere(nonfinite)[0]
+            probs.append(Problem(sid, k, f"{int(nonfinite.sum())} non-finite value(s) (NaN or inf), first at index "
                                          f"{tuple(int(i) for i in first)}"))
-            bad.add(k)
-    if "joints" in ok and "joints" not in bad:
-        probs += _check_joints(sid, arrays["joints"])
-    if "obj_rot" in ok and "obj_rot" not in bad:
-        probs += _check_rotations(sid, arrays["obj_rot"])
-    if "obj_trans" in ok and "obj_trans" not in bad and "joints" in ok and "joints" not in bad:
-        dist = np.linalg.norm(arrays["obj_trans"].astype(np.float64) - arrays["joints"][:, :, 0], axis=-1)
-        med = float(np.median(dist))
-        if med > MAX_OBJECT_DISTANCE_M:
-            probs.append(Problem(sid, "obj_trans", f"the object is {med:.3g} m from the pelvis (median): "
-                                                   "implausible units (centimetres?)"))
-    return probs, K
+            continue
+        limit = {"joints": MAX_ABS_COORD_M, "obj_trans": MAX_ABS_COORD_M, "obj_rotvec": MAX_ROTVEC_RAD,
+                 "obj_rot": 1.0 + ROTATION_TOL, "hml263": MAX_FEATURE_ABS}.get(k)
+        if limit is not None and k != "obj_rot":
+            big = np.abs(a) > limit
+            if big.any():
+                first = tuple(int(i) for i in np.argwhere(big)[0])
+                probs.append(Problem(sid, k, f"{int(big.sum())} value(s) beyond +-{limit:g} "
+                                             f"({'m' if k in ('joints', 'obj_trans') else 'rad' if k == 'obj_rotvec' else 'units'}), "
+                                             f"first {float(a[first]):.3g} at index {first}: implausible"))
+                continue
+        good[k] = a
+    up = None
+    finite = dict(good)          # finite and within the bounds: the object check can use the joints
+    if "joints" in good:
+        jp, up = _check_joints(sid, good["joints"], ctx.fps)
+        probs += jp
+        if any(p.severity == "error" for p in jp):
+            good.pop("joints")
+    if "obj_rot" in good:
+        rp = _check_rotations(sid, good["obj_rot"])
+        probs += rp
+        if rp:
+            good.pop("obj_rot")
+    if "obj_trans" in good and "joints" in finite:
+        tp = _check_object_trans(sid, good["obj_trans"], finite["joints"], ctx.fps)
+        probs += tp
+        if tp:
+            good.pop("obj_trans")
+    if not any(p.severity == "error" for p in probs):
+        probs += _check_encodes(sid, good, ctx)
+    return probs, up
 
 
-def _check_joints(sid: str, joints: np.ndarray) -> list[Problem]:
-    from .contact import body_scale
-    out = []
+def _check_joints(sid: str, joints: np.ndarray, fps: float) -> tuple[list[Problem], str | None]:
+    """Units per sample (body height from bone lengths), per frame (no frame's skeleton
+    outside the height range), root speed per frame; the up axis the feet suggest."""
+    from .skeleton import PARENTS, SMPL_REST_JOINTS
     J = joints.astype(np.float64)
-    heights = np.array([MEAN_BODY_HEIGHT_M * body_scale(J[k]) for k in range(len(J))])
+    par = np.array(PARENTS[1:])
+    ref = np.linalg.norm(SMPL_REST_JOINTS[1:] - SMPL_REST_JOINTS[par], axis=-1).sum()
+    frame_h = MEAN_BODY_HEIGHT_M * np.linalg.norm(J[..., 1:, :] - J[..., par, :], axis=-1).sum(-1) / ref  # (K, T)
+    heights = np.median(frame_h, axis=1)
     lo, hi = BODY_HEIGHT_RANGE_M
-    worst = heights[np.argmax(np.abs(np.log(np.maximum(heights, 1e-12) / MEAN_BODY_HEIGHT_M)))]
+    worst_k = int(np.argmax(np.abs(np.log(np.maximum(heights, 1e-12) / MEAN_BODY_HEIGHT_M))))
+    worst = heights[worst_k]
     if not (lo <= worst <= hi):
         hint = " (millimetres?)" if worst > 300 else " (centimetres?)" if worst > 30 else ""
-        out.append(Problem(sid, "joints", f"implausible units: the skeleton's bone lengths give a body "
-                                          f"{worst:.3g} m tall (expected {lo}-{hi} m){hint}"))
-        return out
+        return [Problem(sid, "joints", f"implausible units: sample {worst_k}'s bone lengths give a body "
+                                       f"{worst:.3g} m tall (expected {lo}-{hi} m){hint}")], None
+    out_frames = (frame_h < lo / 2) | (frame_h > 2 * hi)
+    if out_frames.any():
+        k, t = (int(i) for i in np.argwhere(out_frames)[0])
+        return [Problem(sid, "joints", f"{int(out_frames.sum())} frame(s) whose skeleton is implausibly sized; "
+                                       f"first sample {k} frame {t}: {frame_h[k, t]:.3g} m tall (the sample's "
+                                       f"median is {heights[k]:.3g} m)")], None
+    if J.shape[1] > 1:
+        speed = np.linalg.norm(np.diff(J[:, :, 0], axis=1), axis=-1) * fps
+        if speed.max() > MAX_SPEED_MPS:
+            k, t = (int(i) for i in np.unravel_index(np.argmax(speed), speed.shape))
+            return [Problem(sid, "joints", f"the pelvis moves {speed[k, t]:.3g} m/s between frames {t} and {t + 1} "
+                                           f"of sample {k} (limit {MAX_SPEED_MPS:g} m/s): implausible")], None
     # Up axis: along the true up axis the lowest joint is an ankle or foot in nearly every
     # frame (standing, walking, sitting, kicking); along a horizontal axis it is arbitrary.
     feet = np.array([7, 8, 10, 11])
@@ -516,10 +792,32 @@ def _check_joints(sid: str, joints: np.ndarray) -> list[Problem]:
             frac[("" if sign > 0 else "-") + axis] = float(np.isin((sign * J[..., a]).argmin(-1), feet).mean())
     best = max(frac, key=frac.get)
     if best != "y" and frac[best] >= 0.8 and frac["y"] < 0.5:
-        out.append(Problem(sid, "joints", f"looks {best}-up: the feet are the lowest joints along {best} in "
-                                          f"{100 * frac[best]:.0f}% of frames but along y in {100 * frac['y']:.0f}%; "
-                                          "hoibench is y-up", "warning"))
-    return out
+        return [Problem(sid, "joints", f"looks {best}-up: the feet are the lowest joints along {best} in "
+                                       f"{100 * frac[best]:.0f}% of frames but along y in {100 * frac['y']:.0f}%; "
+                                       "hoibench is y-up", "warning")], best
+    return [], None
+
+
+def _check_object_trans(sid: str, trans: np.ndarray, joints: np.ndarray, fps: float) -> list[Problem]:
+    """Object translation units per sample (median distance to the pelvis), per frame
+    (maximum distance) and object speed per frame."""
+    dist = np.linalg.norm(trans.astype(np.float64) - joints[:, :, 0].astype(np.float64), axis=-1)   # (K, T)
+    med = np.median(dist, axis=1)
+    if med.max() > MAX_OBJECT_DISTANCE_M:
+        k = int(np.argmax(med))
+        return [Problem(sid, "obj_trans", f"the object is {med[k]:.3g} m from the pelvis (median over sample {k}): "
+                                          "implausible units (centimetres?)")]
+    if dist.max() > MAX_OBJECT_DISTANCE_FRAME_M:
+        k, t = (int(i) for i in np.unravel_index(np.argmax(dist), dist.shape))
+        return [Problem(sid, "obj_trans", f"the object is {dist[k, t]:.3g} m from the pelvis at sample {k} frame "
+                                          f"{t} (limit {MAX_OBJECT_DISTANCE_FRAME_M:g} m): implausible")]
+    if trans.shape[1] > 1:
+        speed = np.linalg.norm(np.diff(trans.astype(np.float64), axis=1), axis=-1) * fps
+        if speed.max() > MAX_SPEED_MPS:
+            k, t = (int(i) for i in np.unravel_index(np.argmax(speed), speed.shape))
+            return [Problem(sid, "obj_trans", f"the object moves {speed[k, t]:.3g} m/s between frames {t} and "
+                                              f"{t + 1} of sample {k} (limit {MAX_SPEED_MPS:g} m/s): implausible")]
+    return []
 
 
 def _check_rotations(sid: str, R: np.ndarray) -> list[Problem]:
@@ -535,8 +833,53 @@ def _check_rotations(sid: str, R: np.ndarray) -> list[Problem]:
                                     f"sample {k} frame {t}: {what}")]
 
 
+def encode_sample(arrays: Mapping[str, np.ndarray], k: int, mode: str, fps: float) -> np.ndarray:
+    """Features evaluate embeds for sample ``k``: hoi269 rows when the object pose is given,
+    hml263 rows otherwise (``mode``: ``clean`` | ``legacy``)."""
+    from .representations import hml263, hoi269
+    joints = arrays["joints"][k]
+    if "obj_trans" in arrays and ("obj_rot" in arrays or "obj_rotvec" in arrays):
+        rot = arrays["obj_rot"][k] if "obj_rot" in arrays else arrays["obj_rotvec"][k]
+        return hoi269.encode(joints, rot, arrays["obj_trans"][k], mode=mode, fps=fps)
+    return hml263.encode(joints, mode=mode, fps=fps)
+
+
+def _check_encodes(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> list[Problem]:
+    if "joints" not in arrays or (ctx.has_object and "obj_trans" not in arrays):
+        return []
+    for k in range(len(arrays["joints"])):
+        try:
+            feats = encode_sample(arrays, k, ctx.mode, ctx.fps)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as e:
+            return [Problem(sid, "joints", f"sample {k} cannot be encoded: {e}")]
+        if not np.isfinite(feats).all():
+            t = int(np.argwhere(~np.isfinite(feats))[0][0])
+            return [Problem(sid, "joints", f"sample {k} encodes to non-finite features from frame {t} (a "
+                                           "degenerate pose: coincident hips or shoulders?)")]
+    return []
+
+
+def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, int, str]:
+    """(test rows by id, store fps, K cap, hoi269 mode) for a store and an optional protocol."""
+    rows = {c["id"]: c for c in st.manifest["clips"] if c["split"] == split}
+    fps = float(st.manifest["config"]["fps"])
+    if protocol is None:        # the store's default protocol fixes the K cap when it exists
+        from .protocol import default_protocol_id, get_protocol
+        try:
+            protocol = get_protocol(default_protocol_id(st.manifest))
+        except (KeyError, ValueError, FileNotFoundError):
+            protocol = None
+    cap = protocol.max_samples_per_prompt if protocol is not None else DEFAULT_MAX_SAMPLES_PER_PROMPT
+    mode = "legacy" if str(st.manifest["config"].get("mode", "clean")).startswith("legacy") else "clean"
+    return rows, fps, int(cap), mode
+
+
+#: a submission-wide up-axis error needs at least this many clips agreeing, and a majority
+UP_AXIS_MIN_CLIPS = 3
+
+
 def validation_report(sub, store, split: str = "test", protocol=None,
-                      max_array_bytes: int = MAX_ARRAY_BYTES) -> ValidationReport:
+                      max_array_bytes: int | None = None) -> ValidationReport:
     """Validate ``sub`` (path or :class:`Submission`) against ``store`` (path or
     :class:`hoibench.store.Store`); never raises on a broken submission. See :func:`validate`."""
     from .store import Store
@@ -545,32 +888,41 @@ def validation_report(sub, store, split: str = "test", protocol=None,
     if protocol is not None and not hasattr(protocol, "fps"):
         from .protocol import get_protocol
         protocol = get_protocol(protocol)
+    rows, fps, cap, mode = submission_context(st, protocol, split)
+    limits = limits_for(rows, fps, cap)
+    if max_array_bytes is not None:
+        limits = SubmissionLimits({k: min(v, max_array_bytes) for k, v in limits.per_id_bytes.items()},
+                                  min(limits.total_bytes, max_array_bytes * max(1, len(rows))), cap, limits.max_files)
     own = not isinstance(sub, Submission)
-    s = Submission(sub, max_array_bytes) if own else sub
+    s = Submission(sub, limits=limits) if own else sub
+    if not own and s.limits is None:
+        s.limits = limits
     try:
         problems = list(s.problems)
-        fps = float(st.manifest["config"]["fps"])
         problems += _check_meta(s.meta, fps, protocol)
         flags = (s.meta or {}).get("flags", {}) if isinstance((s.meta or {}).get("flags", {}), dict) else {}
-        rows = {c["id"]: c for c in st.manifest["clips"] if c["split"] == split}
         test_ids = sorted(rows)
         found = set(s.ids)
         for sid in test_ids:
-            if sid not in found:
+            if sid not in found and not any(p.id == sid for p in problems):
                 problems.append(Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz"))
         for sid in sorted(found - set(rows)):
-            why = "not a valid id" if not ID_PATTERN.match(sid) else \
+            why = f"not a valid id ({ID_RULE})" if not is_valid_id(sid) else \
                 f"not in the {split!r} split of dataset {st.manifest.get('dataset', '?')!r}"
-            problems.append(Problem(sid, SAMPLES_DIR, f"extra file: {why}"))
-        valid, ks = [], {}
+            problems.append(Problem(sid, SAMPLES_DIR, f"extra file: {why} (not read)"))
+        refused = {p.id for p in problems if p.severity == "error" and p.id != "*"}
+        valid, ks, ups = [], {}, {}
         for sid in test_ids:
-            if sid not in found:
+            if sid not in found or sid in refused:
                 continue
-            probs, K = _check_clip(s, sid, int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
-                                   bool(flags.get("uses_gt_length", False)))
+            ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
+                              bool(flags.get("uses_gt_length", False)) is True, cap, mode)
+            probs, K, up = _check_clip(s, sid, ctx)
             problems += probs
             if K is not None:
                 ks[sid] = K
+            if up is not None:
+                ups[sid] = up
             if not any(p.severity == "error" for p in probs):
                 valid.append(sid)
         kvals = sorted(set(ks.values()))
@@ -580,6 +932,12 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         elif kvals and isinstance(spp, int) and not isinstance(spp, bool) and spp != kvals[0]:
             problems.append(Problem("*", SUBMISSION_JSON, f"flags.samples_per_prompt is {spp} but the files hold "
                                                           f"K = {kvals[0]}"))
+        if ups:
+            axis, n = max(((a, sum(1 for u in ups.values() if u == a)) for a in set(ups.values())), key=lambda x: x[1])
+            if n >= min(UP_AXIS_MIN_CLIPS, len(ks)) and n > len(ks) / 2:
+                problems.append(Problem("*", "joints", f"{n} of {len(ks)} sample files look {axis}-up (their feet "
+                                                       f"are the lowest joints along {axis}, not y): hoibench is y-up; "
+                                                       "rotate the motions (and objects) into y-up first"))
         if protocol is not None and kvals and kvals[0] <= protocol.mm_pairs:
             problems.append(Problem("*", SAMPLES_DIR, f"K = {kvals[0]} sample(s) per prompt: MultiModality needs "
                                                       f"{protocol.mm_samples} and will not be computed", "warning"))
@@ -591,17 +949,22 @@ def validation_report(sub, store, split: str = "test", protocol=None,
 
 
 def validate(sub, store, split: str = "test", protocol=None,
-             max_array_bytes: int = MAX_ARRAY_BYTES) -> list[Problem]:
+             max_array_bytes: int | None = None) -> list[Problem]:
     """Every problem of a submission at once (errors and warnings), sorted by id and field.
 
-    Checks: the container (zip member paths, links), ``submission.json`` fields and types,
-    fps against the store, ids against the store's ``split`` (missing, extra), per file:
-    readable safely (no pickles, no oversized claims), required arrays, shapes, dtypes
-    (joints float32), consistent K and T, finite values, plausible units (body height
-    0.5-3 m from bone lengths; object within 20 m of the pelvis), y-up (warning), lengths
-    (>= 2 frames; equal to the ground truth's when ``uses_gt_length``; at most 4x it; a
-    warning outside 0.5x-2x), object rotation matrices (orthonormal within 1e-3, det > 0).
-    A submission is complete only when no problem is an error.
+    Checks: the container (zip member paths, links, repeated members, special files),
+    ``submission.json`` fields and types (strict JSON: no NaN), fps against the store, ids
+    against the store's ``split`` (missing, extra, the id rule), per file: readable safely
+    within its byte budget (no pickles, no oversized, negative or empty dimensions, no
+    repeated arrays), required arrays, shapes, dtypes (joints float32; others float32 or
+    float64), K within the protocol's cap, consistent K and T, finite values, plausibility
+    bounds (|coordinate| <= 1 km, pelvis and object <= 50 m/s, object <= 100 m from the
+    pelvis in every frame), plausible units (body height 0.5-3 m per sample and no frame
+    outside 0.25-6 m; object within 20 m of the pelvis, median per sample), y-up (an error
+    when most files look x- or z-up), lengths (>= 2 frames; equal to the ground truth's
+    when ``uses_gt_length``; at most max(4x, +10 s); a warning outside 0.5x-2x), object
+    rotation matrices (orthonormal within 1e-3, det > 0), and every sample encodes to finite
+    features. A submission is complete only when no problem is an error.
     """
     return validation_report(sub, store, split, protocol, max_array_bytes).problems
 
@@ -615,8 +978,7 @@ def write_submission(out: str | Path, meta: Mapping, samples: Iterable[tuple[str
     items = samples.items() if isinstance(samples, Mapping) else samples
     files: dict[str, bytes] = {SUBMISSION_JSON: (json.dumps(dict(meta), indent=2, sort_keys=True) + "\n").encode()}
     for sid, arrays in items:
-        if not ID_PATTERN.match(str(sid)):
-            raise ValueError(f"samples: invalid id {sid!r} (letters, digits, '_', '-', '.')")
+        check_id(str(sid), "sample id")
         files[f"{SAMPLES_DIR}/{sid}.npz"] = npz_bytes({k: np.asarray(v) for k, v in arrays.items()})
     out = Path(out)
     if as_zip:

@@ -333,51 +333,57 @@ def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
     return None
 
 
-def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: int | None = None,
-                groups: Mapping[str, Sequence[str]] | None = None, contact_mode: str = "chainhoi",
-                fps: float | None = None) -> list[ClipInput]:
-    """:class:`ClipInput` per generated motion, with the test clip's object, GT contacts and
-    group members' GT contacts from ``store`` (a :class:`hoibench.store.Store`).
-
-    ``motions``: test id -> ``{"joints" (T, 22, 3), "obj_rot" (T, 3, 3) or "obj_rotvec"
-    (T, 3), "obj_trans" (T, 3)}`` (one sample each). ``sample`` goes into the key ``(id,
-    sample)``. ``groups``: ``{group: [ids]}`` (:func:`load_groups`); only group members
-    among the ids of ``motions`` count (ChainHOI compares within the evaluated set).
-    ``fps``: default the store's.
-    """
+def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[str]] | None = None,
+                       contact_mode: str = "chainhoi", fps: float | None = None) -> Callable[..., ClipInput]:
+    """A function ``make(cid, motion, sample=None) -> ClipInput`` for generated motions of
+    the test ids ``ids``, one at a time (what streaming evaluation needs): the test clip's
+    object, GT contacts and its group members' GT contacts (only members among ``ids``
+    count: ChainHOI compares within the evaluated set) come from ``store``; GT contacts and
+    templates are cached. ``motion``: ``{"joints" (T, 22, 3), "obj_rot" (T, 3, 3) or
+    "obj_rotvec" (T, 3), "obj_trans" (T, 3)}``; ``sample`` goes into the key ``(id, sample)``."""
     fps = float(store.manifest["config"]["fps"]) if fps is None else float(fps)
+    evaluated = set(ids)
     member_of: dict[str, list[str]] = {}
-    for ids in (groups or {}).values():
-        for cid in ids:
-            member_of[cid] = [m for m in ids if m != cid and m in motions]
+    for members in (groups or {}).values():
+        for cid in members:
+            member_of[cid] = [m for m in members if m != cid and m in evaluated]
     cache: dict[str, Any] = {}
+    templates: dict[str, tuple] = {}
+    names: dict[str, str] = {}
 
     def gt(cid):
         if cid not in cache:
-            cache[cid] = gt_contact_labels(store, store.load(cid), contact_mode)
+            clip = store.load(cid)
+            cache[cid] = gt_contact_labels(store, clip, contact_mode)
+            names[cid] = str(clip["object_name"]) if "object_name" in clip else ""
         return cache[cid]
 
-    templates: dict[str, tuple] = {}
-    out = []
-    for cid in sorted(motions):
-        m = motions[cid]
-        clip = store.load(cid)
-        if cid not in cache:
-            cache[cid] = gt_contact_labels(store, clip, contact_mode)
-        name = str(clip["object_name"]) if "object_name" in clip else ""
+    def make(cid: str, motion: Mapping[str, np.ndarray], sample: int | None = None) -> ClipInput:
+        own = gt(cid)
+        name = names[cid]
         if name and name not in templates:
             templates[name] = store.object_template(name)
         v, f = templates.get(name, (None, None))
         group = tuple(g for g in (gt(x) for x in member_of.get(cid, [])) if g is not None)
-        out.append(ClipInput(
+        return ClipInput(
             key=(cid, sample) if sample is not None else cid,
-            joints=np.asarray(m["joints"]), fps=fps,
-            obj_rot=_rotation(m),
-            obj_trans=None if "obj_trans" not in m else np.asarray(m["obj_trans"]),
+            joints=np.asarray(motion["joints"]), fps=fps,
+            obj_rot=_rotation(motion),
+            obj_trans=None if "obj_trans" not in motion else np.asarray(motion["obj_trans"]),
             object_name=name, template_vertices=v, template_faces=f,
-            gt_contacts=gt(cid), group_contacts=group))
-    return out
+            gt_contacts=own, group_contacts=group)
+
+    return make
+
+
+def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: int | None = None,
+                groups: Mapping[str, Sequence[str]] | None = None, contact_mode: str = "chainhoi",
+                fps: float | None = None) -> list[ClipInput]:
+    """:class:`ClipInput` per generated motion (test id -> one sample's arrays), in sorted id
+    order: :func:`clip_input_factory` over every id of ``motions``."""
+    make = clip_input_factory(store, list(motions), groups, contact_mode, fps)
+    return [make(cid, motions[cid], sample) for cid in sorted(motions)]
 
 
 __all__ = ["PHYSICAL_OUTPUTS", "PhysicalConfig", "ClipInput", "clip_physical_stats", "PhysicalMetrics",
-           "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs"]
+           "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs", "clip_input_factory"]
