@@ -32,6 +32,32 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     return path
 
 
+def is_atomic_tmp(name: str) -> bool:
+    """Whether ``name`` is a temporary file of :func:`atomic_write_bytes` (``.<name>.*.tmp``)."""
+    return name.startswith(".") and name.endswith(".tmp") and len(name) > len("..tmp")
+
+
+def clean_stale_tmp(*folders: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files an interrupted :func:`atomic_write_bytes` left in
+    ``folders`` (not recursive; missing folders are skipped); returns what was removed.
+    Call it when a command starts, before it writes there: a command still writing into the
+    same folder would lose its temporary file."""
+    removed = []
+    for folder in folders:
+        try:
+            entries = list(os.scandir(folder))
+        except (FileNotFoundError, NotADirectoryError):
+            continue
+        for entry in entries:
+            if is_atomic_tmp(entry.name) and entry.is_file(follow_symlinks=False):
+                try:
+                    os.unlink(entry.path)
+                except FileNotFoundError:
+                    continue
+                removed.append(Path(entry.path))
+    return removed
+
+
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
@@ -95,3 +121,59 @@ def npz_bytes(arrays: dict[str, np.ndarray], compressed: bool = True) -> bytes:
 def atomic_save_npz(path: str | os.PathLike, compressed: bool = True, **arrays) -> Path:
     """Write :func:`npz_bytes` atomically."""
     return atomic_write_bytes(path, npz_bytes(arrays, compressed))
+
+
+def read_regular_file(path: str | os.PathLike, max_bytes: int | None = None, what: str = "file") -> bytes:
+    """The bytes of ``path`` when it is a regular file of at most ``max_bytes``.
+
+    Opened without blocking (``O_NONBLOCK``) and checked with ``fstat`` on the open
+    descriptor, so a FIFO, socket or device never hangs the reader and cannot be swapped in
+    between the check and the read. ``ValueError`` naming the path otherwise."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as e:
+        raise ValueError(f"{path}: cannot open {what}: {e.strerror or e}") from None
+    try:
+        st = os.fstat(fd)
+        import stat as _stat
+        if not _stat.S_ISREG(st.st_mode):
+            kind = ("a FIFO" if _stat.S_ISFIFO(st.st_mode) else "a socket" if _stat.S_ISSOCK(st.st_mode)
+                    else "a device" if (_stat.S_ISCHR(st.st_mode) or _stat.S_ISBLK(st.st_mode))
+                    else "a folder" if _stat.S_ISDIR(st.st_mode) else "not a regular file")
+            raise ValueError(f"{path}: {what} is {kind}, not a regular file: not read")
+        if max_bytes is not None and st.st_size > max_bytes:
+            raise ValueError(f"{path}: {what} is {st.st_size} bytes, over the {max_bytes}-byte limit: not read")
+        chunks, left = [], st.st_size if max_bytes is None else max_bytes + 1
+        while True:
+            chunk = os.read(fd, min(1 << 20, max(left, 1)))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+            if max_bytes is not None and left <= 0:
+                raise ValueError(f"{path}: {what} grew past the {max_bytes}-byte limit while reading: not read")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
+def load_json_bytes(raw: bytes, source: str | os.PathLike) -> object:
+    """Strict JSON from bytes: UTF-8, no ``NaN``/``Infinity`` tokens, bounded nesting.
+    ``ValueError`` naming ``source`` otherwise (deep nesting raises ``RecursionError`` in
+    the standard parser; reported as such, never as a traceback)."""
+    def _no_constants(tok: str):
+        raise ValueError(f"the token {tok} is not JSON (numbers must be finite)")
+    try:
+        return json.loads(raw.decode("utf-8"), parse_constant=_no_constants)
+    except RecursionError:
+        raise ValueError(f"{source}: JSON nested too deeply: not read") from None
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{source}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    except ValueError as e:
+        raise ValueError(f"{source}: not valid JSON: {e}") from None
+
+
+def read_json_file(path: str | os.PathLike, max_bytes: int = 64 * 1024 ** 2, what: str = "JSON file") -> object:
+    """:func:`read_regular_file` + :func:`load_json_bytes`."""
+    return load_json_bytes(read_regular_file(path, max_bytes, what), path)
