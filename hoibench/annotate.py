@@ -39,6 +39,7 @@ import os
 import random
 import re
 import sys
+from contextlib import closing
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
@@ -47,7 +48,8 @@ import numpy as np
 
 from . import skeleton as sk
 from .contact import ContactSegment, contact_timeline
-from .io import atomic_write_json, atomic_write_text
+from .errors import StrictStop
+from .io import atomic_write_json, atomic_write_text, clean_stale_tmp
 from .parallel import map_units
 
 __all__ = [
@@ -1065,7 +1067,7 @@ def annotate_store(data: str | Path, spec_dir: str | Path | None = None, seed: i
 
     Writes DATA/annotations/<id>.json, DATA/texts/<id>.txt, DATA/annotations/index.json and
     DATA/annotations/errors.jsonl (unless ``write`` is False). With ``strict`` the first
-    failing clip raises ``RuntimeError`` (after recording it). Returns the index, with the
+    failing clip stops the run at once (``StrictStop``, after recording it). Returns the index, with the
     per-clip annotations under ``"annotations"`` (not written into index.json).
     """
     from .store import Store
@@ -1076,18 +1078,9 @@ def annotate_store(data: str | Path, spec_dir: str | Path | None = None, seed: i
         labels = load_action_labels(labels)
     ids = list(clip_ids) if clip_ids is not None else store.clip_ids()
     jobs = [(str(root), cid, spec, int(seed), _labels_for(labels, cid), write) for cid in ids]
-    annotations: dict[str, dict] = {}
-    errors: list[dict] = []
-    for res in map_units(_annotate_unit, jobs, executor, progress="annotate"):
-        if res["status"] == "ok":
-            annotations[res["clip"]] = res["annotation"]
-            continue
-        errors.append({"clip": res["clip"], "error": res["error"]})
-        print(f"[annotate] skipped {res['error']}", file=sys.stderr)
-        if strict:
-            if write:
-                _write_errors(root, errors)
-            raise RuntimeError(f"--strict: {res['error']}")
+    if write:
+        clean_stale_tmp(root / ANNOTATIONS, root / TEXTS)
+    annotations, errors = _run_annotate_jobs(jobs, root, executor, strict, write)
     groups: dict[str, list[str]] = {}
     for cid in sorted(annotations):
         groups.setdefault(annotations[cid]["group_id"], []).append(cid)
@@ -1104,6 +1097,28 @@ def annotate_store(data: str | Path, spec_dir: str | Path | None = None, seed: i
         _write_errors(root, errors)
         atomic_write_json(root / ANNOTATIONS / INDEX, index)
     return {**index, "errors": errors, "annotations": annotations}
+
+
+def _run_annotate_jobs(jobs: list[tuple], root: Path, executor: str, strict: bool,
+                       write: bool) -> tuple[dict[str, dict], list[dict]]:
+    """Run :func:`_annotate_unit` over ``jobs``: (annotations by clip, errors). Under
+    ``strict`` the first failure (in job order) is recorded and raises ``StrictStop`` at once;
+    leaving the loop closes :func:`map_units`, which cancels the units not started."""
+    annotations: dict[str, dict] = {}
+    errors: list[dict] = []
+    with closing(map_units(_annotate_unit, jobs, executor, progress="annotate")) as units:
+        for done, res in enumerate(units, 1):
+            if res["status"] == "ok":
+                annotations[res["clip"]] = res["annotation"]
+                continue
+            errors.append({"clip": res["clip"], "error": res["error"]})
+            if strict:
+                if write:
+                    _write_errors(root, errors)
+                where = f"; recorded in {root / ANNOTATIONS / ERRORS}" if write else ""
+                raise StrictStop(f"--strict: {res['error']} (stopped after {done} of {len(jobs)} clips{where})")
+            print(f"[annotate] skipped {res['error']}", file=sys.stderr)
+    return annotations, errors
 
 
 def _write_errors(root: Path, errors: list[dict]) -> None:

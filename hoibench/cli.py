@@ -94,7 +94,12 @@ def _cmd_prepare(args) -> int:
     manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
                        source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type})
     print(summary_table(manifest))
-    return 1 if manifest["counts"]["failed"] and args.strict else 0
+    missing = manifest.get("incomplete") or []
+    if missing:
+        print(f"hoibench prepare: error: the store is incomplete: {len(missing)} raw source(s) missing or "
+              f"unreadable (see errors.jsonl): {missing[0]}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _cmd_render(args) -> int:
@@ -165,7 +170,9 @@ def _cmd_evaluator(args) -> int:
 def _cmd_evaluate(args) -> int:
     from .evaluate import main_evaluate
     return main_evaluate(args.submission, args.data, args.evaluator, out=args.out,
-                         protocol=args.protocol, executor=args.executor)
+                         protocol=args.protocol, executor=args.executor, allow_failed_gate=args.allow_failed_gate,
+                         allow_protocol_mismatch=args.allow_protocol_mismatch,
+                         allow_evaluator_mismatch=args.allow_evaluator_mismatch)
 
 
 def _cmd_demo(args) -> int:
@@ -305,6 +312,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--protocol", default=None, help="protocol id (default: <dataset>-<mode> of the store)")
     s.add_argument("--executor", default="serial")
     s.add_argument("--out", type=Path, default=None)
+    s.add_argument("--allow-failed-gate", action="store_true",
+                   help="score with an evaluator that fails its sanity gate on this store (the result is marked)")
+    s.add_argument("--allow-protocol-mismatch", action="store_true",
+                   help="score under a protocol for another dataset, mode or fps (the result records it)")
+    s.add_argument("--allow-evaluator-mismatch", action="store_true",
+                   help="score with an evaluator trained on another dataset or representation (recorded)")
     s.set_defaults(func=_cmd_evaluate)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
@@ -315,13 +328,60 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: exceptions that mean "bad input or environment": one line, exit status 2
+_INPUT_ERRORS = (ValueError, KeyError, LookupError, OSError, RecursionError, MemoryError, EOFError,
+                 UnicodeError, NotImplementedError)
+
+
+def _one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line (a KeyError's message is its first argument)."""
+    if isinstance(exc, KeyError) and exc.args:
+        msg = str(exc.args[0])
+    elif isinstance(exc, RecursionError):
+        msg = f"input nested too deeply ({exc})"
+    elif isinstance(exc, MemoryError):
+        msg = "out of memory (an input larger than its budget? see docs/security.md)"
+    elif isinstance(exc, OSError) and exc.filename is not None:
+        msg = f"{exc.filename}: {exc.strerror or exc}"
+    else:
+        msg = str(exc) or type(exc).__name__
+    return " ".join(msg.split())
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. Bad input ends in one line ``hoibench <command>: error: ...`` and
+    exit status 2 (1 for a ``--strict`` stop, 130 for an interrupt), never a traceback;
+    ``HOIBENCH_DEBUG=1`` re-raises for debugging."""
+    import os
+
+    from .errors import HoibenchError
+    from .interrupts import EXIT_INTERRUPTED, interrupt_message, terminate_as_interrupt
     args = build_parser().parse_args(argv)
+    debug = os.environ.get("HOIBENCH_DEBUG") == "1"
     try:
-        return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"hoibench {args.command}: error: {exc}", file=sys.stderr)
+        with terminate_as_interrupt():
+            return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print(interrupt_message(f"hoibench {args.command}"), file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:          # output piped into a command that stopped reading
+        return 0
+    except HoibenchError as exc:
+        if debug:
+            raise
+        print(f"hoibench {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        return exc.exit_code
+    except _INPUT_ERRORS as exc:
+        if debug:
+            raise
+        print(f"hoibench {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except Exception as exc:         # a defect, not bad input: still one line, and how to see more
+        if debug:
+            raise
+        print(f"hoibench {args.command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+              f"(rerun with HOIBENCH_DEBUG=1 for the traceback, and please report it)", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

@@ -30,11 +30,21 @@ from pathlib import Path
 import numpy as np
 
 from .geometry import matrix_to_axis_angle
+from .ids import check_id
 from .io import atomic_save_npy, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text
 from .representations import hml263
 from .store import Store
 
 FORMATS = ("humanml3d", "hoidiff")
+
+
+def _checked_ids(store: Store) -> dict[str | None, list[str]]:
+    """Clip ids of the manifest per split (None: all), each passing :func:`check_id`
+    before it becomes an exported file or folder name."""
+    src = store.root / "manifest.json"
+    ids = {s: [check_id(c, "clip id", src) for c in store.clip_ids(s)] for s in ("train", "val", "test")}
+    ids[None] = [check_id(c, "clip id", src) for c in store.clip_ids()]
+    return ids
 
 
 def _texts(store: Store, clip_id: str) -> str | None:
@@ -48,10 +58,10 @@ def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
         raise ValueError(f"--format: expected one of {FORMATS}, got {fmt!r}")
     store = Store(data)
     out = Path(out)
-    ids = {s: store.clip_ids(s) for s in ("train", "val", "test")}
+    ids = _checked_ids(store)
     no_text: list[str] = []
     if fmt == "humanml3d":
-        for cid in store.clip_ids():
+        for cid in ids[None]:
             clip = store.load(cid)
             atomic_save_npy(out / "new_joint_vecs" / f"{cid}.npy", clip["hml263"].astype(np.float32))
             atomic_save_npy(out / "new_joints" / f"{cid}.npy", hml263.decode(clip["hml263"]).astype(np.float32))
@@ -60,18 +70,18 @@ def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
                 no_text.append(cid)
             else:
                 atomic_write_text(out / "texts" / f"{cid}.txt", text)
-        for split, lst in ids.items():
-            atomic_write_text(out / f"{split}.txt", "".join(f"{i}\n" for i in lst))
-        atomic_write_text(out / "all.txt", "".join(f"{i}\n" for i in store.clip_ids()))
+        for split in ("train", "val", "test"):
+            atomic_write_text(out / f"{split}.txt", "".join(f"{i}\n" for i in ids[split]))
+        atomic_write_text(out / "all.txt", "".join(f"{i}\n" for i in ids[None]))
         stats = store.stats("hml263")
         atomic_save_npy(out / "Mean.npy", stats.mean)
         atomic_save_npy(out / "Std.npy", stats.std)
     else:
-        ds = store.manifest["dataset"]
+        ds = check_id(store.manifest["dataset"], "dataset", store.root / "manifest.json")
         root = out / f"{ds}_t2m"
         atomic_write_json(out / "dataset_split.json", {ds: {"train": ids["train"] + ids["val"], "test": ids["test"]}})
         objects = set()
-        for cid in store.clip_ids():
+        for cid in ids[None]:
             clip = store.load(cid)
             if "hoi269" not in clip:
                 raise ValueError(f"{cid}: no object: the hoidiff layout needs HOI clips")
@@ -79,7 +89,7 @@ def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
             atomic_save_npz(root / "sequences" / cid / "object_motion.npz", name=clip["object_name"],
                             angles=matrix_to_axis_angle(clip["obj_rot"].astype(np.float64)),
                             trans=clip["obj_trans"].astype(np.float64))
-            objects.add(str(clip["object_name"]))
+            objects.add(check_id(str(clip["object_name"]), "object name", store.root / "clips" / f"{cid}.npz"))
             text = _texts(store, cid)
             if text is None:
                 no_text.append(cid)
@@ -125,8 +135,16 @@ def read_humanml3d(root: str | Path) -> dict[str, dict]:
     split_of = {}
     for split in ("train", "val", "test"):
         p = root / f"{split}.txt"
-        if p.exists():
-            split_of.update({line.strip(): split for line in p.read_text().splitlines() if line.strip()})
+        if not p.exists():
+            continue
+        for line in p.read_text().splitlines():
+            cid = line.strip()
+            if not cid:
+                continue
+            check_id(cid, "clip id", p)
+            if split_of.get(cid, split) != split:
+                raise ValueError(f"{p}: {cid!r} is listed in both {split_of[cid]}.txt and {split}.txt: refused")
+            split_of[cid] = split
     out = {}
     for cid, split in split_of.items():
         texts = []

@@ -14,15 +14,24 @@
 Units must be pure functions of their arguments (seeded from the unit id, never from worker
 rank), so results are identical whatever the executor; :func:`map_units` returns results in
 input order.
+
+Stopping early: when the consumer of :func:`map_units` stops (``break``/``close()``, e.g.
+``--strict``), or an interrupt or a unit's exception ends it, units not started are cancelled
+and a process pool's workers are terminated, without waiting for queued work. Pool workers
+ignore SIGINT and die with their parent (:mod:`hoibench.interrupts`).
 """
 from __future__ import annotations
 
 import concurrent.futures as cf
 import multiprocessing as mp
 import os
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass
+from collections import deque
 from typing import Any, Callable, Iterable, Iterator, Sequence
+
+from .interrupts import die_with_parent, hold_sigint, ignore_sigint
 
 
 @dataclass(frozen=True)
@@ -92,6 +101,14 @@ def _single_threaded_worker() -> None:
         pass
 
 
+def _pool_worker(parent_pid: int) -> None:
+    """Process-pool initializer: dies with ``parent_pid``, ignores SIGINT (the parent
+    decides), one compute thread."""
+    die_with_parent(parent_pid)
+    ignore_sigint()
+    _single_threaded_worker()
+
+
 class _SerialExecutor(cf.Executor):
     def submit(self, fn, /, *args, **kwargs):
         fut: cf.Future = cf.Future()
@@ -112,7 +129,7 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
     if spec.kind == "processes":
         with _single_threaded_children(), cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
                                     mp_context=mp.get_context("spawn"),
-                                    initializer=_single_threaded_worker) as ex:
+                                    initializer=_pool_worker, initargs=(os.getpid(),)) as ex:
             yield ex
         return
     try:
@@ -131,23 +148,96 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
         yield client.get_executor()
 
 
-def map_units(fn: Callable[[Any], Any], units: Sequence[Any], executor: str | ExecutorSpec = "serial",
-              progress: str | None = None) -> Iterable[Any]:
+def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | ExecutorSpec = "serial",
+              progress: str | None = None, window: int | None = None) -> Iterator[Any]:
     """Yield ``fn(unit)`` for every unit, in input order, running on ``executor``.
 
+    ``serial`` runs each unit when its result is asked for. A pool gets every unit up front,
+    or at most ``window`` units ahead of the one being yielded when ``window`` is given
+    (then ``units`` may be a generator that is read lazily: streaming keeps memory bounded).
+    If the caller stops early (``break``, ``close()``) or an exception or interrupt ends the
+    loop, pending units are cancelled and workers terminated (:func:`_abandon`).
     ``progress`` names a progress bar (tqdm, when installed and stderr is a terminal or
     ``HOIBENCH_PROGRESS=1``).
     """
-    bar = _progress_bar(progress, len(units))
-    with open_executor(executor) as ex:
-        futures = [ex.submit(fn, u) for u in units]
-        for fut in futures:
-            result = fut.result()
-            if bar is not None:
-                bar.update(1)
-            yield result
+    spec = parse_executor(executor) if isinstance(executor, str) else executor
+    bar = _progress_bar(progress, len(units) if hasattr(units, "__len__") else None)
+    try:
+        if spec.kind == "serial":
+            for unit in units:
+                yield _tick(bar, fn(unit))
+        else:
+            yield from _map_pool(fn, units, spec, bar, window)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _tick(bar, result: Any) -> Any:
     if bar is not None:
-        bar.close()
+        bar.update(1)
+    return result
+
+
+def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec, bar,
+              window: int | None = None) -> Iterator[Any]:
+    """:func:`map_units` on a process pool or Dask; abandons the pool on any early exit."""
+    with open_executor(spec) as ex:
+        futures: deque[cf.Future] = deque()
+        todo = iter(units)
+        limit = max(1, int(window)) if window is not None else None
+
+        def fill() -> None:
+            with hold_sigint():           # workers start with SIGINT blocked, then ignore it
+                for unit in todo:
+                    futures.append(ex.submit(fn, unit))
+                    if limit is not None and len(futures) >= limit:
+                        return
+
+        try:
+            fill()
+            while futures:
+                result = futures[0].result()
+                futures.popleft()
+                yield _tick(bar, result)
+                if limit is not None:
+                    fill()
+        except BaseException:             # KeyboardInterrupt, GeneratorExit, a unit's error
+            _abandon(ex, list(futures))
+            raise
+
+
+def _abandon(ex: cf.Executor, futures: Sequence[cf.Future], grace_s: float = 1.0) -> None:
+    """Stop ``ex`` now: cancel units not started, shut down without waiting, terminate a
+    process pool's workers (SIGTERM, then SIGKILL after ``grace_s``). Dask's executor
+    cancels its futures on ``shutdown(wait=False)``."""
+    procs = list((getattr(ex, "_processes", None) or {}).values())   # gone after shutdown
+    for fut in futures:
+        fut.cancel()
+    try:
+        ex.shutdown(wait=False, cancel_futures=True)
+    except TypeError:                     # executors without cancel_futures (Dask)
+        ex.shutdown(wait=False)
+    _terminate(procs, grace_s)
+
+
+def _terminate(procs: Sequence[Any], grace_s: float) -> None:
+    """Terminate ``multiprocessing`` processes and reap them (guarded: a process may
+    already be gone, or be reaped by the pool's own thread)."""
+    for p in procs:
+        try:
+            p.terminate()
+        except (OSError, ValueError, AttributeError):
+            pass
+    deadline = time.monotonic() + grace_s
+    for p in procs:
+        try:
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(0.5)
+        except (OSError, ValueError, AttributeError, AssertionError):
+            pass
 
 
 def _progress_bar(desc: str | None, total: int):

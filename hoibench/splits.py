@@ -13,6 +13,54 @@ import json
 import os
 from pathlib import Path
 
+from .ids import InvalidIdError, check_id
+
+SPLIT_NAMES = ("train", "val", "test")
+
+
+class SplitFileError(ValueError):
+    """A split file that is not ``{"train": [id, ...], "val": [...], "test": [...]}`` of
+    valid ids, each in one split only."""
+
+
+def split_assignment(data: object, source: str) -> dict[str, str]:
+    """``{"train": [...], "val": [...], "test": [...]}`` -> {id: split}, refusing (naming
+    ``source``, the split and the entry) a file that is not a JSON object, a list that is
+    not a list of ids, an entry that fails :func:`hoibench.ids.check_id`, or an id listed
+    in two splits (a train/test leak). Keys other than the three splits are ignored."""
+    if not isinstance(data, dict):
+        raise SplitFileError(f"{source}: expected a JSON object with 'train'/'val'/'test' lists, "
+                             f"got {type(data).__name__}")
+    if not any(k in data for k in SPLIT_NAMES):
+        raise SplitFileError(f"{source}: none of the keys 'train', 'val', 'test' (keys: {sorted(map(str, data))[:8]})")
+    out: dict[str, str] = {}
+    for split in SPLIT_NAMES:
+        entries = data.get(split, [])
+        if not isinstance(entries, list):
+            raise SplitFileError(f"{source}: {split}: expected a list of ids, got {type(entries).__name__}")
+        for i, name in enumerate(entries):
+            try:
+                check_id(name, f"{split}[{i}]", source)
+            except InvalidIdError as exc:
+                raise SplitFileError(str(exc)) from None
+            if out.get(name, split) != split:
+                raise SplitFileError(f"{source}: {name!r} is listed in both {out[name]!r} and {split!r} "
+                                     "(an id in two splits leaks between them): refused")
+            out[name] = split
+    return out
+
+
+def read_split_file(path: str | os.PathLike) -> dict[str, str]:
+    """A user ``--split-file`` -> {id: split} (see :func:`split_assignment`)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise SplitFileError(f"--split-file: no file {path}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SplitFileError(f"{path}: invalid JSON ({exc})") from None
+    return split_assignment(data, str(path))
+
 
 def splits_dir() -> Path:
     env = os.environ.get("HOIBENCH_SPLITS_DIR")
@@ -27,10 +75,16 @@ def available() -> list[str]:
 
 
 def load(dataset: str) -> dict:
+    """A shipped split file; each named split's id lists pass :func:`split_assignment`."""
+    check_id(dataset, "dataset", "hoibench splits")
     path = splits_dir() / f"{dataset}.json"
     if not path.exists():
         raise FileNotFoundError(f"dataset: no split file {path} (available: {', '.join(available())})")
-    return json.loads(path.read_text())
+    data = json.loads(path.read_text())
+    for name, sp in data.get("splits", {}).items():
+        if any(k in sp for k in SPLIT_NAMES):
+            split_assignment(sp, f"{path} split {name!r}")
+    return data
 
 
 def get(dataset: str, name: str | None = None) -> dict:

@@ -3,7 +3,9 @@
 Layout::
 
     DATA/manifest.json       toolkit version, dataset, config, source checksums, counts,
-                             representation versions, clips (id, split, frames), errors
+                             representation versions, clips (id, split, frames), errors,
+                             incomplete (raw files the dataset needs that were missing or
+                             unreadable: the store is not the whole dataset)
     DATA/clips/<id>.npz      one clip, no pickles: joints (T,22,3), fps, object name and pose,
                              body parameters, contacts (when known), hml263, hoi269,
                              joint_level (clean mode, T-1 rows), source_sha256, split
@@ -14,13 +16,16 @@ Layout::
 Writes are atomic. A rerun skips every clip whose stored ``source_sha256`` (raw files +
 object template + config) matches and redoes the rest, so an interrupted run resumes and
 ends byte-identical to an uninterrupted one. A failing sequence is logged and skipped, or
-stops the run under ``strict``.
+stops the run under ``strict``. Every clip id passes :func:`hoibench.ids.check_id` and is
+unique in the store, and every clip passes :func:`hoibench.plausibility.check_sequence`,
+before anything is written.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import sys
+from contextlib import closing
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -28,7 +33,11 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import __version__
-from .io import atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text
+from .errors import StrictStop
+from .ids import InvalidIdError, check_id
+from .io import (atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text, clean_stale_tmp,
+                 npz_bytes, strict_json_dumps)
+from .plausibility import check_fps, check_sequence
 from .parallel import map_units
 from .representations import hml263, hoi269, joint_level, normalization
 
@@ -42,6 +51,9 @@ class PrepareConfig:
     fps: float = 20.0
     mode: str = "clean"            # representation mode stored in the clips
     body_model_type: str = "smplh"
+
+    def __post_init__(self) -> None:
+        check_fps(self.fps, "--fps", f"prepare {self.dataset}")
 
     def sha256(self) -> str:
         return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()
@@ -80,8 +92,8 @@ def clip_arrays(seq, mode: str, split: str, source_sha256: str) -> dict[str, np.
     if seq.contacts is not None:
         out["contacts"] = seq.contacts.astype(bool)
     if seq.texts:   # dataset texts (e.g. OMOMO's annotations), one JSON object per entry
-        out["texts"] = np.array([json.dumps(t, sort_keys=True) for t in seq.texts])
-    out["provenance"] = np.array(json.dumps(seq.provenance, sort_keys=True))
+        out["texts"] = np.array([strict_json_dumps(t, sort_keys=True) for t in seq.texts])
+    out["provenance"] = np.array(strict_json_dumps(seq.provenance, sort_keys=True))
     return out
 
 
@@ -95,6 +107,7 @@ class UnitResult:
     object_name: str = ""
     contact_frames: int = 0
     error: str = ""
+    scope: str = "sequence"         # "source": a whole raw file failed (see fail_source)
 
 
 class Store:
@@ -111,10 +124,12 @@ class Store:
         return [c["id"] for c in self.manifest["clips"] if split is None or c["split"] == split]
 
     def load(self, clip_id: str) -> dict[str, np.ndarray]:
+        check_id(clip_id, "clip id", self.root / MANIFEST)
         with np.load(self.root / "clips" / f"{clip_id}.npz", allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
 
     def object_template(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        check_id(name, "object name", self.root / MANIFEST)
         with np.load(self.root / "objects" / f"{name}.npz", allow_pickle=False) as z:
             return z["vertices"], z["faces"]
 
@@ -138,33 +153,128 @@ def _stored_result(path: Path, clip_id: str, split: str, sha: str) -> UnitResult
 
 def run_unit(job: tuple) -> UnitResult:
     """Prepare one sequence (pure: output depends on the job only). ``job`` =
-    (clip_id, split, source_sha256, out_dir, loader, loader_args, mode)."""
+    (clip_id, split, source_sha256, out_dir, loader, loader_args, mode).
+
+    The clip id passes :func:`hoibench.ids.check_id` before any path is made from it, and
+    the loaded clip :func:`hoibench.plausibility.check_sequence` before it is written."""
     clip_id, split, sha, out_dir, loader, loader_args, mode = job
+    if loader is fail_unit or loader is fail_source:   # nothing to read or write
+        return _failed(clip_id, split, loader, loader_args)
+    try:
+        check_id(clip_id, "clip id", f"the {getattr(loader, '__module__', '?')} job list")
+    except InvalidIdError as exc:
+        return UnitResult(clip_id, "failed", split, error=str(exc))
     path = Path(out_dir) / "clips" / f"{clip_id}.npz"
     done = _stored_result(path, clip_id, split, sha) if path.exists() else None
     if done is not None:
         return done
     try:
         seq = loader(*loader_args)
+        prov = seq.provenance if isinstance(seq.provenance, dict) else {}
+        check_sequence(seq, str(prov.get("raw_source") or prov.get("source_file") or ""))
         arrays = clip_arrays(seq, mode, split, sha)
         atomic_save_npz(path, **arrays)
         if seq.object_vertices is not None:
-            opath = Path(out_dir) / "objects" / f"{seq.object_name}.npz"
-            if not opath.exists():
-                atomic_save_npz(opath, vertices=seq.object_vertices.astype(np.float32),
-                                faces=seq.object_faces.astype(np.int32))
+            _write_object(Path(out_dir), seq.object_name, seq.object_vertices, seq.object_faces)
         contacts = int(seq.contacts.any(-1).sum()) if seq.contacts is not None else 0
         return UnitResult(clip_id, "written", split, seq.num_frames, sha, seq.object_name or "", contacts)
     except Exception as exc:
-        msg = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
-        if not msg.startswith(clip_id):
-            msg = f"{clip_id}: {msg}"
-        return UnitResult(clip_id, "failed", split, error=msg)
+        return UnitResult(clip_id, "failed", split, error=_message(clip_id, exc))
+
+
+def _message(clip_id: str, exc: BaseException) -> str:
+    """The error text of a failed unit, prefixed by the clip id."""
+    msg = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
+    return msg if msg.startswith(str(clip_id)) else f"{clip_id}: {msg}"
+
+
+def _failed(clip_id: str, split: str, loader, loader_args) -> UnitResult:
+    """The result of a job whose loader is :func:`fail_unit` or :func:`fail_source`."""
+    try:
+        loader(*loader_args)
+        raise ValueError("a failing job did not fail")
+    except Exception as exc:
+        scope = "source" if loader is fail_source else "sequence"
+        return UnitResult(clip_id, "failed", split, error=_message(clip_id, exc), scope=scope)
+
+
+def _write_object(out_dir: Path, name: str, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """``objects/<name>.npz``, rewritten when its bytes differ (a stale template of an
+    earlier run is replaced, never kept)."""
+    opath = out_dir / "objects" / f"{check_id(name, 'object name')}.npz"
+    data = npz_bytes({"vertices": vertices.astype(np.float32), "faces": faces.astype(np.int32)})
+    if not opath.exists() or opath.read_bytes() != data:
+        atomic_write_bytes(opath, data)
 
 
 def fail_unit(message: str):
     """A job "loader" for a sequence that cannot be prepared: the unit records ``message``."""
     raise ValueError(message)
+
+
+class SourceError(ValueError):
+    """A whole raw source (a missing or unreadable file) that a dataset needs."""
+
+
+def fail_source(message: str):
+    """A job "loader" for a raw source file that is missing or unreadable (e.g. OMOMO's test
+    pickle): the unit records ``message`` and the manifest lists it under ``incomplete``."""
+    raise SourceError(message)
+
+
+def source_failure_job(source_id: str, message: str, out, mode: str) -> tuple:
+    """A failing job standing for a whole raw file; ``source_id`` (the file name) is the
+    ``sequence`` of its errors.jsonl line."""
+    return (source_id, "unknown", "", str(out), fail_source, (message,), mode)
+
+
+def invalid_id_job(raw_id: object, message: str, out, mode: str) -> tuple:
+    """A failing job for an id refused by :func:`check_id`. Its own id is a safe stand-in,
+    ``invalid-id-<sha256(repr(id))[:12]>``; ``message`` names the refused id and its source."""
+    stand_in = "invalid-id-" + hashlib.sha256(repr(raw_id).encode()).hexdigest()[:12]
+    return (stand_in, "unknown", "", str(out), fail_unit, (f"{stand_in}: {message}",), mode)
+
+
+def refuse_duplicates(jobs: list[tuple], sources: Sequence[str] | None = None) -> list[tuple]:
+    """Fail every copy of a clip id that more than one job produces (compared case-folded:
+    ``A.npz`` and ``a.npz`` are one file on some file systems), naming all their sources
+    (``sources[i]`` describes ``jobs[i]``): a store never holds one id twice, overwritten
+    or in two splits. Jobs that already fail keep their own message."""
+    sources = list(sources) if sources is not None else [f"job {i}" for i in range(len(jobs))]
+    groups: dict[str, list[int]] = {}
+    for i, job in enumerate(jobs):
+        groups.setdefault(str(job[0]).casefold(), []).append(i)
+    out = list(jobs)
+    for idx in groups.values():
+        live = [i for i in idx if jobs[i][4] not in (fail_unit, fail_source)]
+        if len(idx) < 2 or not live:
+            continue
+        where = "; ".join(f"{jobs[i][0]} (split {jobs[i][1]}) from {sources[i]}" for i in idx)
+        for i in live:
+            cid, split, _, out_dir, _, _, mode = jobs[i]
+            out[i] = (cid, split, "", out_dir, fail_unit,
+                      (f"{cid}: duplicate clip id, every copy refused: {where}",), mode)
+    return out
+
+
+def check_jobs(jobs: list[tuple]) -> list[tuple]:
+    """Before running: every job id passes :func:`check_id` (else an :func:`invalid_id_job`)
+    and no id comes twice (:func:`refuse_duplicates`). Loaders do both with their sources
+    named; this is the store's own guard for any job list."""
+    out = []
+    for job in jobs:
+        try:
+            check_id(job[0], "clip id", f"the {getattr(job[4], '__module__', '?')} job list")
+            out.append(job)
+        except InvalidIdError as exc:
+            out.append(invalid_id_job(job[0], str(exc), job[3], job[6]))
+    return refuse_duplicates(out)
+
+
+def incomplete_sources(results: Sequence[UnitResult]) -> list[str]:
+    """The errors of :func:`fail_source` units: raw files a dataset needs that were
+    missing or unreadable (the manifest's ``incomplete``; the CLI exits non-zero)."""
+    return sorted(r.error for r in results if r.status == "failed" and r.scope == "source")
 
 
 def unlisted_split_jobs(jobs: list[tuple], splits: dict[str, str], split_file, out, mode: str,
@@ -180,21 +290,20 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
             strict: bool = False, source: dict[str, Any] | None = None) -> dict:
     """Run ``jobs`` (see :func:`run_unit`) and write the manifest, stats and errors.
 
-    Returns the manifest. With ``strict`` the first failure raises ``RuntimeError`` (after
-    recording it in errors.jsonl).
+    Returns the manifest. With ``strict`` the first failing sequence (in job order) stops the
+    run at once (:class:`~hoibench.errors.StrictStop`, after recording it in errors.jsonl).
+    An interrupt (``KeyboardInterrupt``) stops it too; a rerun resumes.
+
+    Before running, :func:`check_jobs` fails jobs with an unsafe or duplicate id. A raw file
+    the dataset needs that was missing or unreadable (a :func:`fail_source` job) is listed
+    under the manifest's ``incomplete``: such a store is not the whole dataset.
     """
     out = Path(out)
     (out / "clips").mkdir(parents=True, exist_ok=True)
-    results: list[UnitResult] = []
-    errors: list[dict] = []
-    for res in map_units(run_unit, jobs, executor, progress=f"prepare {config.dataset}"):
-        results.append(res)
-        if res.status == "failed":
-            errors.append({"sequence": res.clip_id, "error": res.error})
-            print(f"[prepare] skipped {res.error}", file=sys.stderr)
-            if strict:
-                _write_errors(out, errors)
-                raise RuntimeError(f"--strict: {res.error}")
+    clean_stale_tmp(out, out / "clips", out / "objects", out / "stats")
+    jobs = check_jobs(jobs)
+    results, errors = _run_jobs(jobs, out, executor, strict, f"prepare {config.dataset}")
+    incomplete = _report_incomplete(results)
     _write_errors(out, errors)
     ok = sorted((r for r in results if r.status != "failed"), key=lambda r: r.clip_id)
     stats = _write_stats(out, [r.clip_id for r in ok if r.split == "train"], config)
@@ -213,9 +322,42 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
         "clips": [{"id": r.clip_id, "split": r.split, "frames": r.frames, "object": r.object_name,
                    "contact_frames": r.contact_frames} for r in ok],
         "stats": stats,
+        "incomplete": incomplete,
     }
     atomic_write_json(out / MANIFEST, manifest)
     return manifest
+
+
+def _run_jobs(jobs: list[tuple], out: Path, executor: str, strict: bool,
+              progress: str) -> tuple[list[UnitResult], list[dict]]:
+    """Run :func:`run_unit` over ``jobs``: (results, errors). Under ``strict`` the first
+    failure is written to errors.jsonl and raises ``StrictStop``; leaving the loop closes
+    :func:`map_units`, which cancels the units not started and stops the pool."""
+    results: list[UnitResult] = []
+    errors: list[dict] = []
+    with closing(map_units(run_unit, jobs, executor, progress=progress)) as units:
+        for res in units:
+            results.append(res)
+            if res.status != "failed":
+                continue
+            errors.append({"sequence": res.clip_id, "error": res.error})
+            if strict:
+                _write_errors(out, errors)
+                raise StrictStop(f"--strict: {res.error} (stopped after {len(results)} of {len(jobs)} "
+                                 f"sequences; recorded in {out / ERRORS})")
+            print(f"[prepare] skipped {res.error}", file=sys.stderr)
+    return results, errors
+
+
+def _report_incomplete(results: list[UnitResult]) -> list[str]:
+    """:func:`incomplete_sources`, printed; and a guard that no clip id was prepared twice."""
+    ids = [r.clip_id.casefold() for r in results if r.status != "failed"]
+    if len(ids) != len(set(ids)):           # check_jobs makes this impossible
+        raise RuntimeError("prepare: a clip id was prepared twice; the store is not consistent")
+    incomplete = incomplete_sources(results)
+    for line in incomplete:
+        print(f"[prepare] INCOMPLETE: {line}", file=sys.stderr)
+    return incomplete
 
 
 def _write_errors(out: Path, errors: list[dict]) -> None:

@@ -56,6 +56,10 @@ def _check_type(model_type: str) -> str:
     return mt
 
 
+#: genders a model file can be chosen by (the gender becomes part of a file name)
+GENDERS = ("male", "female", "neutral")
+
+
 def model_path(model_dir, model_type: str = "smplh", gender: str = "neutral",
                ext: str | None = None) -> Path:
     """Path of the model file ``model_dir/<model_type>/<PREFIX>_<GENDER>.<ext>``.
@@ -64,6 +68,8 @@ def model_path(model_dir, model_type: str = "smplh", gender: str = "neutral",
     SMPL-H / SMPL-X: npz, then pkl). Raises FileNotFoundError naming every path tried.
     """
     mt = _check_type(model_type)
+    if str(gender).lower() not in GENDERS:
+        raise ValueError(f"gender: expected one of {GENDERS}, got {str(gender)[:40]!r}")
     folder = Path(model_dir).expanduser() / mt
     exts = _DEFAULT_EXTS[mt] if ext is None else (str(ext).lstrip("."),)
     if mt == "smpl" and exts != ("pkl",):
@@ -173,6 +179,10 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
 
     joints_out, verts_out = [], []
     saved_bs = getattr(model, "batch_size", None)
+    saved_threads = torch.get_num_threads()
+    # one intra-op thread: torch's float32 reductions depend on its thread count, and a store
+    # must be byte-identical whatever the executor (pool workers run one thread each)
+    torch.set_num_threads(1)
     try:
         if mt == "smplx":  # SMPL-X repeats its landmark coefficients model.batch_size times
             model.batch_size = 1
@@ -194,6 +204,7 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
                 if return_vertices:
                     verts_out.append(out.vertices.detach().cpu().numpy())
     finally:
+        torch.set_num_threads(saved_threads)
         if saved_bs is not None:
             model.batch_size = saved_bs
     joints = np.concatenate(joints_out) if joints_out else np.zeros((0, 0, 3))

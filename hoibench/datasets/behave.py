@@ -37,7 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import geometry as geo
+from .. import plausibility as pl
 from ..bodies.transform import rigid_transform_smpl
+from ..ids import InvalidIdError, check_id
 from .sequence import BodyParams, HOISequence
 
 SOURCE_FPS = 30.0
@@ -72,14 +74,23 @@ def official_split(name: str) -> str:
     return "test" if parse_name(name).date == OFFICIAL_TEST_DATE else "train"
 
 
-def parse_frame_times(times, name: str) -> np.ndarray:
-    """'t0003.033' -> 3.033 seconds; strictly increasing or a SequenceError."""
+def parse_frame_times(times, name: str, where: str = "smpl_fit_all.npz") -> np.ndarray:
+    """'t0003.033' -> 3.033 seconds: finite, strictly increasing and spanning at most
+    :data:`hoibench.plausibility.MAX_DURATION_S`, or a SequenceError naming ``where``."""
+    raw = np.asarray(times).ravel()
     try:
-        secs = np.array([float(str(t).lstrip("t")) for t in np.asarray(times).ravel()])
+        secs = np.array([float(str(t).lstrip("t")) for t in raw], dtype=np.float64)
     except ValueError as exc:
-        raise SequenceError(f"{name}: frame_times: cannot parse ({exc})") from None
+        raise SequenceError(f"{name}: {where}: frame_times: cannot parse ({exc})") from None
+    bad = np.flatnonzero(~np.isfinite(secs))
+    if len(bad):
+        raise SequenceError(f"{name}: {where}: frame_times: non-finite time {str(raw[bad[0]])!r} at frame {bad[0]}")
     if len(secs) > 1 and not np.all(np.diff(secs) > 0):
-        raise SequenceError(f"{name}: frame_times: not strictly increasing")
+        t = int(np.flatnonzero(np.diff(secs) <= 0)[0])
+        raise SequenceError(f"{name}: {where}: frame_times: not strictly increasing at frame {t + 1}")
+    if len(secs) > 1 and secs[-1] - secs[0] > pl.MAX_DURATION_S:
+        raise SequenceError(f"{name}: {where}: frame_times: span {secs[-1] - secs[0]:.4g} s exceeds "
+                            f"{pl.MAX_DURATION_S:g} s (a corrupt time stamp?)")
     return secs
 
 
@@ -93,7 +104,7 @@ def snap_to_frame_grid(secs: np.ndarray, fps: float = SOURCE_FPS, tol_s: float =
 
 
 def object_template_path(objects_root: Path, obj: str) -> Path:
-    folder = Path(objects_root) / obj
+    folder = Path(objects_root) / check_id(obj, "object name", "info.json 'cat' or the sequence name")
     names = ["monitor_closed_f1000.ply"] if obj == "monitor" else []
     names += [f"{obj}_f1000.ply", f"{obj}_f2000.ply", f"{obj}_f2500.ply"]
     for n in names:
@@ -102,17 +113,33 @@ def object_template_path(objects_root: Path, obj: str) -> Path:
     raise SequenceError(f"unknown object template {obj!r}: none of {names} in {folder}")
 
 
-@lru_cache(maxsize=64)
-def load_object_template(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(centred vertices (V,3) float64, faces (F,3) int64, the subtracted mean (3,))."""
+def read_mesh(path: str | Path, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a mesh file as read (``trimesh``, no processing); a
+    SequenceError naming ``what`` (the sequence and object) for an unreadable file."""
     import trimesh
-    mesh = trimesh.load(path, process=False, force="mesh")
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    f = np.asarray(mesh.faces, dtype=np.int64)
-    if len(v) == 0 or len(f) == 0:
-        raise SequenceError(f"{path}: empty mesh")
+    try:
+        mesh = trimesh.load(str(path), process=False, force="mesh")
+        return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    except Exception as exc:
+        raise SequenceError(f"{what}: unreadable mesh ({type(exc).__name__}: {exc})") from None
+
+
+@lru_cache(maxsize=64)
+def _template(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    v, f = pl.check_template(*read_mesh(path, Path(path).name), Path(path).name)
     mean = v.mean(0)
     return v - mean, f, mean
+
+
+def load_object_template(path: str, obj: str = "", name: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(centred vertices (V,3) float64, faces (F,3) int64, the subtracted mean (3,)) of a
+    template that passes :func:`hoibench.plausibility.check_template` (finite, >= 4
+    vertices, >= 1 face, indices in range, non-zero area, 1 cm..10 m); errors name the
+    sequence ``name``, the object ``obj`` and the mesh file."""
+    try:
+        return _template(str(path))
+    except ValueError as exc:
+        raise SequenceError(f"{name or Path(path).name}: object {obj!r} template: {exc}") from None
 
 
 def _read_npz(path: Path, name: str, keys: dict[str, tuple[int, ...]]) -> dict[str, np.ndarray]:
@@ -129,11 +156,13 @@ def _read_npz(path: Path, name: str, keys: dict[str, tuple[int, ...]]) -> dict[s
         a = data[k]
         if a.ndim != 2 or a.shape[1:] != tail:
             raise SequenceError(f"{name}: {path.name}: {k}: expected shape (T, {tail[0]}), got {a.shape}")
-        if not np.issubdtype(a.dtype, np.floating):
-            raise SequenceError(f"{name}: {path.name}: {k}: expected floats, got {a.dtype}")
-        if not np.isfinite(a).all():
-            t = int(np.argwhere(~np.isfinite(a))[0, 0])
-            raise SequenceError(f"{name}: {path.name}: {k}: non-finite value at frame {t}")
+        if a.dtype.kind == "f":
+            bad = ~np.isfinite(a)
+            if bad.any():
+                t = int(np.argwhere(bad)[0, 0])
+                raise SequenceError(f"{name}: {path.name}: {k}: non-finite value at frame {t}")
+        else:   # complex (never cast to real), integers, strings
+            raise SequenceError(f"{name}: {path.name}: {k}: expected real floats, got {a.dtype}")
     if "frame_times" not in data:
         raise SequenceError(f"{name}: {path.name}: missing key 'frame_times'")
     return data
@@ -141,6 +170,7 @@ def _read_npz(path: Path, name: str, keys: dict[str, tuple[int, ...]]) -> dict[s
 
 @lru_cache(maxsize=8)
 def _body_model(model_dir: str, gender: str):
+    gender = check_id(gender, "gender")
     from ..bodies.smpl import load_body_model
     return load_body_model(model_dir, "smplh", gender)
 
@@ -181,35 +211,18 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
     Raises :class:`SequenceError` naming the sequence, file and field for bad input.
     """
     seq_dir = Path(seq_dir)
-    name = seq_dir.name
+    name = check_id(seq_dir.name, "sequence folder", seq_dir.parent)
     parsed = parse_name(name)
+    fps = pl.check_fps(fps, "fps", name)
     body = _read_npz(seq_dir / "smpl_fit_all.npz", name, _BODY_KEYS)
     obj = _read_npz(seq_dir / "object_fit_all.npz", name, _OBJECT_KEYS)
-    info_path = seq_dir / "info.json"
-    if not info_path.exists():
-        raise SequenceError(f"{name}: missing file info.json")
-    try:
-        info = json.loads(info_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise SequenceError(f"{name}: info.json: invalid JSON ({exc})") from None
-    gender = str(info.get("gender", "")).lower()
-    if gender not in ("male", "female", "neutral"):
-        raise SequenceError(f"{name}: info.json: gender: expected male/female, got {info.get('gender')!r}")
-    obj_name = str(info.get("cat") or parsed.object)
-    T = len(body["poses"])
-    for key, arr in (("betas", body["betas"]), ("trans", body["trans"])):
-        if len(arr) != T:
-            raise SequenceError(f"{name}: smpl_fit_all.npz: {key}: {len(arr)} frames, poses has {T}")
-    if len(obj["angles"]) != T or len(obj["trans"]) != T:
-        raise SequenceError(f"{name}: object_fit_all.npz has {len(obj['angles'])} frames, "
-                            f"smpl_fit_all.npz has {T}")
+    gender, obj_name = read_info(seq_dir / "info.json", name, parsed.object)
+    T = _frame_count(body, obj, name)
     times = snap_to_frame_grid(parse_frame_times(body["frame_times"], name))
-    if len(times) != T:
-        raise SequenceError(f"{name}: smpl_fit_all.npz: frame_times: {len(times)} entries for {T} frames")
-    if T < 2:
-        raise SequenceError(f"{name}: only {T} frame(s)")
+    pl.check_track(body["trans"], "trans", f"{name}: smpl_fit_all.npz", times=times)
+    pl.check_track(obj["trans"], "trans", f"{name}: object_fit_all.npz", times=times)
     template_path = object_template_path(Path(objects_root), obj_name)
-    verts, faces, mean = load_object_template(str(template_path))
+    verts, faces, mean = load_object_template(str(template_path), obj_name, name)
 
     # resample by time
     dst = resample_times(times, fps)
@@ -246,9 +259,51 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
                     "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
                     "source_start_s": float(times[0]),
                     "source_frames": T, "template": template_path.name,
+                    "raw_source": f"sequences/{name}/ (smpl_fit_all.npz, object_fit_all.npz, info.json), "
+                                  f"objects/{obj_name}/{template_path.name}",
                     "template_mean_subtracted": mean.tolist(), "date": parsed.date,
                     "action": parsed.action},
     )
+
+
+def read_info(path: Path, name: str, default_object: str) -> tuple[str, str]:
+    """(gender, object name) of ``info.json``: a JSON object whose ``gender`` is one of
+    male/female/neutral and whose ``cat`` (optional; else the name's object) is a valid id.
+    SequenceError naming the sequence, the file and the field otherwise."""
+    if not path.exists():
+        raise SequenceError(f"{name}: missing file info.json")
+    try:
+        info = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SequenceError(f"{name}: info.json: invalid JSON ({exc})") from None
+    if not isinstance(info, dict):
+        raise SequenceError(f"{name}: info.json: expected a JSON object, got {type(info).__name__}")
+    gender = info.get("gender")
+    if not isinstance(gender, str) or gender.lower() not in pl.GENDERS:
+        raise SequenceError(f"{name}: info.json: gender: expected one of {', '.join(pl.GENDERS)} (a string), "
+                            f"got {gender!r}")
+    cat = info.get("cat")
+    if cat is not None and not isinstance(cat, str):
+        raise SequenceError(f"{name}: info.json: cat: expected an object name (a string), got {cat!r}")
+    try:
+        obj = check_id(cat or default_object, "object name", "info.json 'cat'")
+    except InvalidIdError as exc:
+        raise SequenceError(f"{name}: info.json: cat: {exc}") from None
+    return gender.lower(), obj
+
+
+def _frame_count(body: dict, obj: dict, name: str) -> int:
+    """Frames shared by every per-frame field of the two files (the odd field is named)."""
+    counts = {f"smpl_fit_all.npz: {k}": len(body[k]) for k in ("poses", "betas", "trans")}
+    counts["smpl_fit_all.npz: frame_times"] = int(np.asarray(body["frame_times"]).size)
+    counts.update({f"object_fit_all.npz: {k}": len(obj[k]) for k in ("angles", "trans")})
+    try:
+        T = pl.common_frame_count(counts, name)
+    except ValueError as exc:
+        raise SequenceError(str(exc)) from None
+    if T < pl.MIN_FRAMES:
+        raise SequenceError(f"{name}: smpl_fit_all.npz: only {T} frame(s), a clip needs at least {pl.MIN_FRAMES}")
+    return T
 
 
 def _ground_truth_contacts(seq_dir: Path, src_t: np.ndarray, dst_t: np.ndarray) -> np.ndarray | None:
@@ -276,9 +331,10 @@ def list_sequences(root: str | Path) -> list[Path]:
 
 
 def load_split_file(path: str | Path) -> dict[str, str]:
-    """``{"train": [...], "test": [...]}`` -> {sequence: split}."""
-    data = json.loads(Path(path).read_text())
-    return {name: split for split in ("train", "val", "test") for name in data.get(split, [])}
+    """``{"train": [...], "test": [...]}`` -> {sequence: split}; a file with an invalid id
+    or an id in two splits is refused (:func:`hoibench.splits.read_split_file`)."""
+    from ..splits import read_split_file
+    return read_split_file(path)
 
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
@@ -288,12 +344,18 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     The split is the official one (test = Date03) unless ``split_file`` names another; a
     sequence the split file does not list is an error for that sequence.
     """
-    from ..store import fail_unit, file_sha256, unlisted_split_jobs
+    from ..store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, unlisted_split_jobs
     root = Path(root)
     splits = load_split_file(split_file) if split_file else None
-    jobs = []
+    jobs, sources = [], []
     for seq in list_sequences(root):
         name = seq.name
+        try:
+            check_id(name, "sequence folder", root / "sequences")
+        except InvalidIdError as exc:
+            jobs.append(invalid_id_job(name, str(exc), out, config.mode))
+            sources.append(str(seq))
+            continue
         loader, args = load_sequence, (str(seq), str(root / "objects"), str(body_models), config.fps)
         try:
             split = splits[name] if splits is not None else official_split(name)
@@ -309,6 +371,8 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         files = [seq / "smpl_fit_all.npz", seq / "object_fit_all.npz", seq / "info.json", template]
         sha = file_sha256(files, extra=config.sha256())
         jobs.append((name, split, sha, str(out), loader, args, config.mode))
+        sources.append(f"{seq}")
+    jobs = refuse_duplicates(jobs, sources)
     if splits is not None:
         jobs += unlisted_split_jobs(jobs, splits, split_file, out, config.mode, "no sequence folder")
     return jobs

@@ -68,9 +68,11 @@ from typing import Any
 import numpy as np
 
 from .. import geometry as geo
+from .. import plausibility as pl
 from ..bodies.transform import rigid_transform_smpl
+from ..ids import InvalidIdError, check_id
 from ..skeleton import NUM_JOINTS, PARENTS, forward_kinematics
-from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, resample_times
+from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_times
 from .sequence import BodyParams, HOISequence
 
 __all__ = ["SOURCE_FPS", "ZUP_TO_YUP", "PICKLES", "SequenceError", "parse_name", "official_split",
@@ -87,6 +89,9 @@ GT_DIR = "hoibench_gt"           # ground-truth sidecars written by hoibench's s
 _NAME = re.compile(r"^sub(\d+)_([A-Za-z0-9]+)_(.+)$")
 _SEQ_KEYS = {"trans": (3,), "root_orient": (3,), "pose_body": (63,), "obj_rot": (3, 3)}
 _SCALE_TOL = 1e-5                # relative spread allowed in obj_scale over a sequence
+#: Largest accepted ``rest_offsets`` bone and ``trans2joint`` length, metres (SMPL-X's
+#: longest bone is about 0.45 m; centimetres or millimetres read 45 or 450).
+MAX_REST_OFFSET_M = 1.0
 
 
 def parse_name(name: str) -> tuple[int, str, str]:
@@ -116,37 +121,35 @@ def read_pickle(path: str | Path) -> Any:
 
 
 @lru_cache(maxsize=64)
-def load_object_template(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """Raw template vertices (V, 3) float64 (not centred, unscaled) and faces (F, 3) int64."""
-    import trimesh
-    mesh = trimesh.load(path, process=False, force="mesh")
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    f = np.asarray(mesh.faces, dtype=np.int64)
-    if len(v) == 0 or len(f) == 0:
-        raise SequenceError(f"{path}: empty mesh")
-    return v, f
+def _template(path: str) -> tuple[np.ndarray, np.ndarray]:
+    return pl.check_mesh(*read_mesh(path, Path(path).name), Path(path).name)
+
+
+def load_object_template(path: str, obj: str = "", name: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """Raw template vertices (V, 3) float64 (not centred, unscaled) and faces (F, 3) int64
+    of a mesh that passes :func:`hoibench.plausibility.check_mesh` (its extent is checked
+    once scaled); errors name the sequence ``name``, the object ``obj`` and the file."""
+    try:
+        return _template(str(path))
+    except ValueError as exc:
+        raise SequenceError(f"{name or Path(path).name}: object {obj!r} template: {exc}") from None
 
 
 @lru_cache(maxsize=8)
 def _body_model(model_dir: str, gender: str, num_betas: int):
     from ..bodies.smpl import load_body_model
+    gender = check_id(gender, "gender")
     return load_body_model(model_dir, "smplx", gender, num_betas=num_betas)
 
 
 def _array(seq: dict, key: str, name: str) -> np.ndarray:
+    """``seq[key]`` as float64: real dtype (complex refused, never cast), finite."""
     if key not in seq:
         raise SequenceError(f"{name}: missing key {key!r}")
     try:
-        a = np.asarray(seq[key])
-    except Exception as exc:
-        raise SequenceError(f"{name}: {key}: not an array ({type(exc).__name__}: {exc})") from None
-    if not np.issubdtype(a.dtype, np.number):
-        raise SequenceError(f"{name}: {key}: expected numbers, got {a.dtype}")
-    a = a.astype(np.float64)
-    if not np.isfinite(a).all():
-        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
-        raise SequenceError(f"{name}: {key}: non-finite value at {idx}")
-    return a
+        return pl.real_array(seq[key], key, name)
+    except ValueError as exc:
+        raise SequenceError(str(exc)) from None
 
 
 def _frames(a: np.ndarray, key: str, tail: tuple, name: str) -> np.ndarray:
@@ -177,7 +180,10 @@ def _texts(path: str | None, name: str) -> list[dict]:
     value = data.get(name) if isinstance(data, dict) else None
     if value is None:
         raise SequenceError(f"{name}: {Path(path).name}: no entry for {name!r}")
-    sentences = [value] if isinstance(value, str) else list(value)
+    sentences = [value] if isinstance(value, str) else value
+    if not isinstance(sentences, list) or not all(isinstance(x, str) for x in sentences):
+        raise SequenceError(f"{name}: {Path(path).name}: {name}: expected a sentence or a list of sentences, "
+                            f"got {value!r:.80}")
     return [{"text": str(s).strip(), "start": None, "end": None, "source": "omomo"}
             for s in sentences if str(s).strip()]
 
@@ -186,14 +192,60 @@ def _gt_contacts(path: str | None, src_t: np.ndarray, dst_t: np.ndarray, name: s
     """Per-joint contacts from a hoibench ground-truth sidecar (synthetic data only)."""
     if not path or not Path(path).exists():
         return None
-    with np.load(path, allow_pickle=False) as z:
-        if "contacts" not in z.files:
-            return None
-        c = z["contacts"].astype(bool)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if "contacts" not in z.files:
+                return None
+            c = z["contacts"].astype(bool)
+    except Exception as exc:
+        raise SequenceError(f"{name}: {Path(path).name}: unreadable ({type(exc).__name__}: {exc})") from None
     if c.shape != (len(src_t), NUM_JOINTS):
         raise SequenceError(f"{name}: {Path(path).name}: contacts: expected ({len(src_t)}, 22), got {c.shape}")
     nearest = np.clip(np.searchsorted(src_t, dst_t - 0.5 / SOURCE_FPS), 0, len(src_t) - 1)
     return c[nearest]
+
+
+def _per_frame(seq: dict, where: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, int]:
+    """The per-frame arrays (trans, root_orient, pose_body, obj_rot), obj_trans (T, 3),
+    obj_scale (T,) and T, the frame count they share: a field with another count is named
+    (:func:`hoibench.plausibility.common_frame_count`), as is an empty one."""
+    arr = {k: _frames(_array(seq, k, where), k, tail, where) for k, tail in _SEQ_KEYS.items()}
+    o_t = _array(seq, "obj_trans", where)
+    if o_t.ndim == 3 and o_t.shape[1:] in ((3, 1), (1, 3)):
+        o_t = o_t.reshape(len(o_t), 3)
+    if o_t.ndim != 2 or o_t.shape[1] != 3:
+        raise SequenceError(f"{where}: obj_trans: expected shape (T, 3, 1), got {o_t.shape}")
+    scale = _array(seq, "obj_scale", where).reshape(-1)
+    counts = {**{k: len(a) for k, a in arr.items()}, "obj_trans": len(o_t)}
+    if scale.size != 1:
+        counts["obj_scale"] = len(scale)
+    try:
+        T = pl.common_frame_count(counts, where)
+    except ValueError as exc:
+        raise SequenceError(str(exc)) from None
+    if T < pl.MIN_FRAMES:
+        raise SequenceError(f"{where}: only {T} frame(s), a clip needs at least {pl.MIN_FRAMES}")
+    return arr, o_t, np.repeat(scale, T) if scale.size == 1 else scale, T
+
+
+def _rest_skeleton(seq: dict, where: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(rest_offsets (22, 3), trans2joint (3,)) for the FK check, or None when either is
+    absent. Real and finite, every offset and ``trans2joint`` at most
+    :data:`MAX_REST_OFFSET_M` long (longer: centimetres/millimetres), else SequenceError."""
+    if "rest_offsets" not in seq or "trans2joint" not in seq:
+        return None
+    offsets, t2j = _array(seq, "rest_offsets", where), _array(seq, "trans2joint", where)
+    if offsets.ndim != 2 or offsets.shape[1] != 3 or len(offsets) < NUM_JOINTS or t2j.size != 3:
+        raise SequenceError(f"{where}: rest_offsets / trans2joint: expected (>= {NUM_JOINTS}, 3) and (3,), "
+                            f"got {offsets.shape} and {t2j.shape}")
+    offsets, t2j = offsets[:NUM_JOINTS], t2j.reshape(3)
+    norms = {"rest_offsets": np.linalg.norm(offsets, axis=-1), "trans2joint": np.linalg.norm(t2j)[None]}
+    for key, lengths in norms.items():
+        top = float(lengths.max())
+        if top > MAX_REST_OFFSET_M:
+            raise SequenceError(f"{where}: {key}: length {top:.4g} m exceeds {MAX_REST_OFFSET_M:g} m"
+                                + pl.unit_hint(top, 0.01, MAX_REST_OFFSET_M, 0.3))
+    return offsets, t2j
 
 
 def _rest_offsets_fk(rots: np.ndarray, trans: np.ndarray, offsets: np.ndarray, trans2joint: np.ndarray):
@@ -218,50 +270,48 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
     if not isinstance(seq, dict):
         raise SequenceError(f"{source or 'omomo'}: expected a sequence dict, got {type(seq).__name__}")
     name = _text(seq, "seq_name", source or "omomo")
+    try:
+        check_id(name, "seq_name", source or None)
+    except InvalidIdError as exc:
+        raise SequenceError(str(exc)) from None
+    where = f"{name}: {source}" if source else name
     sub, obj, _ = parse_name(name)
-    if any(k.startswith("obj_bottom") for k in seq):
+    fps = pl.check_fps(fps, "fps", name)
+    if any(str(k).startswith("obj_bottom") for k in seq):
         raise SequenceError(f"{name}: two-part object {obj!r} (obj_bottom_* keys: an articulated top and "
                             "bottom part) cannot be one rigid template; not supported (CHOIS skips "
                             "vacuum and mop too)")
-    gender = _text(seq, "gender", name).lower()
-    if gender not in ("male", "female", "neutral"):
-        raise SequenceError(f"{name}: gender: expected male/female/neutral, got {gender!r}")
-    arr = {k: _frames(_array(seq, k, name), k, tail, name) for k, tail in _SEQ_KEYS.items()}
-    T = len(arr["trans"])
-    betas = _array(seq, "betas", name).reshape(-1)
-    if not 1 <= len(betas) <= 300:
-        raise SequenceError(f"{name}: betas: expected 1..300 coefficients, got {len(betas)}")
-    o_t = _array(seq, "obj_trans", name)
-    if o_t.shape in ((T, 3, 1), (T, 1, 3)):
-        o_t = o_t.reshape(T, 3)
-    if o_t.shape != (T, 3):
-        raise SequenceError(f"{name}: obj_trans: expected shape (T, 3, 1), got {o_t.shape}")
-    scale = _array(seq, "obj_scale", name).reshape(-1)
-    if scale.size == 1:
-        scale = np.repeat(scale, T)
-    for key, a in (("root_orient", arr["root_orient"]), ("pose_body", arr["pose_body"]),
-                   ("obj_rot", arr["obj_rot"]), ("obj_trans", o_t), ("obj_scale", scale)):
-        if len(a) != T:
-            raise SequenceError(f"{name}: {key}: {len(a)} frames, trans has {T}")
-    if T < 2:
-        raise SequenceError(f"{name}: only {T} frame(s)")
+    gender = _text(seq, "gender", where).lower()
+    if gender not in pl.GENDERS:
+        raise SequenceError(f"{where}: gender: expected male/female/neutral, got {gender!r}")
+    arr, o_t, scale, T = _per_frame(seq, where)
+    betas = _array(seq, "betas", where).reshape(-1)
+    if not 1 <= len(betas) <= pl.MAX_BETAS:
+        raise SequenceError(f"{where}: betas: expected 1..{pl.MAX_BETAS} coefficients, got {len(betas)}")
+    rest = _rest_skeleton(seq, where)
+    pl.check_track(arr["trans"], "trans", where, fps=SOURCE_FPS)
+    pl.check_track(o_t, "obj_trans", where, fps=SOURCE_FPS)
     s0 = float(scale.mean())
     if not s0 > 0 or float(np.abs(scale - s0).max()) > _SCALE_TOL * s0:
-        raise SequenceError(f"{name}: obj_scale: expected one positive scale for the sequence, got "
+        raise SequenceError(f"{where}: obj_scale: expected one positive scale for the sequence, got "
                             f"{scale.min():.6g}..{scale.max():.6g}")
     R_src = arr["obj_rot"]
     ortho = np.abs(R_src @ R_src.swapaxes(-1, -2) - np.eye(3)).max(axis=(-2, -1))
     bad = np.flatnonzero((ortho > 1e-3) | (np.linalg.det(R_src) < 0))
     if len(bad):
-        raise SequenceError(f"{name}: obj_rot: not a rotation matrix at frame {int(bad[0])}")
+        raise SequenceError(f"{where}: obj_rot: not a rotation matrix at frame {int(bad[0])}")
     template_path = object_template_path(objects_root, obj)
     if not template_path.exists():
         raise SequenceError(f"{name}: missing object template {template_path.name} in {Path(objects_root)}")
-    raw_v, faces = load_object_template(str(template_path))
+    raw_v, faces = load_object_template(str(template_path), obj, name)
 
     # object: centre the scaled template (v' = s (v - m)), keep s R v + t exactly (t' = t + s R m)
     mean = raw_v.mean(0)
     verts = s0 * (raw_v - mean)
+    try:
+        pl.check_extent(verts, f"{name}: object {obj!r} template {template_path.name} scaled by obj_scale {s0:.6g}")
+    except ValueError as exc:
+        raise SequenceError(str(exc)) from None
     o_tc = o_t + s0 * (R_src @ mean)
 
     # resample by time
@@ -280,15 +330,11 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
     joints_z = joints_z[:, :NUM_JOINTS].astype(np.float64)
     j0 = (joints_z[:, 0] - trans).mean(0)          # rest pelvis: SMPL-X's pelvis = J0 + transl
     check = {}
-    if "rest_offsets" in seq and "trans2joint" in seq:
-        try:
-            offsets = np.asarray(seq["rest_offsets"], dtype=np.float64)[:NUM_JOINTS].reshape(NUM_JOINTS, 3)
-            t2j = np.asarray(seq["trans2joint"], dtype=np.float64).reshape(3)
-            fk = _rest_offsets_fk(geo.axis_angle_to_matrix(pose.reshape(-1, NUM_JOINTS, 3)), trans, offsets, t2j)
-            check = {"rest_offsets_fk_max_dev_m": float(np.abs(fk - joints_z).max()),
-                     "trans2joint_vs_rest_pelvis_m": (t2j + j0).tolist()}
-        except (ValueError, TypeError) as exc:
-            check = {"rest_offsets_fk_check": f"skipped ({exc})"}
+    if rest is not None:
+        offsets, t2j = rest
+        fk = _rest_offsets_fk(geo.axis_angle_to_matrix(pose.reshape(-1, NUM_JOINTS, 3)), trans, offsets, t2j)
+        check = {"rest_offsets_fk_max_dev_m": float(np.abs(fk - joints_z).max()),
+                 "trans2joint_vs_rest_pelvis_m": (t2j + j0).tolist()}
     F = ZUP_TO_YUP
     root, trans_y = rigid_transform_smpl(pose[:, :3], trans, j0, F, np.zeros(3))
     pose[:, :3] = root
@@ -316,6 +362,8 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
                     "source_frames": T, "body_model": "smplx", "num_betas": int(len(betas)),
                     "hands": "flat (OMOMO stores no hand pose)",
                     "object_category": obj, "template": template_path.name,
+                    "raw_source": f"{source or 'omomo pickle'} (sequence {name}), "
+                                  f"captured_objects/{template_path.name}",
                     "object_scale": s0, "template_mean_subtracted": mean.tolist(),
                     "object_convention": "v = s R v_obj + t -> template s (v_obj - mean), t' = t + s R mean",
                     **check},
@@ -361,6 +409,46 @@ def _scale_of(seq: Any) -> float | None:
         return None
 
 
+def _seq_name(seq: Any) -> str | None:
+    """The ``seq_name`` of a sequence dict as the loader reads it, or None."""
+    if not isinstance(seq, dict) or "seq_name" not in seq:
+        return None
+    try:
+        return _text(seq, "seq_name", "")
+    except Exception:
+        return None
+
+
+def _read_entries(data_root: Path, out, mode: str) -> tuple[list[tuple[str, Any, str]], list[tuple]]:
+    """(clip id, sequence dict, "<pickle> entry <key>") per sequence of both pickles, and
+    :func:`hoibench.store.source_failure_job` jobs for a pickle that is missing (when the
+    other exists: a store without its test or train split) or unreadable."""
+    from ..store import source_failure_job
+    entries: list[tuple[str, Any, str]] = []
+    failed: list[tuple] = []
+    for split, fname in PICKLES.items():
+        path = data_root / fname
+        if not path.exists():
+            failed.append(source_failure_job(fname, f"{fname}: missing in {data_root}: the store has no "
+                                             f"{split} split (OMOMO's release has both pickles)", out, mode))
+            continue
+        try:
+            data = read_pickle(path)
+        except ImportError:
+            raise
+        except Exception as exc:
+            failed.append(source_failure_job(fname, f"{fname}: unreadable OMOMO pickle ({type(exc).__name__}: "
+                                             f"{exc}): none of its sequences prepared", out, mode))
+            continue
+        if not isinstance(data, dict):
+            failed.append(source_failure_job(fname, f"{fname}: expected a dict of sequences, got "
+                                             f"{type(data).__name__}: none of its sequences prepared", out, mode))
+            continue
+        for key, seq in data.items():
+            entries.append((_seq_name(seq) or f"{Path(fname).stem}_{key}", seq, f"{fname} entry {key!r}"))
+    return entries, failed
+
+
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None) -> list[tuple]:
     """One :func:`hoibench.store.run_unit` job per OMOMO sequence (both pickles).
@@ -368,35 +456,18 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     Reads the pickles here (``joblib.load``: the user's own download only) and passes each
     sequence dict to its unit. The split is the official subject split unless
     ``split_file`` (``{"train": [seq_name, ...], "test": [...]}``) names another; a
-    sequence it does not list is an error for that sequence. Clip id = ``seq_name``.
+    sequence it does not list is an error for that sequence. Clip id = ``seq_name``, which
+    must be a valid id (:func:`hoibench.ids.check_id`); a ``seq_name`` found twice fails
+    every copy. A missing or unreadable pickle is one failing "source" job (the manifest's
+    ``incomplete``), never a silent store without that split.
     """
-    from ..store import fail_unit, unlisted_split_jobs
+    from ..store import fail_unit, invalid_id_job, refuse_duplicates, unlisted_split_jobs
     root = Path(root)
     data_root = _data_root(root)
     objects_root = data_root / "captured_objects"
     text_dir = _text_dir(root, data_root)
     splits = load_split_file(split_file) if split_file else None
-    entries: list[tuple[str, Any, str]] = []   # (clip id, sequence dict, pickle name)
-    for fname in PICKLES.values():
-        path = data_root / fname
-        if not path.exists():
-            continue
-        try:
-            data = read_pickle(path)
-        except ImportError:
-            raise
-        except Exception as exc:
-            raise ValueError(f"{path}: unreadable OMOMO pickle ({type(exc).__name__}: {exc})") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"{path}: expected a dict of sequences, got {type(data).__name__}")
-        for key, seq in data.items():
-            name = None
-            if isinstance(seq, dict) and "seq_name" in seq:
-                try:
-                    name = str(np.asarray(seq["seq_name"]).ravel()[0])
-                except Exception:
-                    name = None
-            entries.append((name or f"{Path(fname).stem}_{key}", seq, fname))
+    entries, source_jobs = _read_entries(data_root, out, config.mode)
 
     # one template name per (object, scale): the store keeps one template per name
     scales: dict[str, set] = {}
@@ -406,13 +477,14 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         if m and s is not None:
             scales.setdefault(m.group(2), set()).add(s)
 
-    jobs, seen = [], {}
-    for cid, seq, fname in entries:
-        seen[cid] = seen.get(cid, 0) + 1
-        if seen[cid] > 1:
-            dup = f"{cid}_dup{seen[cid]}"
-            jobs.append((dup, "unknown", "", str(out), fail_unit,
-                         (f"{dup}: duplicate seq_name {cid!r} (again in {fname})",), config.mode))
+    jobs, sources = [], []
+    for cid, seq, origin in entries:
+        fname = origin.split(" ")[0]
+        try:
+            check_id(cid, "seq_name", origin)
+        except InvalidIdError as exc:
+            jobs.append(invalid_id_job(cid, str(exc), out, config.mode))
+            sources.append(origin)
             continue
         m = _NAME.match(cid)
         obj = m.group(2) if m else ""
@@ -433,7 +505,8 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         files += [Path(p) for p in (text_file, gt_file) if p]
         sha = _sequence_sha(seq, files, config.sha256())
         jobs.append((cid, split, sha, str(out), loader, args, config.mode))
+        sources.append(origin)
+    jobs = refuse_duplicates(jobs, sources)
     if splits is not None:
         jobs += unlisted_split_jobs(jobs, splits, split_file, out, config.mode, "in neither OMOMO pickle")
-    return jobs
-
+    return jobs + source_jobs

@@ -71,6 +71,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import geometry as geo
+from .. import plausibility as pl
+from ..ids import InvalidIdError, check_id
 from ..skeleton import NUM_JOINTS
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file
 from .omomo import ZUP_TO_YUP
@@ -89,6 +91,9 @@ _KNOWN_KEYS = _BODY_KEYS + ("left_hand_pose", "right_hand_pose", "jaw_pose", "le
 _WIDTH = {"global_orient": (3,), "body_pose": (63,), "transl": (3,), "jaw_pose": (3,), "leye_pose": (3,),
           "reye_pose": (3,)}
 _FRAME = re.compile(r"^\d{5}$")
+#: ``bodies/<split>`` folders a complete download has; a missing one is reported (the
+#: manifest's ``incomplete``) instead of giving a store without that split.
+REQUIRED_SPLITS = ("train", "test")
 _SCAN_VARIANT = re.compile(r"^scan_(\w+?)_scene_camcoord$")
 
 
@@ -226,16 +231,14 @@ def read_frame(path: str | Path, seq: str, data_root: str | Path | None = None) 
         if k not in d:
             continue
         v = d[k]
-        try:
-            a = np.asarray(v.detach().cpu().numpy() if hasattr(v, "detach") else v, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise SequenceError(f"{seq}: {rel}: {k}: not numbers ({exc})") from None
+        try:   # real dtype (complex refused, never cast to real), finite
+            a = pl.real_array(v, k, f"{seq}: {rel}")
+        except ValueError as exc:
+            raise SequenceError(str(exc)) from None
         if a.ndim == 2 and a.shape[0] == 1:
             a = a[0]
         if a.ndim != 1:
             raise SequenceError(f"{seq}: {rel}: {k}: expected shape (1, D), got {np.shape(v)}")
-        if not np.isfinite(a).all():
-            raise SequenceError(f"{seq}: {rel}: {k}: non-finite value")
         out[k] = a
     for k in _BODY_KEYS:
         if k not in out:
@@ -243,6 +246,8 @@ def read_frame(path: str | Path, seq: str, data_root: str | Path | None = None) 
     for k, w in _WIDTH.items():
         if k in out and out[k].shape != w:
             raise SequenceError(f"{seq}: {rel}: {k}: expected {w[0]} values, got {out[k].shape[0]}")
+    if not 1 <= out["betas"].shape[0] <= pl.MAX_BETAS:
+        raise SequenceError(f"{seq}: {rel}: betas: expected 1..{pl.MAX_BETAS} values, got {out['betas'].shape[0]}")
     for k in ("left_hand_pose", "right_hand_pose"):
         if k in out and not 1 <= out[k].shape[0] <= 45:
             raise SequenceError(f"{seq}: {rel}: {k}: expected 1..45 values (PCA or axis-angle), got "
@@ -265,6 +270,7 @@ def _stack(frames: list[dict], key: str, width: int | None, seq: str) -> np.ndar
 @lru_cache(maxsize=16)
 def _body_model(model_dir: str, gender: str, num_betas: int, num_expr: int, num_pca: int):
     from ..bodies.smpl import load_body_model
+    gender = check_id(gender, "gender")
     return load_body_model(model_dir, "smplx", gender, num_betas=num_betas,
                            num_expression_coeffs=max(num_expr, 1), use_pca=False,
                            flat_hand_mean=False, num_pca_comps=max(num_pca, 1))
@@ -348,11 +354,20 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     run starting at source frame ``run_first`` (resampled to ``fps``), from the source
     frames ``frame_ids`` (consecutive, covering the clip). See the module docstring."""
     data_root = Path(data_root)
+    for value, what in ((split_dir, "split folder"), (seq, "sequence folder"), (sub, "subject file name")):
+        try:
+            check_id(value, what, data_root / "bodies")
+        except InvalidIdError as exc:
+            raise SequenceError(f"{clip_id or seq}: {exc}") from None
+    fps = pl.check_fps(fps, "fps", clip_id or seq)
+    if gender not in pl.GENDERS:
+        raise SequenceError(f"{clip_id or seq}: gender {gender!r} of subject {sub}: expected one of {pl.GENDERS}")
     ids = np.asarray(frame_ids, dtype=np.int64)
     if len(ids) < 1 or np.any(np.diff(ids) != 1):
         raise SequenceError(f"{seq}: frame ids of a clip must be consecutive, got {ids[:5].tolist()}...")
     body_dir = data_root / "bodies" / split_dir / seq
     frames = [read_frame(body_dir / f"{i:05d}" / f"{sub}.pkl", seq, data_root) for i in ids]
+    raw_files = f"bodies/{split_dir}/{seq}/{{{ids[0]:05d}..{ids[-1]:05d}}}/{sub}.pkl"
     N = len(frames)
     betas = _stack(frames, "betas", None, seq)
     expr = _stack(frames, "expression", 0, seq)
@@ -370,6 +385,7 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     pose[:, 25:40] = _hand_aa(lh, model.np_left_hand_components, "left_hand_pose", seq).reshape(N, 15, 3)
     pose[:, 40:55] = _hand_aa(rh, model.np_right_hand_components, "right_hand_pose", seq).reshape(N, 15, 3)
     transl = _stack(frames, "transl", 3, seq)
+    pl.check_track(transl, f"transl (row 0 = frame {ids[0]:05d})", f"{seq}: {raw_files}", fps=SOURCE_FPS)
 
     # resample by time (the run's clock: source frame i at (i - run_first) / 30 s)
     src_t = (ids - int(run_first)) / SOURCE_FPS
@@ -411,8 +427,8 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
             lab = None
             if isinstance(d, dict) and "contact" in d:
                 try:
-                    lab = np.asarray(d["contact"], dtype=np.float64).reshape(-1)
-                except (TypeError, ValueError):
+                    lab = pl.real_array(d["contact"], "contact", str(cpath)).reshape(-1)
+                except ValueError:
                     lab = None
             if lab is None or lab.shape != (SMPL_NUM_VERTICES,) or not np.isfinite(lab).all():
                 raise SequenceError(f"{seq}: {_rel(cpath, data_root)}: expected 'contact' with "
@@ -435,6 +451,7 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
         provenance={"label": LABEL, "source": "rich", "sequence": seq, "scene": scene, "split_folder": split_dir,
                     "subject": str(sub), "gender": gender,
                     "source_frames": [int(ids[0]), int(ids[-1])], "run_first_frame": int(run_first),
+                    "raw_source": f"{raw_files}, multicam2world/{Path(transform_file).name}",
                     "clip_output_frames": [int(out_start), int(out_start) + int(length)],
                     "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
                     "source_frame": "RICH multi-camera frame (camera 0), not gravity aligned",
@@ -488,7 +505,12 @@ def _gender_json(resource: Path | None) -> dict[str, str]:
     p = resource / "gender.json" if resource is not None else None
     if p is None or not p.is_file():
         return {}
-    return {str(int(k)): str(v).lower() for k, v in json.loads(p.read_text()).items()}
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+        return {str(int(k)): v.lower() for k, v in data.items() if isinstance(v, str)}
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, ValueError, TypeError) as exc:
+        raise ValueError(f"{p}: expected a JSON object {{subject number: gender}} "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 def transform_path(data_root: Path, seq: str, scan: str | None = None) -> Path:
@@ -518,7 +540,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     clip ids) names another; a clip it does not list is an error for that clip. A subject
     of a sequence with no run long enough for one clip is reported as a failed unit.
     """
-    from ..store import fail_unit, file_sha256
+    from ..store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job
     root = Path(root)
     data_root = _data_root(root)
     resource = _resource_dir(root, data_root)
@@ -526,10 +548,22 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     genders = _gender_json(resource)
     splits = load_split_file(split_file) if split_file else None
     fps = float(config.fps)
-    jobs = []
+    jobs, sources = [], []
+    for split in REQUIRED_SPLITS:
+        if not (data_root / "bodies" / split).is_dir():
+            jobs.append(source_failure_job(f"bodies-{split}", f"bodies/{split}: missing in {data_root}: the store "
+                                           f"has no {split} split", out, config.mode))
+            sources.append(f"bodies/{split}")
     for split_path in sorted(p for p in (data_root / "bodies").iterdir() if p.is_dir()):
         for seq_path in sorted(p for p in split_path.iterdir() if p.is_dir()):
             seq = seq_path.name
+            try:
+                check_id(split_path.name, "split folder", data_root / "bodies")
+                check_id(seq, "sequence folder", split_path)
+            except InvalidIdError as exc:
+                jobs.append(invalid_id_job(seq_path.name, str(exc), out, config.mode))
+                sources.append(str(seq_path))
+                continue
             by_sub: dict[str, list[int]] = {}
             for fdir in sorted(p for p in seq_path.iterdir() if p.is_dir() and _FRAME.match(p.name)):
                 for f in fdir.iterdir():
@@ -537,6 +571,12 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                         by_sub.setdefault(f.stem, []).append(int(fdir.name))
             contact_seq = data_root / "human_scene_contact" / split_path.name / seq
             for sub, ids in sorted(by_sub.items()):
+                try:
+                    check_id(sub, "subject file name", seq_path / f"{ids[0]:05d}")
+                except InvalidIdError as exc:
+                    jobs.append(invalid_id_job(f"{seq}_{sub}", str(exc), out, config.mode))
+                    sources.append(str(seq_path))
+                    continue
                 info = meta.get((seq, sub.zfill(3)), {})
                 gender = info.get("gender") or (genders.get(str(int(sub))) if sub.isdigit() else None)
                 tpath = transform_path(data_root, seq, info.get("scan"))
@@ -547,6 +587,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                     msg = (f"{cid}: no run of consecutive frames long enough for a {min(CLIP_LENGTHS)}-frame clip "
                            f"at {fps:g} fps (runs of {', '.join(str(len(r)) for r in runs)} source frames)")
                     jobs.append((cid, split_path.name, "", str(out), fail_unit, (msg,), config.mode))
+                    sources.append(f"bodies/{split_path.name}/{seq}/*/{sub}.pkl")
                     continue
                 for run, a, L in clips:
                     t0, t1 = a / fps, (a + L - 1) / fps
@@ -571,5 +612,6 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                         loader, args = fail_unit, (f"{cid}: gender unknown for subject {sub} of {seq}: put rich_toolkit's "
                                                f"resource/gender.json or resource/meta/*.txt under {root}",)
                     jobs.append((cid, split, sha, str(out), loader, args, config.mode))
-    return jobs
+                    sources.append(f"bodies/{split_path.name}/{seq}/{fids[0]:05d}/{sub}.pkl")
+    return refuse_duplicates(jobs, sources)
 
