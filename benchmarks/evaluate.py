@@ -55,7 +55,7 @@ def main(argv=None) -> None:
 
     tmp = Path(tempfile.mkdtemp(prefix="hoibench-eval-bench-"))
     try:
-        _, data, _ = build_synthetic_store(tmp, 44, seed=0)
+        _, data, _ = build_synthetic_store(tmp, 120, seed=0)
         annotate_store(data)
         # in a child process, so that training's memory is not in this process's peak RSS
         subprocess.run([sys.executable, "-m", "hoibench.cli", "train-evaluator", str(data), "--out",

@@ -3,7 +3,7 @@
 Examples::
 
     hoibench demo --out demo-out
-    hoibench synth --out raw --clips 48
+    hoibench synth --out raw --clips 120
     hoibench prepare behave --root raw --body-models raw/body_models --split-file raw/split.json --out data
     hoibench annotate data
     hoibench train-evaluator data --out ev
@@ -40,8 +40,20 @@ def _cmd_representations(args) -> int:
 def _cmd_represent(args) -> int:
     import numpy as np
 
+    from .io import read_regular_file
     from .representations import hml263, joint_level
-    joints = np.load(args.joints, allow_pickle=False)
+    from .submission import MAX_ARRAY_BYTES
+    import io as _io
+    raw = read_regular_file(args.joints, MAX_ARRAY_BYTES, "joints file")
+    try:
+        joints = np.load(_io.BytesIO(raw), allow_pickle=False)
+    except Exception as e:  # not an .npy, pickled objects, truncated
+        raise ValueError(f"{args.joints}: not a plain .npy array ({type(e).__name__}: "
+                         f"{str(e).split('.')[0]})") from None
+    if not isinstance(joints, np.ndarray) or joints.dtype.kind != "f" or joints.shape[-2:] != (22, 3) \
+            or joints.ndim not in (3, 4) or not np.isfinite(joints).all():
+        raise ValueError(f"{args.joints}: joints: expected finite floats of shape (T, 22, 3) or (B, T, 22, 3), "
+                         f"got {getattr(joints, 'dtype', '?')} {getattr(joints, 'shape', '?')}")
     feats = hml263.encode(joints, mode=args.mode, fps=args.fps)
     if args.format == "joint_level":
         feats = joint_level.from_hoi269(feats)
@@ -204,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_cmd_represent)
 
     s = sub.add_parser("synth", help="write the deterministic synthetic HOI dataset",
-                       epilog="example: hoibench synth --out raw --clips 24 --seed 0 "
+                       epilog="example: hoibench synth --out raw --clips 120 --seed 0 "
                               "--defect 3:foot_skating=1.0 --defect 5:penetration=0.02")
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--clips", type=int, default=24)

@@ -56,7 +56,7 @@ def representation_stage(out: Path, seed: int = 0, clips: int = 8, frames: int =
     return report
 
 
-def synthetic_stage(out: Path, seed: int = 0, clips: int = 44, executor: str = "serial") -> dict:
+def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = "serial") -> dict:
     """synth (BEHAVE layout) -> prepare -> annotate -> train a tiny evaluator -> score the
     ground-truth submission -> render one clip."""
     from .annotate import annotate_store, preview_table

@@ -318,16 +318,16 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
             return 0
         if action == "show":
             if not name:
-                print("protocols show: give a protocol id, e.g. behave-clean", file=sys.stderr)
+                print("hoibench protocols: error: show needs a protocol id, e.g. behave-clean", file=sys.stderr)
                 return 2
             p = get_protocol(name)
             print(f"# {p.ref}  sha256 {p.sha256}\n# file: {p.source}")
             print(Path(p.source).read_text().rstrip())
             return 0
-        print(f"protocols: unknown action {action!r}; expected 'ls' or 'show'", file=sys.stderr)
+        print(f"hoibench protocols: error: unknown action {action!r}; expected 'ls' or 'show'", file=sys.stderr)
         return 2
     except (KeyError, ValueError, FileNotFoundError) as e:
-        print(f"protocols: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        print(f"hoibench protocols: error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
 
 

@@ -36,7 +36,7 @@ from . import __version__
 from .errors import StrictStop
 from .ids import InvalidIdError, check_id
 from .io import (atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text, clean_stale_tmp,
-                 npz_bytes, strict_json_dumps)
+                 npz_bytes, read_json_file, strict_json_dumps)
 from .plausibility import check_fps, check_sequence
 from .parallel import map_units
 from .representations import hml263, hoi269, joint_level, normalization
@@ -118,7 +118,14 @@ class Store:
         mpath = self.root / MANIFEST
         if not mpath.exists():
             raise FileNotFoundError(f"{self.root}: not a hoibench store (no {MANIFEST})")
-        self.manifest = json.loads(mpath.read_text())
+        manifest = read_json_file(mpath, what=MANIFEST)
+        if not isinstance(manifest, dict) or not isinstance(manifest.get("clips"), list) \
+                or not isinstance(manifest.get("config", {}), dict):
+            raise ValueError(f"{mpath}: not a hoibench manifest (expected an object with a 'clips' list)")
+        for i, row in enumerate(manifest["clips"]):
+            if not isinstance(row, dict) or not isinstance(row.get("id"), str) or not isinstance(row.get("split"), str):
+                raise ValueError(f"{mpath}: clips[{i}]: expected an object with string 'id' and 'split'")
+        self.manifest = manifest
 
     def clip_ids(self, split: str | None = None) -> list[str]:
         return [c["id"] for c in self.manifest["clips"] if split is None or c["split"] == split]

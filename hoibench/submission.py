@@ -1031,7 +1031,7 @@ def main_validate(sub: str | Path, data: str | Path, protocol: str | None = None
     try:
         rep = validation_report(sub, data, split, protocol)
     except (FileNotFoundError, KeyError, ValueError) as e:
-        print(f"validate: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        print(f"hoibench validate: error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
     if as_json:
         print(json.dumps(rep.to_dict(), indent=2, sort_keys=True))
@@ -1051,7 +1051,7 @@ def main_submission_from_store(data: str | Path, out: str | Path, split: str = "
     try:
         path = from_store(data, out, split, as_zip, method)
     except (FileNotFoundError, KeyError, ValueError) as e:
-        print(f"submission from-store: {e}", file=sys.stderr)
+        print(f"hoibench submission: error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
     print(f"wrote {path} ({'zip' if as_zip else 'folder'}; ground truth of split {split!r})")
     return 0

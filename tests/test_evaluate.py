@@ -19,7 +19,7 @@ def setup(tmp_path_factory):
     from hoibench.submission import from_store
 
     base = tmp_path_factory.mktemp("evaluate")
-    _, data, _ = build_synthetic_store(base, 44, seed=0)
+    _, data, _ = build_synthetic_store(base, 120, seed=0)
     annotate_store(data)
     assert main_train_evaluator(data, base / "ev", size="tiny", seed=0) == 0
     from_store(data, base / "gt")
@@ -66,3 +66,76 @@ def test_executors_give_identical_results(setup):
     a = evaluate(base / "gt", data, base / "ev", executor="serial")
     b = evaluate(base / "gt", data, base / "ev", executor="processes:2")
     assert json.dumps(a["metrics"], sort_keys=True) == json.dumps(b["metrics"], sort_keys=True)
+
+
+# ---------------------------------------------------------------- labels that must not lie
+def _store_copy(data, tmp_path, **manifest_changes):
+    dst = tmp_path / "data"
+    shutil.copytree(data, dst)
+    m = json.loads((dst / "manifest.json").read_text())
+    for k, v in manifest_changes.items():
+        m[k] = v
+    (dst / "manifest.json").write_text(json.dumps(m))
+    return dst
+
+
+def test_result_records_the_submission_flags_and_is_strict_json(setup, tmp_path):
+    from hoibench.evaluate import main_evaluate
+    base, data = setup
+    out = tmp_path / "result.json"
+    assert main_evaluate(base / "gt", data, base / "ev", out=out) == 0
+
+    def no_constants(tok):
+        raise AssertionError(f"{tok} in the result JSON")
+    res = json.loads(out.read_text(), parse_constant=no_constants)
+    meta = json.loads((base / "gt" / "submission.json").read_text())
+    assert res["submission"]["flags"] == meta["flags"] != {}
+    assert res["evaluator_gate"]["passed"] and res["overrides"] == []
+    for name, s in res["metrics"].items():
+        assert np.all(np.isfinite(s["mean"])), name
+
+
+@pytest.mark.parametrize("protocol, needle", [("behave-clean", "dataset"), ("synthetic-legacy", "mode")])
+def test_a_protocol_for_another_dataset_or_mode_is_refused(setup, protocol, needle):
+    from hoibench.evaluate import EvaluationRefused, evaluate
+    base, data = setup
+    with pytest.raises(EvaluationRefused, match=needle):
+        evaluate(base / "gt", data, base / "ev", protocol=protocol)
+    res = evaluate(base / "gt", data, base / "ev", protocol=protocol, allow_protocol_mismatch=True)
+    assert res["protocol"] == protocol and not res["complete"] and res["submission_complete"]
+    assert [o["override"] for o in res["overrides"]] == ["protocol_mismatch"]
+    assert needle in res["overrides"][0]["reasons"][0]
+
+
+def test_an_evaluator_trained_on_another_dataset_is_refused(setup, tmp_path):
+    from hoibench.evaluate import EvaluationRefused, evaluate
+    base, data = setup
+    other = _store_copy(data, tmp_path, dataset="synthetic2")
+    with pytest.raises(EvaluationRefused, match="allow-evaluator-mismatch"):
+        evaluate(base / "gt", other, base / "ev", protocol="synthetic-clean", allow_protocol_mismatch=True)
+
+
+def test_the_gate_is_measured_on_the_store_not_read_from_the_card(setup, tmp_path):
+    """Captions permuted among clips: the evaluator no longer matches them to their motions on
+    this store, whatever its card says; refused unless --allow-failed-gate, which marks it."""
+    from hoibench.evaluate import EvaluationRefused, evaluate
+    base, data = setup
+    shuffled = _store_copy(data, tmp_path)
+    texts = sorted((shuffled / "texts").glob("*.txt"))
+    contents = [p.read_text() for p in texts]
+    rng = np.random.default_rng(0)
+    for p, i in zip(texts, rng.permutation(len(texts))):
+        p.write_text(contents[i])
+    with pytest.raises(EvaluationRefused, match="sanity gate"):
+        evaluate(base / "gt", shuffled, base / "ev")
+    res = evaluate(base / "gt", shuffled, base / "ev", allow_failed_gate=True)
+    assert not res["complete"] and not res["evaluator_gate"]["passed"]
+    assert [o["override"] for o in res["overrides"]] == ["failed_gate"]
+
+
+def test_undefined_metrics_are_named_and_infinite_ones_stop_the_run():
+    from hoibench.evaluate import _finite_rows
+    rows, undefined = _finite_rows([{"fid": 1.0, "fsr": float("nan")}, {"fid": 2.0, "fsr": float("nan")}])
+    assert rows == [{"fid": 1.0}, {"fid": 2.0}] and "fsr" in undefined and "2 of 2" in undefined["fsr"]
+    with pytest.raises(ValueError, match="'cd' is infinite in replication 1"):
+        _finite_rows([{"cd": 0.1}, {"cd": float("inf")}])

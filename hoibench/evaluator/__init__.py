@@ -9,15 +9,17 @@ Modules, one job each:
 ``model``      motion encoder, text branch, learned temperature, symmetric InfoNCE loss
 ``embed``      :class:`Evaluator`: ``embed_motion`` / ``embed_text``
 ``retrieval``  GT retrieval scores: R-precision top-1/2/3 in pools of 32, MM-Dist, GT-vs-GT FID
-``gate``       the sanity gate
-``card``       evaluator folders: weights + card, evaluator id, verification, loading, show
+``gate``       the sanity gate: rule, re-derivation from a card, re-measurement on a store
+``card``       evaluator folders: weights + card, evaluator id, verification, loading, show,
+               store match (``store_mismatches``)
+``errors``     one-line ``ValueError`` subclasses naming the file and field
 ``train``      training with checkpoints and exact resume
 ``commands``   ``main_train_evaluator`` / ``main_show`` for the CLI
 
 Typical use::
 
     from hoibench.evaluator import load_evaluator
-    ev = load_evaluator("EVAL")                  # verifies the id and the sanity gate
+    ev = load_evaluator("EVAL")                  # verifies the files, the id and the sanity gate
     m = ev.embed_motion(feats, lengths)          # (N, 512), raw hml263 rows in
     t = ev.embed_text(["a person lifts a box"])  # (N, 512)
 
@@ -32,8 +34,11 @@ _EXPORTS = {
     "EMBED_DIM": "config",
     "Evaluator": "embed",
     "load_evaluator": "card", "verify_folder": "card", "read_card": "card", "show": "card",
-    "compute_id": "card", "EvaluatorIntegrityError": "card",
-    "SanityGateError": "gate", "sanity_gate": "gate", "GateResult": "gate",
+    "compute_id": "card", "store_mismatches": "card", "check_store_match": "card",
+    "EvaluatorError": "errors", "EvaluatorIntegrityError": "errors", "CorruptEvaluatorFile": "errors",
+    "CheckpointError": "errors", "EvaluatorFolderExists": "errors", "StoreMismatchError": "errors",
+    "SanityGateError": "errors", "sanity_gate": "gate", "GateResult": "gate", "card_gate": "gate",
+    "gate_from_embeddings": "gate", "recompute_gate": "gate",
     "train_evaluator": "train", "build_untrained": "train", "TrainResult": "train",
     "gt_scores": "retrieval", "retrieval_scores": "retrieval", "gt_fid_halves": "retrieval",
     "load_items": "data",

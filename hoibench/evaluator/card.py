@@ -24,31 +24,54 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import fields
 from pathlib import Path
 
-from ..io import atomic_write_bytes, atomic_write_text
+from ..io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
+from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError, StoreMismatchError
 
 FORMAT = "hoibench-evaluator-1"
 WEIGHTS = "weights.safetensors"
 CARD = "card.json"
 CURVE_PNG = "curve.png"
 TRAIN_LOG = "train_log.json"
+#: size limits when reading a folder (a card is ~100 KB; paper-size weights with a fine-tuned
+#: RoBERTa-base ~600 MB)
+MAX_CARD_BYTES = 64 * 1024 ** 2
+MAX_WEIGHTS_BYTES = 8 * 1024 ** 3
+
+__all__ = ["EvaluatorIntegrityError", "CorruptEvaluatorFile", "canonical_card_bytes", "compute_id", "write_folder",
+           "read_card", "validate_card", "verify_folder", "load_evaluator", "store_fingerprint", "store_mismatches",
+           "check_store_match", "summary", "show"]
 
 
-class EvaluatorIntegrityError(ValueError):
-    """An evaluator folder that is incomplete, tampered with, or does not match its card."""
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _canonical(obj) -> bytes:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
 
 
 def canonical_card_bytes(card: dict) -> bytes:
-    body = {k: v for k, v in card.items() if k != "evaluator_id"}
-    return json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
+    return _canonical({k: v for k, v in card.items() if k != "evaluator_id"})
 
 
 def compute_id(weights: bytes, card: dict) -> str:
+    """``sha256(weights || canonical card without evaluator_id)``."""
     h = hashlib.sha256()
     h.update(weights)
     h.update(canonical_card_bytes(card))
     return h.hexdigest()
+
+
+def integrity_block(weights: bytes, card: dict) -> dict:
+    """Per-part hashes stored in the card (and covered by the id) so that a modified folder
+    is reported by file and field: ``weights_sha256`` and ``sections_sha256[key]`` =
+    sha256 of the canonical JSON of ``card[key]`` for every top-level key."""
+    return {"weights_sha256": _sha256(weights),
+            "sections_sha256": {k: _sha256(_canonical(v)) for k, v in sorted(card.items())
+                                if k not in ("evaluator_id", "integrity")}}
 
 
 def weights_bytes(state_dict: dict) -> bytes:
@@ -63,9 +86,9 @@ def write_folder(out: str | Path, state_dict: dict, card: dict) -> str:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     data = weights_bytes(state_dict)
-    card = dict(card)
-    card.pop("evaluator_id", None)
+    card = {k: v for k, v in card.items() if k not in ("evaluator_id", "integrity")}
     card["format"] = FORMAT
+    card["integrity"] = integrity_block(data, card)
     eid = compute_id(data, card)
     card["evaluator_id"] = eid
     atomic_write_bytes(out / WEIGHTS, data)
@@ -73,39 +96,159 @@ def write_folder(out: str | Path, state_dict: dict, card: dict) -> str:
     return eid
 
 
+# --------------------------------------------------------------------------- reading, schema
+_JSON_NAMES = {float: "number", dict: "object", list: "array", str: "string", bool: "boolean", int: "integer"}
+
+
+def _type_name(t) -> str:
+    return _JSON_NAMES.get(t, str(t))
+
+
+def _is(value, t) -> bool:
+    if t is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if t is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, t)
+
+
+#: fields load_evaluator and the gate rely on, with their JSON types
+_SCHEMA: tuple[tuple[str, type], ...] = (
+    ("format", str), ("evaluator_id", str), ("config", dict), ("config.size", str), ("config.model", dict),
+    ("config.train", dict), ("dataset", dict), ("normalization", dict), ("normalization.mean", list),
+    ("normalization.std", list), ("normalization.sha256", str), ("text_encoder", dict), ("text_encoder.name", str),
+    ("text_encoder.weights_sha256", str), ("text_encoder.pooling", str), ("text_encoder.fine_tuned", bool),
+    ("gt_retrieval", dict), ("gt_retrieval.top1", dict), ("gt_retrieval.top1.mean", float),
+    ("gt_retrieval.pool_size", int), ("gt_retrieval.pools_per_replication", int), ("gt_retrieval.items", int))
+
+
+def _get(card: dict, dotted: str):
+    v = card
+    for k in dotted.split("."):
+        if not isinstance(v, dict) or k not in v:
+            raise KeyError(dotted)
+        v = v[k]
+    return v
+
+
+def _dataclass_type_errors(d: dict, cls, prefix: str) -> list[str]:
+    out = []
+    for f in fields(cls):
+        if f.name in d and isinstance(f.default, (bool, int, float, str)):
+            t = type(f.default)
+            if not _is(d[f.name], t):
+                out.append(f"{prefix}.{f.name}: expected {_type_name(t)}, got {type(d[f.name]).__name__}")
+    return out
+
+
+def validate_card(card, path: str | Path) -> dict:
+    """``card`` when it has every field :func:`load_evaluator` needs with the right JSON type;
+    :class:`CorruptEvaluatorFile` naming the file and the first bad field otherwise."""
+    from .config import ModelConfig, TrainConfig
+    if not isinstance(card, dict):
+        raise CorruptEvaluatorFile(f"{path}: expected a JSON object, got a JSON {type(card).__name__}")
+    for dotted, t in _SCHEMA:
+        try:
+            v = _get(card, dotted)
+        except KeyError:
+            raise CorruptEvaluatorFile(f"{path}: field {dotted} is missing") from None
+        if not _is(v, t):
+            raise CorruptEvaluatorFile(f"{path}: field {dotted}: expected {_type_name(t)}, got {type(v).__name__}")
+    bad = (_dataclass_type_errors(card["config"]["model"], ModelConfig, "config.model")
+           + _dataclass_type_errors(card["config"]["train"], TrainConfig, "config.train"))
+    if bad:
+        raise CorruptEvaluatorFile(f"{path}: field {bad[0]}")
+    for key in ("mean", "std"):
+        if not all(_is(x, float) for x in card["normalization"][key]):
+            raise CorruptEvaluatorFile(f"{path}: field normalization.{key}: expected an array of numbers")
+    return card
+
+
 def read_card(folder: str | Path) -> dict:
+    """The validated card of ``folder`` (:func:`validate_card`); one-line errors naming the file."""
     path = Path(folder) / CARD
     if not path.exists():
         raise EvaluatorIntegrityError(f"{folder}: not an evaluator folder (no {CARD}); "
                                       f"train one with `hoibench train-evaluator`")
     try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise EvaluatorIntegrityError(f"{path}: not valid JSON ({exc})") from None
+        card = load_json_bytes(read_regular_file(path, MAX_CARD_BYTES, "evaluator card"), path)
+    except ValueError as exc:
+        raise CorruptEvaluatorFile(str(exc)) from None
+    return validate_card(card, path)
+
+
+def check_safetensors(data: bytes, path: str | Path) -> None:
+    """:class:`CorruptEvaluatorFile` unless ``data`` is a complete safetensors file: an 8-byte
+    little-endian header length, a JSON header of tensors with ``dtype``, ``shape`` and
+    ``data_offsets``, and exactly the data those offsets cover."""
+    if len(data) < 8:
+        raise CorruptEvaluatorFile(f"{path}: {len(data)} bytes: truncated, not a safetensors file")
+    n = int.from_bytes(data[:8], "little")
+    if n > len(data) - 8:
+        raise CorruptEvaluatorFile(f"{path}: header length {n} exceeds the file ({len(data)} bytes): truncated or "
+                                   f"not a safetensors file")
+    try:
+        header = load_json_bytes(data[8:8 + n], f"{path} header")
+    except ValueError as exc:
+        raise CorruptEvaluatorFile(f"{exc} (not a safetensors file)") from None
+    if not isinstance(header, dict):
+        raise CorruptEvaluatorFile(f"{path}: safetensors header is not a JSON object: not a safetensors file")
+    end = 0
+    for name, info in header.items():
+        if name == "__metadata__":
+            continue
+        off = info.get("data_offsets") if isinstance(info, dict) else None
+        if not (isinstance(off, list) and len(off) == 2 and all(_is(o, int) for o in off) and 0 <= off[0] <= off[1]):
+            raise CorruptEvaluatorFile(f"{path}: tensor {name!r} has no valid data_offsets: not a safetensors file")
+        end = max(end, off[1])
+    if 8 + n + end != len(data):
+        raise CorruptEvaluatorFile(f"{path}: the tensors end at byte {8 + n + end} but the file has {len(data)} "
+                                   f"bytes: truncated or corrupt")
+
+
+def _mismatch_detail(folder: Path, card: dict, data: bytes, actual: str) -> str:
+    """Which file and card fields changed, from the card's ``integrity`` block."""
+    integ = card.get("integrity")
+    if not isinstance(integ, dict) or not isinstance(integ.get("sections_sha256"), dict):
+        return "the folder was modified after training or mixes files of different evaluators"
+    parts = []
+    if integ.get("weights_sha256") != _sha256(data):
+        parts.append(f"{WEIGHTS} was modified (sha256 {_sha256(data)[:12]}..., the card records "
+                     f"{str(integ.get('weights_sha256'))[:12]}...)")
+    now = integrity_block(data, card)["sections_sha256"]
+    rec = integ["sections_sha256"]
+    fields_changed = sorted(k for k in set(now) | set(rec) if now.get(k) != rec.get(k))
+    if fields_changed:
+        parts.append(f"{CARD} field(s) {', '.join(fields_changed)} were modified")
+    if not parts:
+        parts.append(f"{CARD} field evaluator_id or integrity was modified")
+    return "; ".join(parts) + " after training"
 
 
 def verify_folder(folder: str | Path) -> tuple[dict, bytes]:
     """(card, weights bytes) of a folder whose id checks out; raises
-    :class:`EvaluatorIntegrityError` naming what is wrong otherwise."""
+    :class:`EvaluatorIntegrityError` naming the file (and field) that is wrong otherwise
+    (:class:`CorruptEvaluatorFile` for a file that cannot be parsed at all)."""
     folder = Path(folder)
     card = read_card(folder)
     wpath = folder / WEIGHTS
     if not wpath.exists():
         raise EvaluatorIntegrityError(f"{folder}: {WEIGHTS} is missing (incomplete copy?)")
     if card.get("format") != FORMAT:
-        raise EvaluatorIntegrityError(f"{folder}: card format {card.get('format')!r} is not {FORMAT!r} "
+        raise EvaluatorIntegrityError(f"{folder / CARD}: field format: {card.get('format')!r} is not {FORMAT!r} "
                                       f"(written by another hoibench version?)")
-    recorded = card.get("evaluator_id")
-    if not recorded:
-        raise EvaluatorIntegrityError(f"{folder}: {CARD} has no evaluator_id")
-    data = wpath.read_bytes()
+    try:
+        data = read_regular_file(wpath, MAX_WEIGHTS_BYTES, "evaluator weights")
+    except ValueError as exc:
+        raise CorruptEvaluatorFile(str(exc)) from None
+    check_safetensors(data, wpath)
+    recorded = card["evaluator_id"]
     actual = compute_id(data, card)
     if actual != recorded:
         raise EvaluatorIntegrityError(
-            f"{folder}: evaluator id mismatch: card.json says {recorded[:12]}... but weights.safetensors + "
-            f"card.json hash to {actual[:12]}...; the folder was modified after training or mixes files of "
-            f"different evaluators. Restore the original folder (or retrain); scores computed with it "
-            f"would not be comparable")
+            f"{folder}: evaluator id mismatch: {CARD} says {recorded[:12]}... but {WEIGHTS} + {CARD} hash to "
+            f"{actual[:12]}...: {_mismatch_detail(folder, card, data, actual)}. Restore the original folder (or "
+            f"retrain); scores computed with it would not be comparable")
     return card, data
 
 
@@ -113,28 +256,42 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
                    threads: int | None = None, device: str = "cpu"):
     """A verified :class:`~hoibench.evaluator.embed.Evaluator` from ``folder``.
 
+    Checks, each refusing with a one-line error naming the file and field: the card's
+    schema, the safetensors file, the evaluator id (weights + card), the normalisation
+    statistics against their sha256, the local text encoder against the card's hash, the
+    tensors against the config, and the sanity gate -- re-derived from the card's GT scores
+    with this version's rule (:func:`~hoibench.evaluator.gate.card_gate`), never read from
+    the card's ``gate`` block. ``allow_failed_gate=True`` loads a failing evaluator for
+    inspection. To measure the gate from the weights on data, use
+    :func:`~hoibench.evaluator.gate.recompute_gate`.
+
     ``text_encoder``: where the pretrained sentence encoder is when it is not the packaged
     all-MiniLM-L6-v2 (a local folder); its weights must hash to the card's value.
     ``threads``/``device``: see :class:`~hoibench.evaluator.embed.Evaluator`.
     """
     import torch
-    from safetensors.torch import load as load_tensors
 
     from . import text as text_mod
     from .config import EvaluatorConfig
     from .embed import Evaluator
     from .features import FeatureStats
-    from .gate import check_card_gate
+    from .gate import card_gate, check_card_gate
     from .model import TextMotionModel
 
     card, data = verify_folder(folder)
-    if not allow_failed_gate:
+    cpath = Path(folder) / CARD
+    if allow_failed_gate:
+        card_gate(card)                      # still refuses malformed GT scores
+    else:
         check_card_gate(card)
     try:
         config = EvaluatorConfig.from_dict(card["config"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CorruptEvaluatorFile(f"{cpath}: field config: {exc}") from None
+    try:
         stats = FeatureStats.from_card(card["normalization"])
     except (KeyError, TypeError, ValueError) as exc:
-        raise EvaluatorIntegrityError(f"{folder}: card.json is inconsistent: {exc}") from None
+        raise CorruptEvaluatorFile(f"{cpath}: field normalization: {exc}") from None
     te = card["text_encoder"]
     name, path = text_mod.resolve_text_encoder(text_encoder or te["name"])
     sha = text_mod.weights_sha256(path)
@@ -145,7 +302,7 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
             f"the same pretrained model>")
     tok, transformer = text_mod.load_pretrained(path)
     model = TextMotionModel(config.model, transformer, te["pooling"])
-    tensors = load_tensors(data)
+    tensors = _load_tensors(data, Path(folder) / WEIGHTS)
     expected = model.own_state_dict(config.train.text_finetune_layers if te["fine_tuned"] else None)
     missing = sorted(set(expected) - set(tensors))
     extra = sorted(set(tensors) - set(expected))
@@ -159,15 +316,101 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
     return Evaluator(config, model, tok, stats, card, threads=threads, device=device)
 
 
+def _load_tensors(data: bytes, path: Path) -> dict:
+    from safetensors.torch import load as load_tensors
+    try:
+        return load_tensors(data)
+    except Exception as exc:                 # SafetensorError, dtype errors
+        raise CorruptEvaluatorFile(f"{path}: not a readable safetensors file ({' '.join(str(exc).split())[:200]})") \
+            from None
+
+
+# --------------------------------------------------------------------------- store match
+def _ids_sha256(ids) -> str:
+    return _sha256("\n".join(sorted(ids)).encode())
+
+
+def store_fingerprint(manifest: dict) -> dict:
+    """What a card records about its store beyond the manifest hash, so that a store can be
+    matched without the identical manifest: fps, mode, store config sha256, sha256 of the
+    sorted train and test clip ids."""
+    clips = manifest.get("clips", [])
+    cfg = manifest.get("config", {})
+    return {"fps": cfg.get("fps"), "mode": cfg.get("mode"), "store_config_sha256": manifest.get("config_sha256"),
+            "train_ids_sha256": _ids_sha256(c["id"] for c in clips if c.get("split") == "train"),
+            "test_ids_sha256": _ids_sha256(c["id"] for c in clips if c.get("split") == "test")}
+
+
+def store_mismatches(evaluator, store_manifest: dict) -> list[str]:
+    """Reasons why ``evaluator`` (an :class:`Evaluator` or a card dict) should not score the
+    store with ``store_manifest``; empty when it fits.
+
+    Compared with the evaluator's card: dataset name; representation version of the
+    evaluator's features; normalisation statistics sha256 (the store's train-split
+    ``stats/hml263``); and, for cards that record them, fps, mode and the train split's clip
+    ids (another train split may contain the clips being scored). The manifest hash itself
+    is not compared: the same data prepared into another folder differs only in paths."""
+    card = evaluator if isinstance(evaluator, dict) else getattr(evaluator, "card", {}) or {}
+    eid = str(card.get("evaluator_id", "?"))[:12]
+    ds = card.get("dataset") or {}
+    out = []
+
+    def differ(what: str, ours, theirs) -> None:
+        if ours is not None and ours != theirs:
+            out.append(f"evaluator {eid} was trained on {what} {ours!r}, the store has {theirs!r}")
+
+    differ("dataset", ds.get("name"), store_manifest.get("dataset"))
+    feats = ds.get("features", "hml263")
+    differ(f"{feats} representation", ds.get("representation"), store_manifest.get("representations", {}).get(feats))
+    norm = (card.get("normalization") or {}).get("sha256")
+    differ("normalisation statistics (train-split stats/hml263) sha256", norm,
+           store_manifest.get("stats", {}).get("hml263", {}).get("sha256"))
+    fp = store_fingerprint(store_manifest)
+    differ("fps", ds.get("fps"), fp["fps"])
+    differ("mode", ds.get("mode"), fp["mode"])
+    if ds.get("train_ids_sha256") is not None and ds["train_ids_sha256"] != fp["train_ids_sha256"]:
+        out.append(f"evaluator {eid} was trained on another train split (sha256 of its clip ids "
+                   f"{ds['train_ids_sha256'][:12]}..., the store's {fp['train_ids_sha256'][:12]}...): clips scored "
+                   f"here may have been in its training data")
+    return out
+
+
+def check_store_match(evaluator, store_manifest: dict) -> None:
+    """:class:`StoreMismatchError` listing :func:`store_mismatches` when there are any."""
+    reasons = store_mismatches(evaluator, store_manifest)
+    if reasons:
+        raise StoreMismatchError("; ".join(reasons))
+
+
+def dict_diff(a, b, prefix: str) -> list[str]:
+    """Dotted paths where two JSON values differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [d for k in sorted(set(a) | set(b)) for d in dict_diff(a.get(k), b.get(k), f"{prefix}.{k}")]
+    return [] if a == b else [prefix]
+
+
+# --------------------------------------------------------------------------- show
+def _n(d, *keys) -> float:
+    """A number inside nested dicts, NaN when absent or not a number (summary never raises)."""
+    for k in keys:
+        d = d.get(k) if isinstance(d, dict) else None
+    return float(d) if isinstance(d, (int, float)) and not isinstance(d, bool) else float("nan")
+
+
+def _d(d, key) -> dict:
+    v = d.get(key) if isinstance(d, dict) else None
+    return v if isinstance(v, dict) else {}
+
+
 def summary(card: dict, verified: bool | None = None) -> str:
-    """Human-readable card summary (what ``hoibench show EVAL`` prints)."""
-    cfg = card.get("config", {})
-    m, t = cfg.get("model", {}), cfg.get("train", {})
-    ds = card.get("dataset", {})
-    te = card.get("text_encoder", {})
-    g = card.get("gt_retrieval", {})
-    gate = card.get("gate", {})
-    curve = card.get("curve", {}).get("summary", {})
+    """Human-readable card summary (what ``hoibench evaluator show EVAL`` prints). The sanity
+    gate line is re-derived from the GT scores (:func:`~hoibench.evaluator.gate.card_gate`)."""
+    from .errors import EvaluatorError
+    from .gate import card_gate
+    cfg = _d(card, "config")
+    m, t = _d(cfg, "model"), _d(cfg, "train")
+    ds, te, g, norm = _d(card, "dataset"), _d(card, "text_encoder"), _d(card, "gt_retrieval"), _d(card, "normalization")
+    curve = _d(_d(card, "curve"), "summary")
     lines = [f"evaluator {card.get('evaluator_id', '?')}" + ("" if verified is None else
                                                             ("  (id verified)" if verified else "  (ID MISMATCH)")),
              f"  hoibench {card.get('toolkit_version', '?')}, format {card.get('format', '?')}, "
@@ -178,33 +421,30 @@ def summary(card: dict, verified: bool | None = None) -> str:
              f"until epoch {t.get('text_unfreeze_epoch')}, control {t.get('control')}",
              f"  dataset: {ds.get('name')} manifest {str(ds.get('manifest_sha256', ''))[:12]}, train "
              f"{ds.get('train_items')} items / test {ds.get('test_items')} items, {ds.get('representation')}",
-             f"  normalisation: {card.get('normalization', {}).get('source')} sha256 "
-             f"{str(card.get('normalization', {}).get('sha256', ''))[:12]}",
+             f"  normalisation: {norm.get('source')} sha256 {str(norm.get('sha256', ''))[:12]}",
              f"  text encoder: {te.get('name')} sha256 {str(te.get('weights_sha256', ''))[:12]}, "
              f"{'fine-tuned' if te.get('fine_tuned') else 'frozen'}"]
     if curve:
-        lines.append(f"  curve: loss {curve.get('first_loss', float('nan')):.3f} -> "
-                     f"{curve.get('final_loss', float('nan')):.3f}, "
-                     f"in-batch top-1 {curve.get('final_batch_top1', float('nan')):.3f}, "
-                     f"temperature {curve.get('final_temperature', float('nan')):.4f}")
+        lines.append(f"  curve: loss {_n(curve, 'first_loss'):.3f} -> {_n(curve, 'final_loss'):.3f}, "
+                     f"in-batch top-1 {_n(curve, 'final_batch_top1'):.3f}, "
+                     f"temperature {_n(curve, 'final_temperature'):.4f}")
     if g:
         lines.append(f"  GT retrieval ({g.get('split')}, {g.get('items')} items, pool {g.get('pool_size')}, "
-                     f"{g.get('replications')} replications): top-1 {g['top1']['mean']:.3f} "
-                     f"+- {g['top1']['ci95']:.3f}, top-2 {g['top2']['mean']:.3f}, top-3 {g['top3']['mean']:.3f}, "
-                     f"MM-Dist {g['mm_dist']['mean']:.3f}, "
-                     f"chance {g.get('chance_top1', float('nan')):.3f}")
-        lines.append(f"  GT-vs-GT FID (halves of {g.get('half_size')}): {g.get('fid_gt_halves', float('nan')):.4f} "
-                     f"(relative {_fmt(g.get('fid_gt_relative'))})")
+                     f"{g.get('replications')} replications): top-1 {_n(g, 'top1', 'mean'):.3f} "
+                     f"+- {_n(g, 'top1', 'ci95'):.3f}, top-2 {_n(g, 'top2', 'mean'):.3f}, "
+                     f"top-3 {_n(g, 'top3', 'mean'):.3f}, MM-Dist {_n(g, 'mm_dist', 'mean'):.3f}, "
+                     f"chance {_n(g, 'chance_top1'):.3f}")
+        lines.append(f"  GT-vs-GT FID (halves of {g.get('half_size')}): {_n(g, 'fid_gt_halves'):.4f} "
+                     f"(relative {_n(g, 'fid_gt_relative'):.3f}; mean over {g.get('fid_gt_splits', 1)} splits "
+                     f"{_n(g, 'fid_gt_relative_mean'):.3f}; structureless noise {_n(g, 'fid_noise_relative'):.3f})")
         if g.get("pool_size") != g.get("requested_pool_size"):
             lines.append(f"  note: {g.get('pool_rule')}")
-    if gate:
-        lines.append(f"  sanity gate: {'passed' if gate.get('passed') else 'FAILED'}"
-                     + ("" if gate.get("passed") else ": " + "; ".join(gate.get("reasons", []))))
+    try:
+        gate = card_gate(card)
+        lines.append(f"  {gate.diagnostic()} (re-derived from the GT scores)")
+    except EvaluatorError as exc:
+        lines.append(f"  sanity gate: cannot be derived ({exc})")
     return "\n".join(lines)
-
-
-def _fmt(x, spec: str = ".3f") -> str:
-    return "n/a" if x is None else format(x, spec)
 
 
 def show(folder: str | Path) -> str:
@@ -212,6 +452,8 @@ def show(folder: str | Path) -> str:
     try:
         verify_folder(folder)
         ok = True
+    except CorruptEvaluatorFile:
+        raise
     except EvaluatorIntegrityError:
         ok = False
     return summary(card, ok)

@@ -102,6 +102,11 @@ class Evaluator:
         return self.card.get("evaluator_id")
 
     @property
+    def dataset(self) -> dict:
+        """The card's ``dataset`` block (name, manifest sha256, representation, splits, ...)."""
+        return self.card.get("dataset", {})
+
+    @property
     def representation(self) -> str | None:
         """Representation version the evaluator was trained on (e.g. ``hml263-clean-1.0``):
         embed features of that version only."""

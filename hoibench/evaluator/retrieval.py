@@ -18,21 +18,31 @@ replication also draws one caption per item from the same generator. Reported: m
 replications and the 95% CI ``1.96 * std / sqrt(replications)`` (population std).
 
 GT-vs-GT FID: the item embeddings are permuted with ``default_rng([seed, 'fid'])`` (the
-integer 4242 stands for 'fid') and split into two disjoint halves of ``floor(N / 2)``; the
+integer 4242 stands for 'fid'; split j > 0 of the ``FID_SPLITS`` = 10 averaged in
+``fid_gt_relative_mean`` uses ``[seed, 4242, j]``) and split into two disjoint halves of
+``floor(N / 2)``; the
 Frechet distance between Gaussians fitted to each half (``np.cov``, unbiased) is
 ``|mu1 - mu2|^2 + tr(S1 + S2 - 2 (S1 S2)^(1/2))``, with the trace of the matrix square root
 computed from the eigenvalues of the symmetric ``S1^(1/2) S2 S1^(1/2)`` (the same quantity
 as the reference's ``sqrtm`` form, stable for the rank-deficient covariances of small splits).
 ``fid_gt_relative`` divides it by ``2 * tr(S)`` of all items (the expected squared distance
-between two random items): a scale-free "near zero" (see :mod:`hoibench.evaluator.gate`).
+between two random items): a scale-free "near zero". It is computed in the span of the
+centred embeddings (exact, and cheap when N - 1 < D). ``fid_noise_relative`` is the same
+quantity for isotropic Gaussian noise of the same N and D, what the sanity gate compares
+with (:mod:`hoibench.evaluator.gate`).
 """
 from __future__ import annotations
+
+from functools import lru_cache
 
 import numpy as np
 
 from ..metrics.embedding import pool_hits
 
 FID_SEED_TAG = 4242
+NOISE_SEED_TAG = 4243
+#: seeded half splits averaged for ``fid_gt_relative_mean``
+FID_SPLITS = 10
 
 
 def _ci(values: np.ndarray) -> float:
@@ -89,27 +99,79 @@ def _sqrt_psd(m: np.ndarray) -> np.ndarray:
 def frechet_distance(mu1, sigma1, mu2, sigma2) -> float:
     """Frechet distance between N(mu1, sigma1) and N(mu2, sigma2) (eigenvalue form)."""
     diff = np.asarray(mu1, np.float64) - np.asarray(mu2, np.float64)
-    s1 = np.asarray(sigma1, np.float64)
-    s2 = np.asarray(sigma2, np.float64)
+    s1 = np.atleast_2d(np.asarray(sigma1, np.float64))
+    s2 = np.atleast_2d(np.asarray(sigma2, np.float64))
     r1 = _sqrt_psd(s1)
     w = np.linalg.eigvalsh(r1 @ s2 @ r1)
     tr_covmean = float(np.sqrt(np.clip(w, 0.0, None)).sum())
     return float(diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * tr_covmean)
 
 
-def gt_fid_halves(motion: np.ndarray, seed: int = 0) -> dict:
-    """FID between two disjoint seeded halves of ``motion`` (N, D) and its relative value."""
+def span_coordinates(x: np.ndarray) -> np.ndarray:
+    """Centred rows of ``x`` (N, D) in an orthonormal basis of their span (N, r), r <= N - 1.
+
+    Exact for any Frechet distance between subsets of the rows (means, covariances and
+    the matrix square root all live in that span) and much cheaper when N - 1 < D."""
+    c = x - x.mean(0)
+    if len(x) - 1 >= x.shape[1]:
+        return c
+    _, s, vt = np.linalg.svd(c, full_matrices=False)
+    keep = s > (s[0] * 1e-12 if s.size and s[0] > 0 else np.inf)
+    return c @ vt[keep].T if keep.any() else np.zeros((len(x), 1))
+
+
+def split_fid(y: np.ndarray, perm: np.ndarray) -> float:
+    """FID between rows ``perm[:h]`` and ``perm[h:2h]`` of ``y``, ``h = floor(N / 2)``."""
+    h = len(y) // 2
+    a, b = y[perm[:h]], y[perm[h:2 * h]]
+    return frechet_distance(a.mean(0), np.cov(a, rowvar=False), b.mean(0), np.cov(b, rowvar=False))
+
+
+def _split_perm(n: int, seed: int, j: int) -> np.ndarray:
+    key = [int(seed), FID_SEED_TAG] if j == 0 else [int(seed), FID_SEED_TAG, int(j)]
+    return np.random.default_rng(key).permutation(n)
+
+
+@lru_cache(maxsize=128)
+def noise_fid_relative(n: int, dim: int) -> float:
+    """Expected ``FID(half, half) / (2 tr S)`` of *structureless* embeddings: ``n`` rows of an
+    isotropic Gaussian in ``dim`` dimensions, split into halves of ``floor(n / 2)``.
+
+    Mean over seeded draws (16 when ``n <= dim``, else 4: the value concentrates as ``n``
+    grows). About ``1 + 1/h - sqrt((h - 1) / dim)`` for ``h << dim`` (1.27 for h = 3,
+    0.95 for h = 13 at dim 512); it falls like ``dim / h`` once ``h >> dim``."""
+    draws = 16 if n <= dim else 4
+    vals = []
+    for b in range(draws):
+        rng = np.random.default_rng([int(n), int(dim), b, NOISE_SEED_TAG])
+        x = rng.standard_normal((n, dim))
+        spread = 2.0 * float(np.trace(np.atleast_2d(np.cov(x, rowvar=False))))
+        vals.append(split_fid(span_coordinates(x), rng.permutation(n)) / spread)
+    return float(np.mean(vals))
+
+
+def gt_fid_halves(motion: np.ndarray, seed: int = 0, splits: int = FID_SPLITS) -> dict:
+    """FID between two disjoint seeded halves of ``motion`` (N, D), relative values, and the
+    noise reference the sanity gate compares with.
+
+    ``fid_gt_halves``/``fid_gt_relative``: the first split (permutation
+    ``default_rng([seed, 4242])``); ``fid_gt_relative_mean``: mean of ``FID / (2 tr S)`` over
+    ``splits`` seeded splits (split j > 0: ``default_rng([seed, 4242, j])``), a steadier
+    estimate of the same quantity; ``fid_noise_relative``: :func:`noise_fid_relative` for
+    the same N and D."""
     x = np.asarray(motion, np.float64)
     n = len(x)
     if n < 4:
         raise ValueError(f"GT FID: need at least 4 items, got {n}")
-    perm = np.random.default_rng([int(seed), FID_SEED_TAG]).permutation(n)
-    h = n // 2
-    a, b = x[perm[:h]], x[perm[h:2 * h]]
-    fid = frechet_distance(a.mean(0), np.cov(a, rowvar=False), b.mean(0), np.cov(b, rowvar=False))
-    spread = float(2.0 * np.trace(np.cov(x, rowvar=False)))
-    return {"fid_gt_halves": fid, "half_size": h, "embedding_spread": spread,
-            "fid_gt_relative": fid / spread if spread > 0 else None}   # None: collapsed embeddings
+    spread = float(2.0 * np.trace(np.atleast_2d(np.cov(x, rowvar=False))))
+    y = span_coordinates(x)
+    fids = [split_fid(y, _split_perm(n, seed, j)) for j in range(max(1, splits))]
+    rel = (lambda f: f / spread if spread > 0 else None)   # None: collapsed embeddings
+    rels = [rel(f) for f in fids]
+    return {"fid_gt_halves": fids[0], "half_size": n // 2, "embedding_spread": spread,
+            "fid_gt_relative": rels[0], "fid_gt_splits": len(fids),
+            "fid_gt_relative_mean": None if rels[0] is None else float(np.mean(rels)),
+            "fid_noise_relative": noise_fid_relative(n, x.shape[1]), "embed_dim": int(x.shape[1])}
 
 
 def protocol_retrieval_scores(motion: np.ndarray, text_sets: list[np.ndarray], ids: list[str], protocol) -> dict:
@@ -138,8 +200,9 @@ def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, see
     """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`).
 
     With ``protocol`` (a :class:`hoibench.protocol.Protocol`) and whole-clip items, the
-    retrieval uses the protocol's pools and caption draws (items sorted by clip id) instead
-    of ``pool_size``/``replications``/``seed``."""
+    retrieval uses the protocol's pools and caption draws (items sorted by clip id) and the
+    FID halves the protocol's seed, instead of ``pool_size``/``replications``/``seed``
+    (so :func:`hoibench.evaluator.gate.recompute_gate` reproduces these numbers)."""
     if protocol is not None and not any(it.segment for it in items):
         items = sorted(items, key=lambda it: it.clip_id)
         motion = evaluator.embed_motion([it.features for it in items])
@@ -149,7 +212,7 @@ def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, see
             sets.append(emb[k:k + len(it.captions)])
             k += len(it.captions)
         out = protocol_retrieval_scores(motion, sets, [it.clip_id for it in items], protocol)
-        out.update(gt_fid_halves(motion, seed))
+        out.update(gt_fid_halves(motion, int(protocol.seed)))
         return out
     motion = evaluator.embed_motion([it.features for it in items])
     caps = [c for it in items for c in it.captions]

@@ -44,6 +44,7 @@ from .config import EvaluatorConfig, preset
 from .data import feature_key, load_items
 from .embed import Evaluator, deterministic
 from .features import FeatureStats, object_relative, object_stats
+from .errors import CheckpointError, EvaluatorFolderExists, EvaluatorIntegrityError
 from .gate import GateResult, sanity_gate
 from .model import TextMotionModel, contrastive_loss
 from .retrieval import gt_scores
@@ -171,7 +172,7 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
     os.replace(tmp, path)
 
 
-def _store_protocol(store):
+def store_protocol(store):
     """The protocol ``hoibench evaluate`` uses by default for this store (``<dataset>-<mode>``),
     or None when none is shipped: GT scores then use the trainer's own pools."""
     from ..protocol import get_protocol
@@ -180,6 +181,84 @@ def _store_protocol(store):
         return get_protocol(f"{store.manifest.get('dataset')}-{'legacy' if mode.startswith('legacy') else 'clean'}")
     except KeyError:
         return None
+
+
+#: what an evaluator output folder may hold before training (an interrupted run's leftovers)
+_OUTPUT_ENTRIES = {CHECKPOINT_DIR, card_mod.WEIGHTS, card_mod.CURVE_PNG, card_mod.TRAIN_LOG}
+
+
+def existing_output(out: Path, cfg: EvaluatorConfig, msha: str) -> dict | None:
+    """The card when ``out`` already holds this evaluator (same config and store manifest);
+    None when ``out`` is free (missing, empty, or an interrupted run: checkpoint, partial
+    files). :class:`EvaluatorFolderExists` otherwise, saying what is there."""
+    if not out.exists():
+        return None
+    if not out.is_dir():
+        raise EvaluatorFolderExists(f"{out}: exists and is not a folder; choose another --out")
+    if not (out / card_mod.CARD).exists():
+        extra = sorted(p.name for p in out.iterdir() if p.name not in _OUTPUT_ENTRIES and ".tmp" not in p.name)
+        if extra:
+            raise EvaluatorFolderExists(f"{out}: not empty and not an evaluator folder (holds {', '.join(extra[:3])}"
+                                        f"{'...' if len(extra) > 3 else ''}); choose another --out")
+        return None
+    try:
+        card, _ = card_mod.verify_folder(out)
+    except EvaluatorIntegrityError as exc:
+        raise EvaluatorFolderExists(f"{out}: holds an evaluator folder that does not verify ({exc}); delete it or "
+                                    f"choose another --out") from None
+    diff = card_mod.dict_diff(card.get("config"), cfg.to_dict(), "config")
+    if card.get("dataset", {}).get("manifest_sha256") != msha:
+        diff.append("dataset.manifest_sha256 (another store)")
+    if not diff:
+        return card
+    raise EvaluatorFolderExists(f"{out}: already holds evaluator {str(card.get('evaluator_id', '?'))[:12]}, trained "
+                                f"with another recipe or store (differs in {', '.join(diff[:4])}"
+                                f"{'...' if len(diff) > 4 else ''}); choose another --out or delete the folder")
+
+
+def _read_checkpoint(path: Path, device) -> dict:
+    """``torch.load(..., weights_only=True)`` of ``path``; :class:`CheckpointError` naming
+    the file when it is not a readable checkpoint (truncated, garbage, pickled objects)."""
+    try:
+        ck = torch.load(path, map_location=device, weights_only=True)
+    except Exception as exc:                  # torch raises many types for a bad file
+        raise CheckpointError(f"{path}: not a readable training checkpoint ({type(exc).__name__}: "
+                              f"{' '.join(str(exc).split())[:200]}); delete it to restart training from epoch 0 "
+                              f"(same seed, same evaluator; only the time is lost)") from None
+    if not isinstance(ck, dict):
+        raise CheckpointError(f"{path}: not a hoibench training checkpoint (holds a {type(ck).__name__}); "
+                              f"delete it to restart training from epoch 0")
+    return ck
+
+
+def resume_checkpoint(path: Path, ident: dict, epochs: int, model, opt, sched, device) -> list[dict]:
+    """Load ``path`` into model, optimiser and scheduler; return the training curve so far
+    (its length is the epoch to resume from). :class:`CheckpointError` when the file is
+    unreadable, of another recipe, store, caption set or text encoder, or inconsistent."""
+    ck = _read_checkpoint(path, device)
+    other = sorted(k for k in ident if ck.get(k) != ident[k])
+    if other:
+        raise CheckpointError(f"{path}: checkpoint of another config, dataset, texts or text encoder (differs in "
+                              f"{', '.join(other)}); delete it to start over or use another output folder")
+    try:
+        epoch = ck["epoch"]
+        curve = json.loads(ck["curve"])
+        if not isinstance(epoch, int) or not 1 <= epoch <= epochs or not isinstance(curve, list) \
+                or len(curve) != epoch:
+            raise ValueError(f"epoch {epoch!r} with {len(curve) if isinstance(curve, list) else '?'} curve entries "
+                             f"(training has {epochs} epochs)")
+        missing, unexpected = model.load_state_dict(ck["model"], strict=False)
+        if unexpected or any(not k.startswith("text.transformer.") for k in missing):
+            raise ValueError(f"tensors do not match the model (unexpected {unexpected[:2]}, missing "
+                             f"{[k for k in missing if not k.startswith('text.transformer.')][:2]})")
+        opt.load_state_dict(ck["optimizer"])
+        sched.load_state_dict(ck["scheduler"])
+        torch.set_rng_state(ck["torch_rng"].cpu())   # (each epoch reseeds anyway)
+    except Exception as exc:                  # KeyError, TypeError, size mismatches, bad JSON ...
+        raise CheckpointError(f"{path}: inconsistent training checkpoint ({type(exc).__name__}: "
+                              f"{' '.join(str(exc).split())[:200]}); delete it to restart training from epoch 0"
+                              ) from None
+    return curve
 
 
 def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig | None = None, *,
@@ -206,9 +285,14 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
             device nor the machine; CUDA results are reproducible on the same GPU type when
             ``CUBLAS_WORKSPACE_CONFIG=:4096:8`` is set before torch initialises CUDA).
 
-    Returns a :class:`TrainResult`. A folder that already holds this evaluator (same config
-    and dataset) is verified and returned as ``already_trained``; one that holds another
-    evaluator raises ``FileExistsError``.
+    Returns a :class:`TrainResult`. ``out`` may be new, empty, or an interrupted run of the
+    same recipe (resumed from its checkpoint). A folder that already holds this evaluator
+    (same config and dataset) is verified and returned as ``already_trained``; one that holds
+    another evaluator, an evaluator that does not verify, or files that are not an
+    evaluator's raises :class:`~hoibench.evaluator.errors.EvaluatorFolderExists` (also a
+    ``FileExistsError``) saying what differs. An unreadable or foreign checkpoint raises
+    :class:`~hoibench.evaluator.errors.CheckpointError` (it is never silently discarded:
+    delete it to restart from epoch 0, which gives the same evaluator).
     """
     cfg = config or preset()
     mc, tc = cfg.model, cfg.train
@@ -217,13 +301,10 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
     store = Store(data)
     msha = manifest_sha256(store.manifest)
 
-    if (out / card_mod.CARD).exists():
-        card, _ = card_mod.verify_folder(out)
-        if card.get("config") == cfg.to_dict() and card.get("dataset", {}).get("manifest_sha256") == msha:
-            log(f"[train-evaluator] {out} already holds evaluator {card['evaluator_id'][:12]} for this config")
-            return TrainResult(out, "already_trained", card["evaluator_id"], card, None, 0)
-        raise FileExistsError(f"{out} already holds evaluator {card.get('evaluator_id', '?')[:12]} trained with "
-                              f"another config or dataset; choose another output folder")
+    done = existing_output(out, cfg, msha)
+    if done is not None:
+        log(f"[train-evaluator] {out} already holds evaluator {done['evaluator_id'][:12]} for this config")
+        return TrainResult(out, "already_trained", done["evaluator_id"], done, None, 0)
 
     variant = mc.variant
     rep = store.manifest.get("representations", {}).get("hoi269", "")
@@ -284,18 +365,8 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
         start = 0
         resumed_from = None
         if resume and ckpt_path.exists():
-            ck = torch.load(ckpt_path, map_location=ev.device, weights_only=True)
-            if {k: ck.get(k) for k in ident} != ident:
-                raise ValueError(f"{ckpt_path}: checkpoint of another config, dataset, texts or text encoder; "
-                                 f"delete it to start over or use another output folder")
-            missing, unexpected = model.load_state_dict(ck["model"], strict=False)
-            if unexpected or any(not k.startswith("text.transformer.") for k in missing):
-                raise ValueError(f"{ckpt_path}: checkpoint tensors do not match the model")
-            opt.load_state_dict(ck["optimizer"])
-            sched.load_state_dict(ck["scheduler"])
-            torch.set_rng_state(ck["torch_rng"].cpu())   # (each epoch reseeds anyway)
-            curve = json.loads(ck["curve"])
-            start = resumed_from = int(ck["epoch"])
+            curve = resume_checkpoint(ckpt_path, ident, tc.epochs, model, opt, sched, ev.device)
+            start = resumed_from = len(curve)
             log(f"[train-evaluator] resuming from epoch {start} ({ckpt_path})")
 
         cache = None
@@ -362,16 +433,17 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
         model.eval()
         model.to("cpu")        # GT scores as a loaded evaluator computes them (CPU, EMBED_THREADS)
         ev = Evaluator(cfg, model, tok, stats)
-        proto = _store_protocol(store)
+        proto = store_protocol(store)
         gt = gt_scores(ev, test.items, pool_size, replications, tc.seed, protocol=proto)
         tr = gt_scores(ev, train.items, pool_size, replications, tc.seed)
-    gate = sanity_gate(gt)
+    gate = sanity_gate(gt, mc.embed_dim)
     key = feature_key(variant)
     card = {
         "toolkit": "hoibench", "toolkit_version": __version__, "seed": tc.seed,
         "config": cfg.to_dict(), "config_sha256": cfg.sha256(),
         "dataset": {"name": store.manifest.get("dataset"), "manifest_sha256": msha,
                     "representation": store.manifest.get("representations", {}).get(key), "features": key,
+                    **card_mod.store_fingerprint(store.manifest),
                     "train_split": "train", "test_split": "test",
                     "train_clips": len(train.clip_ids), "train_items": len(train.items),
                     "test_clips": len(test.clip_ids), "test_items": len(test.items),
