@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..io import atomic_write_text
+from ..io import atomic_write_bytes, atomic_write_text, clean_stale_tmp
 from ..store import Store
 from . import card as card_mod
 from . import text as text_mod
@@ -134,10 +134,12 @@ def _batches(perm: np.ndarray, batch_size: int) -> list[np.ndarray]:
 
 
 def _atomic_torch_save(obj, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
+    """``torch.save`` through :func:`hoibench.io.atomic_write_bytes` (a ``.<name>.*.tmp``
+    file renamed into place; leftovers are cleaned when training starts again)."""
+    import io
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _curve_summary(curve: list[dict]) -> dict:
@@ -166,10 +168,11 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    tmp = path.with_name(path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=100)
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=100, format="png")
     plt.close(fig)
-    os.replace(tmp, path)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def store_protocol(store):
@@ -300,6 +303,7 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
     out = Path(out)
     store = Store(data)
     msha = manifest_sha256(store.manifest)
+    clean_stale_tmp(out, out / CHECKPOINT_DIR)         # an interrupted write's leftovers
 
     done = existing_output(out, cfg, msha)
     if done is not None:
