@@ -110,10 +110,10 @@ def check_fps(fps: Any, field: str, where: str) -> float:
     return v
 
 
-def common_frame_count(counts: Mapping[str, int], where: str) -> int:
+def common_frame_count(counts: Mapping[str, int], where: str, min_frames: int | None = None) -> int:
     """The frame count that most per-frame fields share; :class:`ImplausibleDataError`
-    naming the field(s) that differ (or all counts when no majority), or saying the
-    sequence has zero frames."""
+    naming the field(s) that differ (or all counts when no majority), saying the sequence
+    has zero frames, or (with ``min_frames``) fewer frames than a clip needs."""
     empty = [k for k, c in counts.items() if c == 0]
     if empty:
         raise ImplausibleDataError(f"{where}: zero frames: {', '.join(empty)} "
@@ -128,6 +128,8 @@ def common_frame_count(counts: Mapping[str, int], where: str) -> int:
                                        + f", the other per-frame fields ({same}) have {top}")
         raise ImplausibleDataError(f"{where}: per-frame fields disagree on the number of frames: "
                                    + ", ".join(f"{k} {c}" for k, c in counts.items()))
+    if min_frames is not None and top < min_frames:
+        raise ImplausibleDataError(f"{where}: only {top} frame(s), a clip needs at least {min_frames}")
     return top
 
 

@@ -27,13 +27,9 @@ from hoibench.datasets.synthetic_store import template_captions, write_template_
 
 
 @pytest.fixture(scope="module")
-def store_root(tmp_path_factory):
-    """A 48-clip synthetic store (34 train / 14 test) with template captions."""
-    pytest.importorskip("smplx")
-    from hoibench.datasets.synthetic_store import build_synthetic_store
-    _, data, _ = build_synthetic_store(tmp_path_factory.mktemp("evaluator_store"), 48, seed=0)
-    write_template_texts(data)
-    return data
+def store_root(template_store):
+    """The shared 48-clip store with template captions (tests/conftest.py)."""
+    return template_store
 
 
 def _quiet(_msg):

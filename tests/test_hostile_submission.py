@@ -187,25 +187,18 @@ def _case_one_nonfinite_joint(sub, ids, tmp):
     return sub, (ids[1], "joints", "non-finite")
 
 
-def _case_float16(sub, ids, tmp):
-    a = _arrays(sub, ids[0])
-    a["obj_trans"] = a["obj_trans"].astype(np.float16)
-    _save(sub, ids[0], a)
-    return sub, (ids[0], "obj_trans", "float32 or float64")
+def _dtype_case(field, dtype, needle):
+    def build(sub, ids, tmp):
+        a = _arrays(sub, ids[0])
+        a[field] = a[field].astype(dtype)
+        _save(sub, ids[0], a)
+        return sub, (ids[0], field, needle)
+    return build
 
 
-def _case_longdouble(sub, ids, tmp):
-    a = _arrays(sub, ids[0])
-    a["obj_rot"] = a["obj_rot"].astype(np.longdouble)
-    _save(sub, ids[0], a)
-    return sub, (ids[0], "obj_rot", "float32 or float64")
-
-
-def _case_complex(sub, ids, tmp):
-    a = _arrays(sub, ids[0])
-    a["obj_trans"] = a["obj_trans"].astype(np.complex64)
-    _save(sub, ids[0], a)
-    return sub, (ids[0], "obj_trans", "complex")
+_case_float16 = _dtype_case("obj_trans", np.float16, "float32 or float64")
+_case_longdouble = _dtype_case("obj_rot", np.longdouble, "float32 or float64")
+_case_complex = _dtype_case("obj_trans", np.complex64, "complex")
 
 
 def _case_degenerate_pose(sub, ids, tmp):
@@ -248,24 +241,26 @@ def _case_corrupt_member(sub, ids, tmp):
     return sub, (ids[0], "file", "")
 
 
-def _case_encrypted_member(sub, ids, tmp):
+def _patched_member(sub, sid, local_off: int, central_off: int, patch) -> None:
+    """samples/<sid>.npz = a stored one-member .npz whose local and central headers get
+    ``patch(bytearray, offset)`` at the given field offsets."""
     data = bytearray(_zip([("joints.npy", _npy((1, 10, 22, 3), payload=bytes(10 * 66 * 4)))], zipfile.ZIP_STORED))
-    # set the "encrypted" flag bit in the local header and the central directory entry
-    for sig in (b"PK\x03\x04", b"PK\x01\x02"):
-        at = data.find(sig)
-        off = at + (6 if sig == b"PK\x03\x04" else 8)
-        data[off] |= 0x1
-    (sub / "samples" / f"{ids[0]}.npz").write_bytes(bytes(data))
+    for sig, off in ((b"PK\x03\x04", local_off), (b"PK\x01\x02", central_off)):
+        patch(data, data.find(sig) + off)
+    (sub / "samples" / f"{sid}.npz").write_bytes(bytes(data))
+
+
+def _case_encrypted_member(sub, ids, tmp):
+    def encrypted(data, at):                                 # general-purpose flag bit 0
+        data[at] |= 0x1
+    _patched_member(sub, ids[0], 6, 8, encrypted)
     return sub, (ids[0], "file", "encrypted")
 
 
 def _case_unsupported_compression(sub, ids, tmp):
-    data = bytearray(_zip([("joints.npy", _npy((1, 10, 22, 3), payload=bytes(10 * 66 * 4)))], zipfile.ZIP_STORED))
-    for sig in (b"PK\x03\x04", b"PK\x01\x02"):
-        at = data.find(sig)
-        off = at + (8 if sig == b"PK\x03\x04" else 10)
-        data[off:off + 2] = (99).to_bytes(2, "little")     # method 99 (AES): not supported
-    (sub / "samples" / f"{ids[0]}.npz").write_bytes(bytes(data))
+    def method_99(data, at):                                 # method 99 (AES): not supported
+        data[at:at + 2] = (99).to_bytes(2, "little")
+    _patched_member(sub, ids[0], 8, 10, method_99)
     return sub, (ids[0], "file", "")
 
 
@@ -305,20 +300,32 @@ def test_each_hostile_case_is_refused_naming_id_and_field(case, gt_sub, tmp_path
         assert set(others) <= set(rep.valid_ids), [str(p) for p in rep.errors]
 
 
+def _built_cases(cases, gt_sub, tmp_path) -> list[str]:
+    """Each case built in its own folder from a copy of the GT submission; their paths."""
+    data, src, ids = gt_sub
+    paths = []
+    for case in cases:
+        base = tmp_path / case
+        base.mkdir()
+        shutil.copytree(src, base / "sub")
+        path, _ = CASES[case](base / "sub", ids, base)
+        paths.append(str(path))
+    return paths
+
+
+def _child(script: str, data, paths) -> subprocess.CompletedProcess:
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-c", script, str(data), *paths], capture_output=True, text=True,
+                          timeout=300, env=env)
+
+
 def test_cli_answers_every_case_with_one_line_and_no_traceback(gt_sub, tmp_path):
     """Runs ``hoibench validate`` in a child process over every case (a FIFO must not hang it:
     the child has a time limit) and measures its peak RSS (``VmHWM`` of the child's own
     memory map: ``ru_maxrss`` would include the parent's high-water mark, which Linux carries
     across ``exec``)."""
-    data, src, ids = gt_sub
-    paths = []
-    for case in sorted(CASES):
-        base = tmp_path / case
-        base.mkdir()
-        sub = base / "sub"
-        shutil.copytree(src, sub)
-        path, _ = CASES[case](sub, ids, base)
-        paths.append(str(path))
+    data = gt_sub[0]
+    paths = _built_cases(sorted(CASES), gt_sub, tmp_path)
     script = (
         "import resource, sys, io, contextlib\n"
         "from hoibench.cli import main\n"
@@ -328,9 +335,7 @@ def test_cli_answers_every_case_with_one_line_and_no_traceback(gt_sub, tmp_path)
         "print('CODES', codes)\n"
         "hwm = [ln for ln in open('/proc/self/status') if ln.startswith('VmHWM:')]\n"
         "print('MAXRSS_KB', hwm[0].split()[1] if hwm else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    res = subprocess.run([sys.executable, "-c", script, str(data), *paths], capture_output=True, text=True,
-                         timeout=300, env=env)
+    res = _child(script, data, paths)
     assert "Traceback" not in res.stderr and "Traceback" not in res.stdout, res.stderr[-3000:]
     codes = eval(res.stdout.split("CODES", 1)[1].splitlines()[0])
     assert codes == [1] * len(paths), list(zip(sorted(CASES), codes))
@@ -340,14 +345,9 @@ def test_cli_answers_every_case_with_one_line_and_no_traceback(gt_sub, tmp_path)
 
 def test_memory_cases_are_refused_under_an_address_space_limit(gt_sub, tmp_path):
     """The budget cases under RLIMIT_AS = 1.5 GiB: refused with a message, not a crash."""
-    data, src, ids = gt_sub
-    paths = []
-    for case in ("huge_header", "negative_dim", "deflate_bomb", "k_over_cap", "duplicate_array"):
-        base = tmp_path / case
-        base.mkdir()
-        shutil.copytree(src, base / "sub")
-        path, _ = CASES[case](base / "sub", ids, base)
-        paths.append(str(path))
+    data = gt_sub[0]
+    paths = _built_cases(("huge_header", "negative_dim", "deflate_bomb", "k_over_cap", "duplicate_array"),
+                         gt_sub, tmp_path)
     script = (
         "import resource, sys\n"
         "resource.setrlimit(resource.RLIMIT_AS, (1536 * 1024 ** 2, resource.RLIM_INFINITY))\n"
@@ -355,9 +355,7 @@ def test_memory_cases_are_refused_under_an_address_space_limit(gt_sub, tmp_path)
         "for p in sys.argv[2:]:\n"
         "    rep = validation_report(p, sys.argv[1])\n"
         "    print('REFUSED' if not rep.complete else 'ACCEPTED', [str(e) for e in rep.errors][:1])\n")
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    res = subprocess.run([sys.executable, "-c", script, str(data), *paths], capture_output=True, text=True,
-                         timeout=300, env=env)
+    res = _child(script, data, paths)
     assert res.returncode == 0, res.stderr[-3000:]
     lines = [ln for ln in res.stdout.splitlines() if ln.startswith(("REFUSED", "ACCEPTED"))]
     assert len(lines) == len(paths) and all(ln.startswith("REFUSED") for ln in lines), res.stdout

@@ -297,13 +297,7 @@ def _frame_count(body: dict, obj: dict, name: str) -> int:
     counts = {f"smpl_fit_all.npz: {k}": len(body[k]) for k in ("poses", "betas", "trans")}
     counts["smpl_fit_all.npz: frame_times"] = int(np.asarray(body["frame_times"]).size)
     counts.update({f"object_fit_all.npz: {k}": len(obj[k]) for k in ("angles", "trans")})
-    try:
-        T = pl.common_frame_count(counts, name)
-    except ValueError as exc:
-        raise SequenceError(str(exc)) from None
-    if T < pl.MIN_FRAMES:
-        raise SequenceError(f"{name}: smpl_fit_all.npz: only {T} frame(s), a clip needs at least {pl.MIN_FRAMES}")
-    return T
+    return pl.common_frame_count(counts, name, pl.MIN_FRAMES)
 
 
 def _ground_truth_contacts(seq_dir: Path, src_t: np.ndarray, dst_t: np.ndarray) -> np.ndarray | None:

@@ -219,12 +219,7 @@ def _per_frame(seq: dict, where: str) -> tuple[dict[str, np.ndarray], np.ndarray
     counts = {**{k: len(a) for k, a in arr.items()}, "obj_trans": len(o_t)}
     if scale.size != 1:
         counts["obj_scale"] = len(scale)
-    try:
-        T = pl.common_frame_count(counts, where)
-    except ValueError as exc:
-        raise SequenceError(str(exc)) from None
-    if T < pl.MIN_FRAMES:
-        raise SequenceError(f"{where}: only {T} frame(s), a clip needs at least {pl.MIN_FRAMES}")
+    T = pl.common_frame_count(counts, where, pl.MIN_FRAMES)
     return arr, o_t, np.repeat(scale, T) if scale.size == 1 else scale, T
 
 
