@@ -367,12 +367,15 @@ def main(argv: list[str] | None = None) -> int:
     import os
 
     from .errors import HoibenchError
-    from .interrupts import EXIT_INTERRUPTED, interrupt_message, terminate_as_interrupt
+    from .interrupts import EXIT_INTERRUPTED, interrupt_message, terminate_as_interrupt, was_interrupted
     args = build_parser().parse_args(argv)
     debug = os.environ.get("HOIBENCH_DEBUG") == "1"
     try:
         with terminate_as_interrupt():
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
+            if was_interrupted():       # swallowed on the way (e.g. inside a finalizer)
+                raise KeyboardInterrupt
+            return code
     except KeyboardInterrupt:
         print(interrupt_message(f"hoibench {args.command}"), file=sys.stderr)
         return EXIT_INTERRUPTED

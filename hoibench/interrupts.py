@@ -29,8 +29,26 @@ def interrupt_message(what: str) -> str:
     return f"interrupted: {what}; rerun the same command to resume"
 
 
+#: set when an interrupt arrives inside :func:`terminate_as_interrupt`; survives a
+#: ``KeyboardInterrupt`` that Python swallowed (raised inside a ``__del__`` or a callback,
+#: where it is only printed as "Exception ignored"), so :func:`check_interrupted` at the
+#: next unit boundary still stops the command
+_INTERRUPTED = threading.Event()
+
+
 def _raise_interrupt(signum: int, frame) -> None:
+    _INTERRUPTED.set()
     raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def check_interrupted() -> None:
+    """Raise ``KeyboardInterrupt`` when an interrupt arrived (even one that was swallowed)."""
+    if _INTERRUPTED.is_set():
+        raise KeyboardInterrupt("interrupted")
+
+
+def was_interrupted() -> bool:
+    return _INTERRUPTED.is_set()
 
 
 def _in_main_thread() -> bool:
@@ -39,17 +57,22 @@ def _in_main_thread() -> bool:
 
 @contextmanager
 def terminate_as_interrupt() -> Iterator[None]:
-    """Inside the block SIGTERM raises ``KeyboardInterrupt("SIGTERM")`` in the main thread;
-    the previous handler is restored on exit. A no-op outside the main thread (only it may
+    """Inside the block SIGTERM (and SIGINT) raise ``KeyboardInterrupt`` in the main thread
+    and set the flag :func:`check_interrupted` reads; the previous handlers are restored on
+    exit. A no-op outside the main thread (only it may
     set signal handlers) and where SIGTERM does not exist."""
     if not _in_main_thread() or not hasattr(signal, "SIGTERM"):
         yield
         return
+    _INTERRUPTED.clear()
     old = signal.signal(signal.SIGTERM, _raise_interrupt)
+    old_int = signal.signal(signal.SIGINT, _raise_interrupt)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGINT, old_int)
+        _INTERRUPTED.clear()        # handled by the caller; later work in this process runs
 
 
 @contextmanager

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from collections import deque
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
-from .interrupts import die_with_parent, hold_sigint, ignore_sigint
+from .interrupts import check_interrupted, die_with_parent, hold_sigint, ignore_sigint
 
 
 @dataclass(frozen=True)
@@ -174,6 +174,7 @@ def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | Ex
 
 
 def _tick(bar, result: Any) -> Any:
+    check_interrupted()          # an interrupt Python swallowed still stops at a unit boundary
     if bar is not None:
         bar.update(1)
     return result

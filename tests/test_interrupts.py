@@ -276,3 +276,29 @@ def test_clean_stale_tmp_removes_only_atomic_write_leftovers(tmp_path):
     assert (tmp_path / ".link.x.tmp").is_symlink() and not any(p.exists() for p in stale)
     atomic_write_text(tmp_path / "c.txt", "y")     # its tmp name is what the cleaner matches
     assert clean_stale_tmp(tmp_path) == []
+
+
+def test_a_swallowed_interrupt_still_stops_at_the_next_unit():
+    """A KeyboardInterrupt raised inside a finalizer is only printed by Python; the flag set
+    by the handler stops map_units at the next unit boundary anyway."""
+    import signal as sig
+
+    from hoibench.interrupts import terminate_as_interrupt
+    from hoibench.parallel import map_units
+
+    def unit(i):
+        if i == 1:
+            try:
+                os.kill(os.getpid(), sig.SIGTERM)
+                time.sleep(0.5)
+            except KeyboardInterrupt:
+                pass                      # swallowed, as in a __del__
+        return i
+
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with terminate_as_interrupt():
+            for r in map_units(unit, range(5), "serial"):
+                done.append(r)
+    assert done == [0]
+    assert list(map_units(unit, [0, 2], "serial")) == [0, 2]     # outside: nothing left set
