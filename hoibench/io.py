@@ -177,3 +177,40 @@ def load_json_bytes(raw: bytes, source: str | os.PathLike) -> object:
 def read_json_file(path: str | os.PathLike, max_bytes: int = 64 * 1024 ** 2, what: str = "JSON file") -> object:
     """:func:`read_regular_file` + :func:`load_json_bytes`."""
     return load_json_bytes(read_regular_file(path, max_bytes, what), path)
+
+
+#: raw capture arrays (.npz) may hold at most this much, compressed or not: a BEHAVE
+#: sequence of one hour at 30 fps holds about 70 MB
+MAX_RAW_NPZ_BYTES = 512 * 1024 ** 2
+#: raw mesh files (object templates)
+MAX_RAW_MESH_BYTES = 1024 ** 3
+
+
+def check_regular_file(path: str | os.PathLike, what: str = "file") -> Path:
+    """``path`` when it is a regular file (links followed); ``ValueError`` for a FIFO,
+    socket, device or folder (reading those would hang or never end)."""
+    import stat as _stat
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read {what}: {e.strerror or e}") from None
+    if not _stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{path}: {what} is not a regular file (a FIFO, socket, device or folder): not read")
+    return Path(path)
+
+
+def load_raw_npz(path: str | os.PathLike, max_bytes: int = MAX_RAW_NPZ_BYTES, what: str = "file") -> dict:
+    """Arrays of a raw ``.npz`` (no pickles) read within ``max_bytes``: the file must be
+    regular and no larger, and its members' declared uncompressed sizes together no larger
+    (a deflate bomb is refused before anything is inflated). ``ValueError`` naming the file."""
+    raw = read_regular_file(path, max_bytes, what)
+    try:
+        with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+            claimed = sum(i.file_size for i in zf.infolist())
+    except (zipfile.BadZipFile, ValueError, EOFError) as e:
+        raise ValueError(f"{path}: not a valid .npz ({e})") from None
+    if claimed > max_bytes:
+        raise ValueError(f"{path}: its arrays would inflate to {claimed} bytes, over the {max_bytes}-byte "
+                         "limit for a raw file: not read")
+    with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}

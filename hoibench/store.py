@@ -65,7 +65,14 @@ def file_sha256(paths: Sequence[Path], extra: str = "") -> str:
     for p in paths:
         p = Path(p)
         h.update(p.name.encode() + b"\0")
-        h.update(p.read_bytes() if p.exists() else b"<missing>")
+        if not p.exists():
+            h.update(b"<missing>")
+        elif not p.is_file():            # FIFO, device, socket: never read (the unit reports it)
+            h.update(b"<not a regular file>")
+        else:
+            with open(p, "rb") as fh:
+                for chunk in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(chunk)
     h.update(extra.encode())
     return h.hexdigest()
 
@@ -307,6 +314,7 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
     """
     out = Path(out)
     (out / "clips").mkdir(parents=True, exist_ok=True)
+    _refuse_foreign_store(out, config, source or {})
     clean_stale_tmp(out, out / "clips", out / "objects", out / "stats")
     jobs = check_jobs(jobs)
     results, errors = _run_jobs(jobs, out, executor, strict, f"prepare {config.dataset}")
@@ -333,6 +341,24 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
     }
     atomic_write_json(out / MANIFEST, manifest)
     return manifest
+
+
+def _refuse_foreign_store(out: Path, config: PrepareConfig, source: dict) -> None:
+    """``out`` may be new, or a store of the same dataset, config and raw root (a resume);
+    preparing other data into an existing store would mix two stores silently."""
+    mpath = out / MANIFEST
+    if not mpath.exists():
+        return
+    try:
+        old = read_json_file(mpath, what=MANIFEST)
+    except ValueError:
+        old = {}
+    same = (isinstance(old, dict) and old.get("config_sha256") == config.sha256()
+            and (old.get("source") or {}).get("root") == source.get("root"))
+    if not same:
+        raise FileExistsError(f"--out {out}: already holds a store of other data or settings (dataset "
+                              f"{(old or {}).get('dataset', '?')!r}, root {((old or {}).get('source') or {}).get('root')!r}); "
+                              "choose a new folder, or rerun the same command to resume")
 
 
 def _run_jobs(jobs: list[tuple], out: Path, executor: str, strict: bool,

@@ -1028,6 +1028,11 @@ def main_validate(sub: str | Path, data: str | Path, protocol: str | None = None
     """``hoibench validate SUB --data DATA``: print every problem; exit status 0 when the
     submission is complete (warnings allowed), 1 when it has errors, 2 when the store or
     protocol cannot be read."""
+    p = Path(sub)
+    if not (p.is_dir() or p.is_file()):
+        what = "does not exist" if not p.exists() else "is neither a folder nor a regular file"
+        print(f"hoibench validate: error: {sub}: {what} (expected a submission folder or .zip)", file=sys.stderr)
+        return 2
     try:
         rep = validation_report(sub, data, split, protocol)
     except (FileNotFoundError, KeyError, ValueError) as e:

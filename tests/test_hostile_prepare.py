@@ -7,6 +7,8 @@ import json
 import shutil
 from pathlib import Path
 
+import os
+
 import numpy as np
 import pytest
 
@@ -335,3 +337,36 @@ def test_fps_frames_betas_and_gender_are_checked(omomo_raw, tmp_path):
     seq.body.gender = "../male"
     with pytest.raises(ValueError, match=r"gender '\.\./male'"):
         pl.check_sequence(seq, TRAIN_PKL)
+
+
+def test_raw_special_files_and_deflate_bombs_are_refused_not_read(tmp_path):
+    """A raw .npz that is a FIFO, a link to /dev/zero, or a few MB inflating to GBs fails its
+    sequence (no hang, no memory blow-up); the other sequences are prepared."""
+    import io as _io
+    import zipfile as _zip
+
+    from hoibench.datasets import behave
+    from hoibench.datasets.synthetic import write_behave_layout
+    from hoibench.store import PrepareConfig, prepare
+    raw = tmp_path / "raw"
+    write_behave_layout(raw, 4, seed=0, progress=False)
+    seqs = sorted((raw / "sequences").iterdir())
+    (seqs[0] / "smpl_fit_all.npz").unlink()
+    os.mkfifo(seqs[0] / "smpl_fit_all.npz")
+    (seqs[1] / "smpl_fit_all.npz").unlink()
+    (seqs[1] / "smpl_fit_all.npz").symlink_to("/dev/zero")
+    buf = _io.BytesIO()
+    hdr = _io.BytesIO()
+    np.lib.format.write_array_header_1_0(hdr, {"descr": "<f4", "fortran_order": False, "shape": (1_000_000, 156)})
+    with _zip.ZipFile(buf, "w", _zip.ZIP_DEFLATED) as zf:
+        with zf.open("poses.npy", "w", force_zip64=True) as f:
+            f.write(hdr.getvalue())
+            for _ in range(38):
+                f.write(bytes(16 * 1024 ** 2))           # 608 MiB of zeros, < 1 MiB deflated
+    (seqs[2] / "smpl_fit_all.npz").write_bytes(buf.getvalue())
+    cfg = PrepareConfig("synthetic", fps=20.0)
+    out = tmp_path / "data"
+    m = prepare(behave.prepare_jobs(raw, raw / "body_models", out, cfg, split_file=raw / "split.json"), out, cfg)
+    errors = (out / "errors.jsonl").read_text()
+    assert m["counts"]["clips"] == 1 and m["counts"]["failed"] == 3
+    assert "FIFO" in errors and "not a regular file" in errors and "limit" in errors

@@ -338,7 +338,8 @@ def test_cli_answers_every_case_with_one_line_and_no_traceback(gt_sub, tmp_path)
     res = _child(script, data, paths)
     assert "Traceback" not in res.stderr and "Traceback" not in res.stdout, res.stderr[-3000:]
     codes = eval(res.stdout.split("CODES", 1)[1].splitlines()[0])
-    assert codes == [1] * len(paths), list(zip(sorted(CASES), codes))
+    want = [2 if case == "fifo_submission" else 1 for case in sorted(CASES)]   # no submission at all: 2
+    assert codes == want, list(zip(sorted(CASES), codes))
     rss_mib = int(res.stdout.split("MAXRSS_KB", 1)[1].split()[0]) / 1024
     assert rss_mib < 1024, f"validate peaked at {rss_mib:.0f} MiB"
 

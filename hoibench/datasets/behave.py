@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import MAX_RAW_MESH_BYTES, check_regular_file, load_raw_npz, read_json_file
+
 from .. import geometry as geo
 from .. import plausibility as pl
 from ..bodies.transform import rigid_transform_smpl
@@ -118,6 +120,9 @@ def read_mesh(path: str | Path, what: str) -> tuple[np.ndarray, np.ndarray]:
     SequenceError naming ``what`` (the sequence and object) for an unreadable file."""
     import trimesh
     try:
+        size = check_regular_file(path, "mesh file").stat().st_size
+        if size > MAX_RAW_MESH_BYTES:
+            raise ValueError(f"{size} bytes, over the {MAX_RAW_MESH_BYTES}-byte limit for a mesh file")
         mesh = trimesh.load(str(path), process=False, force="mesh")
         return np.asarray(mesh.vertices), np.asarray(mesh.faces)
     except Exception as exc:
@@ -146,9 +151,8 @@ def _read_npz(path: Path, name: str, keys: dict[str, tuple[int, ...]]) -> dict[s
     if not path.exists():
         raise SequenceError(f"{name}: missing file {path.name}")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:  # zip/format errors of a truncated or corrupt file
+        data = load_raw_npz(path, what=path.name)
+    except Exception as exc:  # zip/format errors of a truncated or corrupt file, special files, bombs
         raise SequenceError(f"{name}: {path.name}: unreadable ({type(exc).__name__}: {exc})") from None
     for k, tail in keys.items():
         if k not in data:
@@ -273,9 +277,9 @@ def read_info(path: Path, name: str, default_object: str) -> tuple[str, str]:
     if not path.exists():
         raise SequenceError(f"{name}: missing file info.json")
     try:
-        info = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SequenceError(f"{name}: info.json: invalid JSON ({exc})") from None
+        info = read_json_file(path, 1024 ** 2, "info.json")
+    except ValueError as exc:
+        raise SequenceError(f"{name}: info.json: {exc}") from None
     if not isinstance(info, dict):
         raise SequenceError(f"{name}: info.json: expected a JSON object, got {type(info).__name__}")
     gender = info.get("gender")
@@ -306,10 +310,10 @@ def _ground_truth_contacts(seq_dir: Path, src_t: np.ndarray, dst_t: np.ndarray) 
     path = seq_dir / "hoibench_gt.npz"
     if not path.exists():
         return None
-    with np.load(path, allow_pickle=False) as z:
-        if "contacts" not in z.files:
-            return None
-        c = z["contacts"].astype(bool)
+    z = load_raw_npz(path, what="hoibench_gt.npz")
+    if "contacts" not in z:
+        return None
+    c = z["contacts"].astype(bool)
     if c.shape != (len(src_t), 22):
         raise SequenceError(f"{seq_dir.name}: hoibench_gt.npz: contacts: expected ({len(src_t)}, 22), got {c.shape}")
     nearest = np.clip(np.searchsorted(src_t, dst_t - 0.5 / SOURCE_FPS), 0, len(src_t) - 1)

@@ -117,6 +117,8 @@ def read_pickle(path: str | Path) -> Any:
         import joblib
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ImportError("reading OMOMO's pickles needs the 'joblib' package: pip install joblib") from exc
+    from ..io import check_regular_file
+    check_regular_file(path, "OMOMO pickle")
     return joblib.load(str(path))
 
 
@@ -193,10 +195,11 @@ def _gt_contacts(path: str | None, src_t: np.ndarray, dst_t: np.ndarray, name: s
     if not path or not Path(path).exists():
         return None
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if "contacts" not in z.files:
-                return None
-            c = z["contacts"].astype(bool)
+        from ..io import load_raw_npz
+        z = load_raw_npz(path, what="ground-truth sidecar")
+        if "contacts" not in z:
+            return None
+        c = z["contacts"].astype(bool)
     except Exception as exc:
         raise SequenceError(f"{name}: {Path(path).name}: unreadable ({type(exc).__name__}: {exc})") from None
     if c.shape != (len(src_t), NUM_JOINTS):

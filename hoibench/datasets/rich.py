@@ -211,6 +211,8 @@ def _unpickle(path: Path, seq: str, data_root: Path):
     if not path.is_file():
         raise SequenceError(f"{seq}: missing file {rel}")
     try:
+        from ..io import check_regular_file
+        check_regular_file(path, "RICH pickle")
         with open(path, "rb") as fh:
             return pickle.load(fh, encoding="latin1")
     except Exception as exc:
