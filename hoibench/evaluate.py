@@ -25,9 +25,9 @@ Steps (docs/protocol.md):
 """
 from __future__ import annotations
 
-import math
 import platform
 import time
+from functools import partial
 from pathlib import Path
 from typing import Iterator, Sequence
 
@@ -76,12 +76,6 @@ def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_eva
             raise EvaluationRefused("; ".join(reasons) + f" (pass {flag} to score anyway: the result records it)")
         overrides.append({"override": kind, "reasons": reasons})
     return overrides
-
-
-def _gate_on_store(ev, real: np.ndarray, text_sets: list[np.ndarray], ids: list[str], proto) -> dict:
-    """The sanity gate measured from the evaluator's weights on this store's test split."""
-    from .evaluator.gate import gate_from_embeddings
-    return gate_from_embeddings(real, text_sets, ids, proto)
 
 
 def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
@@ -150,6 +144,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     its valid ids and marked ``complete: false``.
     """
     from .evaluator import load_evaluator
+    from .evaluator.gate import gate_from_embeddings
     from .metrics import embedding as em
     from .metrics.physical import PhysicalMetrics, _unit, load_groups
     from .parallel import map_units
@@ -163,12 +158,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
     ev = load_evaluator(evaluator, allow_failed_gate=True)     # the gate is measured below, on this store
     overrides = _check_fit(proto, store, ev, allow_protocol_mismatch, allow_evaluator_mismatch)
-    if ev.representation and ev.representation != store.manifest["representations"]["hml263"] \
-            and not allow_evaluator_mismatch:
-        raise EvaluationRefused(f"evaluator: trained on {ev.representation}, the store holds "
-                                f"{store.manifest['representations']['hml263']}")
-    fps = float(store.manifest["config"]["fps"])
-    mode = "legacy" if store.manifest["config"]["mode"].startswith("legacy") else "clean"
+    rows, fps, cap, mode = submission_context(store, proto)
 
     # --- ground truth: captions, embeddings, the sanity gate on this store
     t1 = time.perf_counter()
@@ -182,7 +172,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     all_caps = sorted({c for caps in captions.values() for c in caps})
     cap_emb = dict(zip(all_caps, ev.embed_text(all_caps)))
     sets_all = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in test_ids]
-    gate = _gate_on_store(ev, real_all, sets_all, test_ids, proto)
+    gate = gate_from_embeddings(real_all, sets_all, test_ids, proto)   # from the weights, on this store
     if not gate["passed"]:
         if not allow_failed_gate:
             raise EvaluationRefused(f"evaluator {str(ev.id)[:12]} fails the sanity gate on {data}'s test split: "
@@ -191,7 +181,6 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
         overrides.append({"override": "failed_gate", "reasons": list(gate["reasons"])})
     timings["ground_truth_s"] = time.perf_counter() - t1
 
-    rows, _, cap, _ = submission_context(store, proto)
     with Submission(submission, limits=limits_for(rows, fps, cap)) as sub:
         t2 = time.perf_counter()
         report = validation_report(sub, store, protocol=proto)
@@ -212,7 +201,6 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
         physical = {k: PhysicalMetrics(cfg.mode, cfg.body_label) for k in ks_physical}
         gen = np.zeros((K, len(ids), ev.embed_dim), np.float32)
         units = _stream(sub, ids, ks_physical, ks_embed, ev, store, load_groups(data), proto, mode, fps, gen)
-        from functools import partial
         for key, stats in map_units(partial(_unit, config=cfg), units, executor, window=EMBED_BATCH):
             physical[key[1]].update(key, stats)
         physical = {k: m.compute() for k, m in physical.items()}

@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import stat
 import tempfile
 import zipfile
 from pathlib import Path
@@ -123,6 +124,16 @@ def atomic_save_npz(path: str | os.PathLike, compressed: bool = True, **arrays) 
     return atomic_write_bytes(path, npz_bytes(arrays, compressed))
 
 
+def _refuse_special(mode: int, path, what: str) -> None:
+    """``ValueError`` naming the kind of file when ``mode`` is not a regular file's."""
+    if stat.S_ISREG(mode):
+        return
+    kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+            else "a device" if (stat.S_ISCHR(mode) or stat.S_ISBLK(mode))
+            else "a folder" if stat.S_ISDIR(mode) else "not a regular file")
+    raise ValueError(f"{path}: {what} is {kind}, not a regular file: not read")
+
+
 def read_regular_file(path: str | os.PathLike, max_bytes: int | None = None, what: str = "file") -> bytes:
     """The bytes of ``path`` when it is a regular file of at most ``max_bytes``.
 
@@ -136,12 +147,7 @@ def read_regular_file(path: str | os.PathLike, max_bytes: int | None = None, wha
         raise ValueError(f"{path}: cannot open {what}: {e.strerror or e}") from None
     try:
         st = os.fstat(fd)
-        import stat as _stat
-        if not _stat.S_ISREG(st.st_mode):
-            kind = ("a FIFO" if _stat.S_ISFIFO(st.st_mode) else "a socket" if _stat.S_ISSOCK(st.st_mode)
-                    else "a device" if (_stat.S_ISCHR(st.st_mode) or _stat.S_ISBLK(st.st_mode))
-                    else "a folder" if _stat.S_ISDIR(st.st_mode) else "not a regular file")
-            raise ValueError(f"{path}: {what} is {kind}, not a regular file: not read")
+        _refuse_special(st.st_mode, path, what)
         if max_bytes is not None and st.st_size > max_bytes:
             raise ValueError(f"{path}: {what} is {st.st_size} bytes, over the {max_bytes}-byte limit: not read")
         chunks, left = [], st.st_size if max_bytes is None else max_bytes + 1
@@ -189,13 +195,11 @@ MAX_RAW_MESH_BYTES = 1024 ** 3
 def check_regular_file(path: str | os.PathLike, what: str = "file") -> Path:
     """``path`` when it is a regular file (links followed); ``ValueError`` for a FIFO,
     socket, device or folder (reading those would hang or never end)."""
-    import stat as _stat
     try:
         st = os.stat(path)
     except OSError as e:
         raise ValueError(f"{path}: cannot read {what}: {e.strerror or e}") from None
-    if not _stat.S_ISREG(st.st_mode):
-        raise ValueError(f"{path}: {what} is not a regular file (a FIFO, socket, device or folder): not read")
+    _refuse_special(st.st_mode, path, what)
     return Path(path)
 
 

@@ -46,6 +46,7 @@ from . import __version__
 from .ids import ID_PATTERN as _ID_PATTERN
 from .ids import ID_RULE, check_id, is_valid_id
 from .io import atomic_write_bytes, load_json_bytes, npz_bytes, read_regular_file
+from .plausibility import ROTATION_TOL
 
 SUBMISSION_JSON = "submission.json"
 SAMPLES_DIR = "samples"
@@ -75,7 +76,6 @@ FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_se
 #: this times its bone-length scale (:func:`hoibench.contact.body_scale`)
 MEAN_BODY_HEIGHT_M = 1.72
 BODY_HEIGHT_RANGE_M = (0.5, 3.0)
-ROTATION_TOL = 1e-3
 #: median object-pelvis distance above which a sample is in the wrong units
 MAX_OBJECT_DISTANCE_M = 20.0
 #: object-pelvis distance no single frame may exceed
@@ -87,6 +87,9 @@ MAX_SPEED_MPS = 50.0
 #: bound on |obj_rotvec| (radians) and on every hml263 value
 MAX_ROTVEC_RAD = 100.0
 MAX_FEATURE_ABS = 1e6
+#: array -> (bound on every |value|, unit named in the message)
+_VALUE_BOUNDS = {"joints": (MAX_ABS_COORD_M, "m"), "obj_trans": (MAX_ABS_COORD_M, "m"),
+                 "obj_rotvec": (MAX_ROTVEC_RAD, "rad"), "hml263": (MAX_FEATURE_ABS, "units")}
 
 
 @dataclass(frozen=True)
@@ -313,6 +316,7 @@ class Submission:
         self._files: dict[str, object] = {}       # id -> Path or ZipInfo
         self._json: object = None
         self._claimed: dict[str, int] = {}       # id -> bytes its headers claim
+        self._last: tuple[str, bytes] | None = None   # the last file read (id, bytes)
         try:
             st = self.path.stat()
         except OSError:
@@ -471,25 +475,31 @@ class Submission:
     def ids(self) -> list[str]:
         return sorted(self._files)
 
-    def _source(self, sid: str):
+    def _source(self, sid: str) -> bytes:
+        """The bytes of ``samples/<sid>.npz`` within the id's budget; the last file read is
+        kept, so checking its headers and then loading it reads it once."""
+        if self._last is not None and self._last[0] == sid:
+            return self._last[1]
         ref = self._files[sid]
         limit = self.budget(sid) + FILE_OVERHEAD_BYTES
-        if isinstance(ref, zipfile.ZipInfo):
-            if ref.file_size > limit:
-                raise SubmissionError(f"samples/{sid}.npz is {_fmt_bytes(ref.file_size)}, over this id's "
-                                      f"{_fmt_bytes(limit)} budget: not read")
-            return self._zip.read(ref)
-        return read_regular_file(ref, limit, f"samples/{sid}.npz")
-
-    def headers(self, sid: str) -> dict[str, ArrayHeader]:
-        """Array headers of ``samples/<sid>.npz`` (no data loaded); ``SubmissionError``."""
         try:
-            src = self._source(sid)
+            if isinstance(ref, zipfile.ZipInfo):
+                if ref.file_size > limit:
+                    raise SubmissionError(f"samples/{sid}.npz is {_fmt_bytes(ref.file_size)}, over this id's "
+                                          f"{_fmt_bytes(limit)} budget: not read")
+                data = self._zip.read(ref)
+            else:
+                data = read_regular_file(ref, limit, f"samples/{sid}.npz")
         except SubmissionError:
             raise
         except _READ_ERRORS as e:
             raise SubmissionError(f"could not read the file: {_reason(e)}") from None
-        headers = npz_headers(src, self.budget(sid))
+        self._last = (sid, data)
+        return data
+
+    def headers(self, sid: str) -> dict[str, ArrayHeader]:
+        """Array headers of ``samples/<sid>.npz`` (no data loaded); ``SubmissionError``."""
+        headers = npz_headers(self._source(sid), self.budget(sid))
         if sid not in self._claimed:
             self._claimed[sid] = sum(h.nbytes for h in headers.values())
             total = sum(self._claimed.values())
@@ -501,15 +511,10 @@ class Submission:
     def load(self, sid: str, keys: Iterable[str] | None = KNOWN_ARRAYS) -> dict[str, np.ndarray]:
         """Arrays of ``samples/<sid>.npz`` (safe loading, see :func:`load_npz`); by default
         only the known arrays (others are never loaded)."""
-        try:
-            src = self._source(sid)
-        except SubmissionError:
-            raise
-        except _READ_ERRORS as e:
-            raise SubmissionError(f"could not read the file: {_reason(e)}") from None
-        return load_npz(src, self.budget(sid), keys)
+        return load_npz(self._source(sid), self.budget(sid), keys)
 
     def close(self) -> None:
+        self._last = None
         if self._zip is not None:
             self._zip.close()
             self._zip = None
@@ -722,14 +727,13 @@ def check_arrays(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -
             probs.append(Problem(sid, k, f"{int(nonfinite.sum())} non-finite value(s) (NaN or inf), first at index "
                                          f"{tuple(int(i) for i in first)}"))
             continue
-        limit = {"joints": MAX_ABS_COORD_M, "obj_trans": MAX_ABS_COORD_M, "obj_rotvec": MAX_ROTVEC_RAD,
-                 "obj_rot": 1.0 + ROTATION_TOL, "hml263": MAX_FEATURE_ABS}.get(k)
-        if limit is not None and k != "obj_rot":
+        bound = _VALUE_BOUNDS.get(k)          # obj_rot: checked as rotations below
+        if bound is not None:
+            limit, unit = bound
             big = np.abs(a) > limit
             if big.any():
                 first = tuple(int(i) for i in np.argwhere(big)[0])
-                probs.append(Problem(sid, k, f"{int(big.sum())} value(s) beyond +-{limit:g} "
-                                             f"({'m' if k in ('joints', 'obj_trans') else 'rad' if k == 'obj_rotvec' else 'units'}), "
+                probs.append(Problem(sid, k, f"{int(big.sum())} value(s) beyond +-{limit:g} ({unit}), "
                                              f"first {float(a[first]):.3g} at index {first}: implausible"))
                 continue
         good[k] = a
