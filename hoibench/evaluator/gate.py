@@ -228,23 +228,10 @@ def gate_from_embeddings(motion: np.ndarray, text_sets: Sequence[np.ndarray], id
     otherwise pools of ``pool_size``, ``replications`` and ``seed`` (default 0). Returns the
     JSON-ready record ``GateResult.to_card()`` plus ``scores`` (the GT scores it was derived from).
     """
-    from .retrieval import gt_fid_halves, protocol_retrieval_scores, retrieval_scores
-    motion = np.asarray(motion)
-    if len(text_sets) != len(motion):
-        raise ValueError(f"text_sets: expected {len(motion)} entries (one per motion row), got {len(text_sets)}")
-    if protocol is not None:
-        if ids is None or len(ids) != len(motion):
-            raise ValueError("gate_from_embeddings: a protocol needs one id per motion row")
-        order = sorted(range(len(ids)), key=lambda i: ids[i])
-        motion = motion[order]
-        text_sets = [text_sets[i] for i in order]
-        scores = protocol_retrieval_scores(motion, list(text_sets), [ids[i] for i in order], protocol)
-        fid_seed = int(protocol.seed) if seed is None else int(seed)
-    else:
-        scores = retrieval_scores(motion, list(text_sets), pool_size, replications, seed or 0)
-        fid_seed = seed or 0
-    scores.update(gt_fid_halves(motion, fid_seed))
-    record = sanity_gate(scores, motion.shape[1]).to_card()
+    from .retrieval import embedding_scores
+    scores = embedding_scores(motion, list(text_sets), None if ids is None else list(ids), protocol,
+                              pool_size, replications, seed)
+    record = sanity_gate(scores, np.asarray(motion).shape[1]).to_card()
     record["scores"] = scores
     return record
 
@@ -274,10 +261,8 @@ def recompute_gate(evaluator, store, protocol=None, split: str = "test") -> dict
                          f"needs at least 4 (run hoibench annotate?)")
     if protocol is not None and any(it.segment for it in items):
         protocol = None                              # segment items: the trainer's own pools
-    motion = evaluator.embed_motion([it.features for it in items])
-    emb = evaluator.embed_text([c for it in items for c in it.captions])
-    bounds = np.cumsum([0] + [len(it.captions) for it in items])
-    sets = [emb[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+    from .retrieval import embed_items
+    motion, sets = embed_items(evaluator, items)
     seed = int(evaluator.card.get("seed", tc.seed) or 0) if protocol is None else None
     record = gate_from_embeddings(motion, sets, [it.key for it in items], protocol, seed=seed)
     record["measured_on"] = {"store": str(store.root), "split": split, "items": len(items),

@@ -195,25 +195,54 @@ def protocol_retrieval_scores(motion: np.ndarray, text_sets: list[np.ndarray], i
     return out
 
 
+def embedding_scores(motion: np.ndarray, text_sets: list[np.ndarray], ids: list[str] | None = None,
+                     protocol=None, pool_size: int = 32, replications: int = 20, seed: int | None = None) -> dict:
+    """GT retrieval and GT-vs-GT FID from embeddings: ``motion`` (N, D), ``text_sets[i]``
+    (n_i, D) the caption embeddings of item i.
+
+    With ``protocol`` (and one id per row) the rows are put in sorted-id order and the
+    retrieval uses the protocol's pools and caption draws, the FID halves the protocol's
+    seed (``seed`` overrides it); otherwise pools of ``pool_size``, ``replications`` and
+    ``seed`` (default 0), rows in the given order."""
+    motion = np.asarray(motion)
+    if len(text_sets) != len(motion):
+        raise ValueError(f"text_sets: expected {len(motion)} entries (one per motion row), got {len(text_sets)}")
+    if protocol is not None:
+        if ids is None or len(ids) != len(motion):
+            raise ValueError("embedding_scores: a protocol needs one id per motion row")
+        order = sorted(range(len(ids)), key=lambda i: ids[i])
+        motion = motion[order]
+        out = protocol_retrieval_scores(motion, [text_sets[i] for i in order], [ids[i] for i in order], protocol)
+        out.update(gt_fid_halves(motion, int(protocol.seed) if seed is None else int(seed)))
+        return out
+    out = retrieval_scores(motion, list(text_sets), pool_size, replications, seed or 0)
+    out.update(gt_fid_halves(motion, seed or 0))
+    return out
+
+
+def embed_items(evaluator, items) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(motion embeddings (N, D), caption embeddings per item) of :class:`data.Item` s."""
+    motion = evaluator.embed_motion([it.features for it in items])
+    emb = evaluator.embed_text([c for it in items for c in it.captions])
+    bounds = np.cumsum([0] + [len(it.captions) for it in items])
+    return motion, [emb[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
 def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, seed: int = 0,
               protocol=None) -> dict:
-    """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`).
+    """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`):
+    :func:`embed_items` + :func:`embedding_scores`.
 
     With ``protocol`` (a :class:`hoibench.protocol.Protocol`) and whole-clip items, the
     retrieval uses the protocol's pools and caption draws (items sorted by clip id) and the
     FID halves the protocol's seed, instead of ``pool_size``/``replications``/``seed``
     (so :func:`hoibench.evaluator.gate.recompute_gate` reproduces these numbers)."""
-    if protocol is not None and not any(it.segment for it in items):
-        items = sorted(items, key=lambda it: it.clip_id)
-        motion = evaluator.embed_motion([it.features for it in items])
-        emb = evaluator.embed_text([c for it in items for c in it.captions])
-        sets, k = [], 0
-        for it in items:
-            sets.append(emb[k:k + len(it.captions)])
-            k += len(it.captions)
-        out = protocol_retrieval_scores(motion, sets, [it.clip_id for it in items], protocol)
-        out.update(gt_fid_halves(motion, int(protocol.seed)))
-        return out
+    if protocol is not None and any(it.segment for it in items):
+        protocol = None
+    motion, sets = embed_items(evaluator, items)
+    if protocol is not None:
+        return embedding_scores(motion, sets, [it.clip_id for it in items], protocol)
+    return embedding_scores(motion, sets, pool_size=pool_size, replications=replications, seed=seed)
     motion = evaluator.embed_motion([it.features for it in items])
     caps = [c for it in items for c in it.captions]
     emb = evaluator.embed_text(caps)
