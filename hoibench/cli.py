@@ -187,6 +187,18 @@ def _cmd_evaluate(args) -> int:
                          allow_evaluator_mismatch=args.allow_evaluator_mismatch)
 
 
+def _cmd_baseline(args) -> int:
+    from .baselines import commands
+    if args.action == "train":
+        return commands.main_train(args.name, args.data, args.out, config=args.config, device=args.device,
+                                   steps=args.steps, seed=args.seed, mask=args.mask, threads=args.threads)
+    if args.action == "sample":
+        return commands.main_sample(args.name, args.run, args.data, args.out, samples=args.samples, seed=args.seed,
+                                    device=args.device, guidance=args.guidance, ddim_steps=args.ddim_steps,
+                                    as_zip=args.zip)
+    return commands.main_show(args.run)
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -331,6 +343,41 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--allow-evaluator-mismatch", action="store_true",
                    help="score with an evaluator trained on another dataset or representation (recorded)")
     s.set_defaults(func=_cmd_evaluate)
+
+    s = sub.add_parser("baseline", help="train and sample reference baselines (chainhoi, mean-pose)",
+                       epilog="examples:\n  hoibench baseline train chainhoi data --config tiny --out runs/chainhoi-tiny\n"
+                              "  hoibench baseline sample chainhoi runs/chainhoi-tiny --data data --out sub\n"
+                              "  hoibench baseline sample mean-pose --data data --out sub-mean\n"
+                              "  hoibench baseline show runs/chainhoi-tiny",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    bsub = s.add_subparsers(dest="action", required=True)
+    b = bsub.add_parser("train", help="train a baseline on a store's train split")
+    b.add_argument("name", choices=["chainhoi"])
+    b.add_argument("data", type=Path)
+    b.add_argument("--out", type=Path, required=True)
+    b.add_argument("--config", choices=["tiny", "paper"], default="tiny")
+    b.add_argument("--steps", type=int, default=None, help="optimiser steps (0: the untrained model)")
+    b.add_argument("--seed", type=int, default=None)
+    b.add_argument("--mask", choices=["paper", "released"], default=None,
+                   help="Kinematic-aware Decoder mask (released: the published code's additive float mask)")
+    b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    b.add_argument("--threads", type=int, default=None)
+    b.set_defaults(func=_cmd_baseline)
+    b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
+    b.add_argument("name", choices=["chainhoi", "mean-pose"])
+    b.add_argument("run", type=Path, nargs="?", default=None, help="run folder (chainhoi)")
+    b.add_argument("--data", type=Path, required=True)
+    b.add_argument("--out", type=Path, required=True)
+    b.add_argument("--samples", "-k", type=int, default=1, help="samples per prompt (K)")
+    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--guidance", type=float, default=None, help="classifier-free guidance scale (default: config, 2)")
+    b.add_argument("--ddim-steps", type=int, default=None, help="DDIM steps (default: config, 50)")
+    b.add_argument("--device", default="cpu")
+    b.add_argument("--zip", action="store_true")
+    b.set_defaults(func=_cmd_baseline)
+    b = bsub.add_parser("show", help="show (and verify) a baseline run folder")
+    b.add_argument("run", type=Path)
+    b.set_defaults(func=_cmd_baseline)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")

@@ -53,25 +53,44 @@ def _canonical(obj) -> bytes:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
 
 
-def canonical_card_bytes(card: dict) -> bytes:
-    return _canonical({k: v for k, v in card.items() if k != "evaluator_id"})
+def canonical_card_bytes(card: dict, id_key: str = "evaluator_id") -> bytes:
+    return _canonical({k: v for k, v in card.items() if k != id_key})
 
 
-def compute_id(weights: bytes, card: dict) -> str:
-    """``sha256(weights || canonical card without evaluator_id)``."""
+def compute_id(weights: bytes, card: dict, id_key: str = "evaluator_id") -> str:
+    """``sha256(weights || canonical card without its id)`` (``id_key``: the field that holds
+    the id: ``evaluator_id`` here, ``checkpoint_id`` for baseline runs)."""
     h = hashlib.sha256()
     h.update(weights)
-    h.update(canonical_card_bytes(card))
+    h.update(canonical_card_bytes(card, id_key))
     return h.hexdigest()
 
 
-def integrity_block(weights: bytes, card: dict) -> dict:
+def integrity_block(weights: bytes, card: dict, id_key: str = "evaluator_id") -> dict:
     """Per-part hashes stored in the card (and covered by the id) so that a modified folder
     is reported by file and field: ``weights_sha256`` and ``sections_sha256[key]`` =
     sha256 of the canonical JSON of ``card[key]`` for every top-level key."""
     return {"weights_sha256": _sha256(weights),
             "sections_sha256": {k: _sha256(_canonical(v)) for k, v in sorted(card.items())
-                                if k not in ("evaluator_id", "integrity")}}
+                                if k not in (id_key, "integrity")}}
+
+
+def changed_parts(card: dict, data: bytes, weights_name: str = "weights.safetensors", card_name: str = "card.json",
+                  id_key: str = "evaluator_id") -> list[str]:
+    """What differs from the card's ``integrity`` block: the weights file, card fields."""
+    integ = card.get("integrity")
+    if not isinstance(integ, dict) or not isinstance(integ.get("sections_sha256"), dict):
+        return []
+    parts = []
+    if integ.get("weights_sha256") != _sha256(data):
+        parts.append(f"{weights_name} was modified (sha256 {_sha256(data)[:12]}..., the card records "
+                     f"{str(integ.get('weights_sha256'))[:12]}...)")
+    now = integrity_block(data, card, id_key)["sections_sha256"]
+    rec = integ["sections_sha256"]
+    fields_changed = sorted(k for k in set(now) | set(rec) if now.get(k) != rec.get(k))
+    if fields_changed:
+        parts.append(f"{card_name} field(s) {', '.join(fields_changed)} were modified")
+    return parts
 
 
 def weights_bytes(state_dict: dict) -> bytes:
@@ -211,15 +230,7 @@ def _mismatch_detail(folder: Path, card: dict, data: bytes, actual: str) -> str:
     integ = card.get("integrity")
     if not isinstance(integ, dict) or not isinstance(integ.get("sections_sha256"), dict):
         return "the folder was modified after training or mixes files of different evaluators"
-    parts = []
-    if integ.get("weights_sha256") != _sha256(data):
-        parts.append(f"{WEIGHTS} was modified (sha256 {_sha256(data)[:12]}..., the card records "
-                     f"{str(integ.get('weights_sha256'))[:12]}...)")
-    now = integrity_block(data, card)["sections_sha256"]
-    rec = integ["sections_sha256"]
-    fields_changed = sorted(k for k in set(now) | set(rec) if now.get(k) != rec.get(k))
-    if fields_changed:
-        parts.append(f"{CARD} field(s) {', '.join(fields_changed)} were modified")
+    parts = changed_parts(card, data, WEIGHTS, CARD)
     if not parts:
         parts.append(f"{CARD} field evaluator_id or integrity was modified")
     return "; ".join(parts) + " after training"

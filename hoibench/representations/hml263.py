@@ -46,7 +46,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from .. import skeleton as sk
 from ._checks import as_float_array
@@ -177,6 +176,7 @@ def _heading(P, cfg: Hml263Config, sigma: float, identity_first: bool):
     fx = across[2].astype(np.float64)
     fz = -across[0].astype(np.float64)
     if sigma > 0:
+        from scipy.ndimage import gaussian_filter1d   # only the legacy heading smoothing needs scipy
         fx = gaussian_filter1d(fx, sigma, axis=-1, mode="nearest")
         fz = gaussian_filter1d(fz, sigma, axis=-1, mode="nearest")
     n = np.sqrt(fx * fx + fz * fz)

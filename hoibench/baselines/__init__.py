@@ -1,0 +1,9 @@
+"""Reference baselines trained, sampled and scored by hoibench (DESIGN section 10).
+
+``diffusion``  the diffusion core the diffusion baselines share (schedule, x0, DDIM, CFG, EMA)
+``chainhoi``   ChainHOI (CVPR 2025): GST-GCN + KIM over the HOI joint graph
+``trivial``    text-blind reference generators (mean pose + static object)
+``checkpoint`` baseline run folders: weights, card, id
+
+Training and sampling import only torch, numpy and safetensors.
+"""

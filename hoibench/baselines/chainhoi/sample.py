@@ -1,0 +1,172 @@
+"""Sampling a trained ChainHOI run into a standard submission (``hoibench baseline sample chainhoi``).
+
+For each clip of the split (the test split by default): the condition is its first caption
+(``DATA/texts/<id>.txt``) and its object's centred template; ``K`` samples of the ground
+truth's length (T frames: T joint-level rows) are drawn by DDIM (50 steps) with classifier-free
+guidance (scale 2) from noise seeded by ``(seed, clip id)``, so a clip's samples do not depend
+on which other clips are sampled, in what order or on how many workers. The rows are
+de-normalised with the run's statistics, converted to hoi269 (:func:`joint_level.to_hoi269`)
+and decoded (:func:`hoi269.decode`) into joints (K, T, 22, 3), object rotations (K, T, 3, 3)
+and translations (K, T, 3) in the canonical frame (y up, metres), and written with
+:func:`hoibench.submission.write_submission`.
+
+Sampling refuses a store whose normalisation statistics or representation differ from the
+ones the run was trained with.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+
+from ... import __version__
+from ...interrupts import check_interrupted
+from ...representations import hoi269, joint_level
+from ...store import Store
+from .. import checkpoint as ckpt
+from ..diffusion import GaussianDiffusion
+from . import data as D
+from .config import ChainHOIConfig
+from .model import ChainHOI
+from .train import BASELINE, TextConditioner, _seed
+
+
+class StoreMismatch(ckpt.RunFolderError):
+    """The store to sample for is not the one the run was trained on (statistics, representation)."""
+
+
+class LoadedRun:
+    """A verified run: config, model (EMA weights, eval mode), statistics, text conditioner."""
+
+    def __init__(self, folder: str | Path, device: str = "cpu"):
+        from safetensors.torch import load as load_tensors
+        self.folder = Path(folder)
+        self.card, data = ckpt.verify_run(self.folder, BASELINE)
+        self.id = self.card[ckpt.ID_KEY]
+        self.config = ChainHOIConfig.from_dict(self.card["config"], f"{self.folder / ckpt.CARD}: config")
+        tensors = load_tensors(data)
+        self.stats = D.JointStats(tensors.pop("stats.mean").numpy(), tensors.pop("stats.std").numpy())
+        text_info = self.card.get("text", {})
+        vocab = text_info.get("vocab") if text_info.get("encoder") == "tokens" else None
+        self.text = TextConditioner(self.config.model.text_encoder, self.config.model.text_max_tokens, vocab)
+        if text_info.get("encoder") == "minilm" and text_info.get("weights_sha256") != self.text.weights_sha256:
+            raise ckpt.RunFolderError(f"{self.folder / ckpt.CARD}: field text.weights_sha256: the local sentence "
+                                      f"encoder differs from the one this run was trained with")
+        self.device = torch.device(device)
+        self.model = ChainHOI(self.config.model, vocab=len(vocab or []), text_width=self.text.width)
+        state = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
+        try:
+            self.model.load_state_dict(state)
+        except RuntimeError as exc:
+            raise ckpt.RunFolderError(f"{self.folder / ckpt.WEIGHTS}: tensors do not match the card's config "
+                                      f"({' '.join(str(exc).split())[:200]})") from None
+        self.model.to(self.device).eval()
+        self.diffusion = GaussianDiffusion(self.config.diffusion)
+
+    def check_store(self, store: Store) -> None:
+        """:class:`StoreMismatch` when ``store``'s hoi269 statistics or representation differ
+        from the card's (the run's normalisation would not fit its data)."""
+        ds = self.card["dataset"]
+        stats_path = store.root / "stats" / "hoi269.npz"
+        sha = store.stats("hoi269").sha256() if stats_path.exists() else ""
+        diffs = []
+        if sha != ds.get("store_hoi269_stats_sha256"):
+            diffs.append(f"normalisation statistics (stats/hoi269.npz sha256 {sha[:12] or 'missing'}..., the run's "
+                         f"{str(ds.get('store_hoi269_stats_sha256'))[:12]}...)")
+        rep = store.manifest.get("representations", {}).get("hoi269", "")
+        if rep != ds.get("representation"):
+            diffs.append(f"representation ({rep!r}, the run's {ds.get('representation')!r})")
+        fps = float(store.manifest.get("config", {}).get("fps", 0.0))
+        if fps != ds.get("fps"):
+            diffs.append(f"fps ({fps}, the run's {ds.get('fps')})")
+        if diffs:
+            raise StoreMismatch(f"{store.root}: this store differs from the one run {self.id[:12]} was trained on "
+                                f"({ds.get('name')!r}): {'; '.join(diffs)}. Sample for the store the run was "
+                                f"trained on, or train on this one")
+
+    @torch.no_grad()
+    def generate(self, caption: str, points: np.ndarray, length: int, k: int, seed_parts: tuple,
+                 guidance: float | None = None, steps: int | None = None) -> np.ndarray:
+        """(k, length, 24, 12) raw joint-level rows for one prompt."""
+        dev = self.device
+        tt, tpad = self.text([caption] * k, dev)
+        text = self.model.encode_text(tt, tpad)
+        obj = self.model.encode_object(torch.from_numpy(np.repeat(points[None], k, 0)).to(dev))
+
+        def x0_model(x, t, keep):
+            n = x.shape[0] // k          # 2 under classifier-free guidance: [cond, uncond]
+            return self.model(x, t, keep, text.repeat(n, 1, 1), tpad.repeat(n, 1), obj.repeat(n, 1, 1))
+
+        gen = torch.Generator().manual_seed(_seed(*seed_parts))
+        x0 = self.diffusion.ddim_sample(x0_model, (k, length, 24, 12), generator=gen, device=dev,
+                                        steps=steps, guidance=guidance)
+        return self.stats.denormalize(x0.float().cpu().numpy())
+
+
+def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
+    """Raw joint-level rows (K, T, 24, 12) -> submission arrays (joints, obj_rot, obj_trans)."""
+    feats = joint_level.to_hoi269(rows)
+    joints, rot, trans = hoi269.decode(feats)
+    return {"joints": joints.astype(np.float32), "obj_rot": rot.astype(np.float32),
+            "obj_trans": trans.astype(np.float32)}
+
+
+def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int = 1, seed: int = 0,
+           split: str = "test", device: str = "cpu", guidance: float | None = None, steps: int | None = None,
+           as_zip: bool = False, limit: int | None = None,
+           log: Callable[[str], None] | None = print) -> Path:
+    """Write a submission of ``samples`` (K) samples per clip of ``split`` to ``out``."""
+    log = log or (lambda s: None)
+    if not (isinstance(samples, int) and 1 <= samples <= 1000):
+        raise ValueError(f"--samples: expected an integer in 1..1000, got {samples!r}")
+    loaded = LoadedRun(run, device)
+    store = Store(data)
+    loaded.check_store(store)
+    ids = store.clip_ids(split)
+    if limit is not None:
+        ids = ids[:limit]
+    if not ids:
+        raise ValueError(f"{data}: split {split!r} has no clips")
+    from ...evaluator.text import read_captions
+    cfg = loaded.config
+    scale = cfg.diffusion.guidance if guidance is None else float(guidance)
+    n_steps = cfg.diffusion.ddim_steps if steps is None else int(steps)
+    points_cache: dict[str, np.ndarray] = {}
+    meta = {"method": f"ChainHOI ({cfg.name}, hoibench reproduction)", "version": __version__, "url": "",
+            "representation": store.manifest.get("representations", {}).get("hml263", ""),
+            "fps": float(store.manifest["config"]["fps"]),
+            "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"},
+            "source": {"baseline": BASELINE, "checkpoint_id": loaded.id, "config": cfg.name, "seed": seed,
+                       "ddim_steps": n_steps, "guidance": scale, "caption": "first caption of each clip",
+                       "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__}}
+    t0 = time.perf_counter()
+
+    def gen():
+        for i, cid in enumerate(ids):
+            check_interrupted()
+            clip = store.load(cid)
+            if "object_name" not in clip:
+                raise ValueError(f"{data}: clip {cid}: field object_name missing: ChainHOI samples human-object clips")
+            caps = read_captions(store.root, cid)
+            if not caps:
+                raise ValueError(f"{store.root}/texts/{cid}.txt: missing or empty: no caption to condition on "
+                                 f"(annotate the store first)")
+            name = str(clip["object_name"])
+            if name not in points_cache:
+                v, f = store.object_template(name)
+                points_cache[name] = D.surface_points(v, f, cfg.model.object_points, name)
+            T = int(clip["joints"].shape[0])
+            rows = loaded.generate(caps[0].text, points_cache[name], T, samples, (seed, "sample", cid),
+                                   guidance=scale, steps=n_steps)
+            el = time.perf_counter() - t0
+            log(f"[chainhoi] sampled {i + 1}/{len(ids)} {cid} (K={samples}, T={T}) {el:.1f} s")
+            yield cid, rows_to_sample(rows)
+
+    from ...submission import write_submission
+    path = write_submission(out, meta, gen(), as_zip=as_zip)
+    log(f"[chainhoi] wrote {path}: {len(ids)} clips x {samples} samples in {time.perf_counter() - t0:.1f} s "
+        f"(AIT {(time.perf_counter() - t0) / (len(ids) * samples):.3f} s per sample)")
+    return path

@@ -1,0 +1,94 @@
+"""Baseline run folders: weights, card and id, like an evaluator folder.
+
+Layout::
+
+    RUN/weights.safetensors   EMA weights of the model and its normalisation statistics
+    RUN/card.json             baseline, config, dataset (store manifest sha256, split, clip count,
+                              statistics hashes, representation, fps), text encoder (vocabulary
+                              or weights hash), training curve and summary, seed, toolkit
+                              version, integrity hashes, checkpoint_id
+    RUN/curve.png             loss curve                          (not covered by the id)
+    RUN/train_log.json        wall-clock times, device, resumes  (not covered by the id)
+    RUN/checkpoint/last.pt    training state for resuming (removed when training ends)
+
+Checkpoint id = ``sha256(weights bytes || canonical card without checkpoint_id)``, as the
+evaluator id (:func:`hoibench.evaluator.card.compute_id`): the same store, config and seed
+give the same id on the same machine type.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..errors import HoibenchError
+from ..io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
+
+FORMAT = "hoibench-baseline-1"
+WEIGHTS = "weights.safetensors"
+CARD = "card.json"
+CURVE_PNG = "curve.png"
+TRAIN_LOG = "train_log.json"
+CHECKPOINT_DIR = "checkpoint"
+ID_KEY = "checkpoint_id"
+MAX_CARD_BYTES = 64 * 1024 ** 2
+MAX_WEIGHTS_BYTES = 8 * 1024 ** 3
+
+
+class RunFolderError(HoibenchError, ValueError):
+    """A baseline run folder that is missing, incomplete, modified or of another kind."""
+
+
+def write_run(out: str | Path, state_dict: dict, card: dict) -> str:
+    """Write weights and card (card last: it marks a complete folder); return the id."""
+    from ..evaluator.card import compute_id, integrity_block, weights_bytes
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    data = weights_bytes(state_dict)
+    card = {k: v for k, v in card.items() if k not in (ID_KEY, "integrity")}
+    card["format"] = FORMAT
+    card["integrity"] = integrity_block(data, card, ID_KEY)
+    card[ID_KEY] = compute_id(data, card, ID_KEY)
+    atomic_write_bytes(out / WEIGHTS, data)
+    atomic_write_text(out / CARD, json.dumps(card, indent=1, sort_keys=True, allow_nan=False) + "\n")
+    return card[ID_KEY]
+
+
+def verify_run(folder: str | Path, baseline: str | None = None) -> tuple[dict, bytes]:
+    """(card, weights bytes) of a complete, unmodified run folder; :class:`RunFolderError`
+    naming the file and field otherwise."""
+    from ..evaluator.card import changed_parts, check_safetensors, compute_id
+    from ..evaluator.errors import CorruptEvaluatorFile
+    folder = Path(folder)
+    cpath = folder / CARD
+    if not cpath.exists():
+        hint = " (training was interrupted: run `hoibench baseline train` again to resume)" \
+            if (folder / CHECKPOINT_DIR).exists() else ""
+        raise RunFolderError(f"{folder}: not a baseline run folder (no {CARD}){hint}")
+    try:
+        card = load_json_bytes(read_regular_file(cpath, MAX_CARD_BYTES, "baseline card"), cpath)
+    except ValueError as exc:
+        raise RunFolderError(str(exc)) from None
+    if not isinstance(card, dict) or card.get("format") != FORMAT:
+        got = card.get("format") if isinstance(card, dict) else type(card).__name__
+        raise RunFolderError(f"{cpath}: field format: {got!r} is not {FORMAT!r} (an evaluator folder, or written "
+                             f"by another hoibench version?)")
+    for key, t in (("baseline", str), ("config", dict), ("dataset", dict), (ID_KEY, str)):
+        if not isinstance(card.get(key), t):
+            raise RunFolderError(f"{cpath}: field {key}: expected a {t.__name__}, got {type(card.get(key)).__name__}")
+    if baseline is not None and card["baseline"] != baseline:
+        raise RunFolderError(f"{cpath}: field baseline: this run is {card['baseline']!r}, not {baseline!r}")
+    wpath = folder / WEIGHTS
+    if not wpath.exists():
+        raise RunFolderError(f"{folder}: {WEIGHTS} is missing (incomplete copy?)")
+    try:
+        data = read_regular_file(wpath, MAX_WEIGHTS_BYTES, "baseline weights")
+        check_safetensors(data, wpath)
+    except (ValueError, CorruptEvaluatorFile) as exc:
+        raise RunFolderError(str(exc)) from None
+    actual = compute_id(data, card, ID_KEY)
+    if actual != card[ID_KEY]:
+        detail = "; ".join(changed_parts(card, data, WEIGHTS, CARD, ID_KEY)) or f"{CARD} field {ID_KEY} or integrity"
+        raise RunFolderError(f"{folder}: checkpoint id mismatch: {CARD} says {card[ID_KEY][:12]}... but the files hash "
+                             f"to {actual[:12]}...: {detail} was modified after training; retrain or restore the "
+                             f"folder")
+    return card, data

@@ -1,0 +1,91 @@
+"""``hoibench baseline train|sample|show``: a registry of baselines and the CLI entry points.
+
+=========  =====================================  ==========================================
+name       train                                  sample
+=========  =====================================  ==========================================
+chainhoi   ``train chainhoi DATA --out RUN``      ``sample chainhoi RUN --data DATA --out SUB``
+mean-pose  (nothing to train: train statistics)   ``sample mean-pose --data DATA --out SUB``
+=========  =====================================  ==========================================
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+TRAINABLE = ("chainhoi",)
+NAMES = ("chainhoi", "mean-pose")
+
+
+def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny", device: str = "cpu",
+               steps: int | None = None, seed: int | None = None, mask: str | None = None,
+               threads: int | None = None) -> int:
+    if name not in TRAINABLE:
+        raise ValueError(f"baseline {name!r} has nothing to train; `hoibench baseline sample {name} ...` uses the "
+                         f"store's train statistics directly")
+    from .chainhoi.config import preset
+    from .chainhoi.train import train
+    cfg = preset(config)
+    over = {}
+    if steps is not None:
+        over["train.steps"] = steps
+    if seed is not None:
+        over["train.seed"] = seed
+    if mask is not None:
+        over["model.mask"] = mask
+    if over:
+        cfg = cfg.replace(**over)
+    _check_device(device)
+    train(data, out, cfg, device=device, threads=threads)
+    return 0
+
+
+def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | Path, samples: int = 1,
+                seed: int = 0, device: str = "cpu", guidance: float | None = None, ddim_steps: int | None = None,
+                as_zip: bool = False) -> int:
+    if name == "mean-pose":
+        if run is not None:
+            raise ValueError("mean-pose takes no RUN folder (it uses the store's train statistics)")
+        if samples != 1:
+            raise ValueError("--samples: mean-pose is deterministic; it writes one sample per prompt")
+        from .trivial import write_mean_pose_submission
+        path = write_mean_pose_submission(data, out, as_zip=as_zip)
+        print(f"[mean-pose] wrote {path}")
+        return 0
+    if run is None:
+        raise ValueError(f"baseline sample {name}: the RUN folder (from `hoibench baseline train {name}`) is required")
+    _check_device(device)
+    from .chainhoi.sample import sample
+    sample(run, data, out, samples=samples, seed=seed, device=device, guidance=guidance, steps=ddim_steps,
+           as_zip=as_zip)
+    return 0
+
+
+def main_show(run: str | Path) -> int:
+    import json
+
+    from .checkpoint import ID_KEY, verify_run
+    card, _ = verify_run(run)
+    ds = card["dataset"]
+    curve = card.get("curve") or []
+    print(f"{card['baseline']} run {card[ID_KEY][:12]} (verified): config {card['config'].get('name')}, "
+          f"{card['summary'].get('parameters', 0) / 1e6:.2f} M parameters, {card['summary'].get('steps')} steps, "
+          f"seed {card.get('seed')}")
+    print(f"  trained on {ds.get('name')!r} ({ds.get('clips')} {ds.get('split')} clips, store "
+          f"{str(ds.get('manifest_sha256'))[:12]}, {ds.get('representation')}, {ds.get('fps')} fps)")
+    if curve:
+        print(f"  loss {curve[0]['loss']:.4f} (step {curve[0]['step']}) -> {curve[-1]['loss']:.4f} "
+              f"(step {curve[-1]['step']})")
+    print("  text encoder: " + json.dumps({k: v for k, v in card.get("text", {}).items() if k != "vocab"}))
+    return 0
+
+
+def _check_device(device: str) -> None:
+    if device == "cpu":
+        return
+    import torch
+    try:
+        dev = torch.device(device)
+    except RuntimeError as exc:
+        raise ValueError(f"--device: {exc}") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"--device {device}: CUDA is not available on this machine (torch {torch.__version__}); "
+                         f"use --device cpu")

@@ -1,0 +1,315 @@
+"""ChainHOI baseline: graph, chain mask, losses, training, resume, sampling, run folders, CLI."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hoibench.baselines.chainhoi import data as D
+from hoibench.baselines.chainhoi import graph
+from hoibench.baselines.chainhoi.config import ChainHOIConfig, preset
+from hoibench.baselines.chainhoi.model import ChainHOI, KinematicDecoderLayer, farthest_point_sample
+from hoibench.baselines.chainhoi.train import (TextConditioner, chainhoi_losses, interaction_positions, make_batch,
+                                               train, training_set)
+from hoibench.baselines.checkpoint import RunFolderError, verify_run
+from hoibench.baselines.diffusion import GaussianDiffusion
+
+# ------------------------------------------------------------------ definitions, written out independently
+SMPL_BONES = {(0, 1), (0, 2), (0, 3), (1, 4), (2, 5), (3, 6), (4, 7), (5, 8), (6, 9), (7, 10), (8, 11), (9, 12),
+              (9, 13), (9, 14), (12, 15), (13, 16), (14, 17), (16, 18), (17, 19), (18, 20), (19, 21)}
+FOOT_EDGES = {(7, 22), (8, 22), (10, 22), (11, 22)}
+OBJECT_EDGES = {(j, 23) for j in (0, 10, 11, 12, 16, 17, 20, 21)}
+CHAINS = [[0, 2, 5, 8, 11], [0, 1, 4, 7, 10], [0, 3, 6, 9, 12, 15], [9, 14, 17, 19, 21], [9, 13, 16, 18, 20],
+          [0, 10, 11, 12, 16, 17, 20, 21, 23]]
+
+
+def small_config(**over) -> ChainHOIConfig:
+    base = {"train.steps": 4, "train.batch_size": 4, "train.max_frames": 40, "train.checkpoint_every": 2,
+            "train.log_every": 1, "model.object_points": 64, "model.object_knn": 8, "train.contact_points": 32}
+    base.update(over)
+    return preset("tiny").replace(**base)
+
+
+def test_adjacency_is_the_hoi_joint_graph():
+    adj = graph.adjacency()
+    expected = np.eye(24, dtype=np.float32)
+    for a, b in SMPL_BONES | FOOT_EDGES | OBJECT_EDGES:
+        expected[a, b] = expected[b, a] = 1
+    np.testing.assert_array_equal(adj, expected)
+    P = graph.partitions()
+    np.testing.assert_array_equal(P[0], np.eye(24))
+    # inward: every node except the root gathers from its root-side neighbours, rows sum to 1
+    assert P[1][0].sum() == 0 and np.allclose(P[1][1:].sum(1), 1)
+    assert P[1][23, [0, 10, 11, 12, 16, 17, 20, 21]].tolist() == [0.125] * 8
+    np.testing.assert_array_equal(P[1] > 0, (P[2] > 0).T)
+
+
+def test_chain_mask_matches_the_six_chains():
+    member = graph.chain_membership()
+    for c, nodes in enumerate(CHAINS):
+        assert sorted(np.flatnonzero(member[c]).tolist()) == sorted(nodes)
+    np.testing.assert_array_equal(graph.chain_mask(), ~member)
+
+
+def test_chain_mask_really_restricts_attention():
+    torch.manual_seed(0)
+    layer = KinematicDecoderLayer(16, 4, 32, 0.0, "paper").eval()
+    layer.keep_attention = True
+    kt, nodes = torch.randn(3, 6, 16), torch.randn(3, 24, 16)
+    out = layer(kt, nodes)
+    w = layer.last_attention                                     # (B, heads, 6, 24)
+    outside = torch.from_numpy(graph.chain_mask())[None, None].expand_as(w)
+    assert w[outside].abs().max().item() == 0.0                  # exactly zero outside the chain
+    assert torch.allclose(w.sum(-1), torch.ones_like(w.sum(-1)))
+    # changing a node outside chain c leaves chain token c unchanged; inside, it changes
+    for c, chain in enumerate(CHAINS):
+        j_out = next(j for j in range(24) if j not in chain)
+        moved = nodes.clone()
+        moved[:, j_out] += 5.0
+        assert torch.equal(layer(kt, moved)[:, c], out[:, c])
+        moved = nodes.clone()
+        moved[:, chain[-1]] += 5.0
+        assert not torch.allclose(layer(kt, moved)[:, c], out[:, c])
+
+
+def test_released_mask_masks_nothing():
+    """The released code's float ``1 - mask`` is added to the scores: every node keeps weight."""
+    torch.manual_seed(0)
+    layer = KinematicDecoderLayer(16, 4, 32, 0.0, "released").eval()
+    layer.keep_attention = True
+    layer(torch.randn(2, 6, 16), torch.randn(2, 24, 16))
+    w = layer.last_attention
+    outside = torch.from_numpy(graph.chain_mask())[None, None].expand_as(w)
+    assert w[outside].min().item() > 0
+
+
+def test_farthest_point_sample_spreads_points():
+    pts = torch.tensor([[[0.0, 0, 0], [0.01, 0, 0], [1, 0, 0], [0, 1, 0], [0.02, 0.01, 0]]])
+    assert sorted(farthest_point_sample(pts, 3)[0].tolist()) == [0, 2, 3]
+
+
+def test_surface_points_lie_on_the_mesh_and_are_seeded():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    f = np.array([[0, 1, 2]])
+    p = D.surface_points(v, f, 200, "tri")
+    assert np.allclose(p[:, 2], 0) and (p[:, :2] >= -1e-7).all() and (p[:, :2].sum(1) <= 1 + 1e-6).all()
+    np.testing.assert_array_equal(p, D.surface_points(v, f, 200, "tri"))
+
+
+def test_interaction_positions_equal_the_decoded_joints(template_store):
+    from hoibench.representations import hoi269
+    from hoibench.store import Store
+    st = Store(template_store)
+    clip = st.load(st.clip_ids("train")[0])
+    joints, _, _ = hoi269.decode(clip["hoi269"])
+    pos = interaction_positions(torch.from_numpy(clip["joint_level"]).double()).numpy()
+    np.testing.assert_allclose(pos, joints[:, list(D.INTERACTION_JOINTS)], atol=1e-5)
+
+
+def test_recentred_window_is_the_same_motion_in_its_own_frame(template_store):
+    from hoibench.geometry import axis_angle_to_matrix, rotation_about_y
+    from hoibench.store import Store
+    st = Store(template_store)
+    rows = st.load(st.clip_ids("train")[0])["joint_level"].astype(np.float64)
+    a, n = 7, 20
+    win = D.recentre_window(rows, a, n).astype(np.float64)
+    R = rotation_about_y(rows[a, 0, 7])
+    shift = rows[a, 0, 8:11] * np.array([1, 0, 1])
+    full = interaction_positions(torch.from_numpy(rows[a:a + n])).numpy()
+    mine = interaction_positions(torch.from_numpy(win)).numpy()
+    np.testing.assert_allclose(mine, (full - shift) @ R.T, atol=1e-5)
+    np.testing.assert_allclose(win[0, 0, [7, 8, 10]], 0, atol=1e-6)        # yaw 0, root at x = z = 0
+    np.testing.assert_allclose(win[:, 23, 3:6], (rows[a:a + n, 23, 3:6] - shift) @ R.T, atol=1e-5)
+    np.testing.assert_allclose(axis_angle_to_matrix(win[:, 23, 0:3]),
+                               R[None] @ axis_angle_to_matrix(rows[a:a + n, 23, 0:3]), atol=1e-5)
+    np.testing.assert_array_equal(win[:, 1:23], rows[a:a + n, 1:23].astype(np.float32))
+
+
+def _fixed_loss(model, diffusion, batch, cfg, ts):
+    mean, std = torch.from_numpy(ts.stats.mean), torch.from_numpy(ts.stats.std)
+    return chainhoi_losses(model, diffusion, batch, cfg, mean, std, torch.Generator().manual_seed(123))
+
+
+def test_a_training_step_reduces_the_loss_on_a_fixed_batch(template_store):
+    cfg = small_config()
+    ts = training_set(template_store, cfg)
+    text = TextConditioner("tokens", 32, ts.vocab)
+    torch.manual_seed(0)
+    model = ChainHOI(cfg.model, vocab=len(ts.vocab))
+    diffusion = GaussianDiffusion(cfg.diffusion)
+    batch = make_batch(ts, cfg, 0, text, "cpu")
+    opt = torch.optim.AdamW(model.parameters(), lr=1e-3)
+    before = {k: float(v.detach()) for k, v in _fixed_loss(model, diffusion, batch, cfg, ts).items()}
+    for _ in range(5):
+        opt.zero_grad()
+        _fixed_loss(model, diffusion, batch, cfg, ts)["loss"].backward()
+        opt.step()
+    after = {k: float(v.detach()) for k, v in _fixed_loss(model, diffusion, batch, cfg, ts).items()}
+    assert after["loss"] < before["loss"]
+    assert before["contact"] > 0                              # the contact term is active on this data
+
+
+def test_contact_loss_is_the_gated_squared_distance(template_store):
+    """L_h of a batch whose prediction is the GT equals a brute-force computation."""
+    cfg = small_config(**{"train.lambda_object": 0.0})
+    ts = training_set(template_store, cfg)
+    batch = make_batch(ts, cfg, 3, TextConditioner("tokens", 32, ts.vocab), "cpu")
+
+    class Oracle(torch.nn.Module):           # predicts the clean batch exactly
+        def encode_text(self, t, p):
+            return t
+        def encode_object(self, p):
+            return p
+        def forward(self, xt, t, keep, text, pad, obj, valid):
+            return batch["x0"]
+
+    losses = _fixed_loss(Oracle(), GaussianDiffusion(cfg.diffusion), batch, cfg, ts)
+    assert float(losses["diffusion"]) == 0.0
+    raw = batch["x0"].double() * torch.from_numpy(ts.stats.std).double() + torch.from_numpy(ts.stats.mean).double()
+    total, count = 0.0, 0
+    for b in range(raw.shape[0]):
+        for i in range(raw.shape[1]):
+            if not batch["valid"][b, i]:
+                continue
+            from hoibench.geometry import axis_angle_to_matrix
+            R = axis_angle_to_matrix(raw[b, i, 23, 0:3].numpy())
+            surf = batch["contact_points"][b].double().numpy() @ R.T + raw[b, i, 23, 3:6].numpy()
+            joints = interaction_positions(raw[b:b + 1, i:i + 1])[0, 0].numpy()
+            for k in range(8):
+                if batch["contacts"][b, i, k]:
+                    total += ((surf - joints[k]) ** 2).sum(1).min()
+                    count += 1
+    assert count > 0
+    assert float(losses["contact"]) == pytest.approx(total / count, rel=1e-4)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(template_store, tmp_path_factory):
+    out = tmp_path_factory.mktemp("chainhoi") / "run"
+    res = train(template_store, out, small_config(), log=None)
+    return out, res
+
+
+def test_run_folder_verifies_and_detects_edits(tiny_run, tmp_path):
+    out, res = tiny_run
+    card, _ = verify_run(out, "chainhoi")
+    assert card["checkpoint_id"] == res.checkpoint_id and len(card["curve"]) == 4
+    assert card["dataset"]["joint_stats_sha256"] and card["dataset"]["store_hoi269_stats_sha256"]
+    assert not (out / "checkpoint").exists()
+    bad = tmp_path / "bad"
+    shutil.copytree(out, bad)
+    c = json.loads((bad / "card.json").read_text())
+    c["seed"] = 7
+    (bad / "card.json").write_text(json.dumps(c))
+    with pytest.raises(RunFolderError, match="seed"):
+        verify_run(bad)
+
+
+def test_resume_gives_the_uninterrupted_run(template_store, tiny_run, tmp_path):
+    out, res = tiny_run
+    part = tmp_path / "resumed"
+    train(template_store, part, small_config(), stop_after=2, log=None)
+    assert (part / "checkpoint" / "last.pt").exists() and not (part / "card.json").exists()
+    again = train(template_store, part, small_config(), log=None)
+    assert again.resumed_from == 2
+    assert again.checkpoint_id == res.checkpoint_id
+    assert train(template_store, part, small_config(), log=None).already_trained
+
+
+def test_sampling_is_deterministic_and_guidance_one_is_conditional(tiny_run, template_store):
+    from hoibench.baselines.chainhoi.sample import LoadedRun
+    from hoibench.store import Store
+    run = LoadedRun(tiny_run[0])
+    st = Store(template_store)
+    clip = st.load(st.clip_ids("test")[0])
+    v, f = st.object_template(str(clip["object_name"]))
+    pts = D.surface_points(v, f, run.config.model.object_points, "x")
+    a = run.generate("a person lifts the box", pts, 12, 2, (0, "x"), steps=3)
+    b = run.generate("a person lifts the box", pts, 12, 2, (0, "x"), steps=3)
+    c = run.generate("a person lifts the box", pts, 12, 2, (1, "x"), steps=3)
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a, c)
+    # guidance at scale 1 is the conditional model
+    x = torch.randn(2, 12, 24, 12)
+    t = torch.tensor([500, 500])
+    tt, pad = run.text(["a person lifts the box"] * 2, "cpu")
+    with torch.no_grad():
+        text, obj = run.model.encode_text(tt, pad), run.model.encode_object(torch.from_numpy(np.stack([pts, pts])))
+
+        def m(xx, tt_, keep):
+            n = xx.shape[0] // 2
+            return run.model(xx, tt_, keep, text.repeat(n, 1, 1), pad.repeat(n, 1), obj.repeat(n, 1, 1))
+        cond = m(x, t, torch.ones(2, dtype=torch.bool))
+        assert torch.allclose(GaussianDiffusion.guided(m, x, t, 1.0), cond, atol=1e-5)
+        assert not torch.allclose(GaussianDiffusion.guided(m, x, t, 2.0), cond, atol=1e-5)
+
+
+def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, template_store, tmp_path):
+    from hoibench.baselines.chainhoi.sample import StoreMismatch, sample
+    from hoibench.submission import validation_report
+    sub = sample(tiny_run[0], template_store, tmp_path / "sub", samples=2, steps=2, log=None)
+    rep = validation_report(sub, template_store)
+    assert rep.complete, [p for p in rep.problems][:3]
+    meta = json.loads((sub / "submission.json").read_text())
+    assert meta["source"]["checkpoint_id"] == tiny_run[1].checkpoint_id and meta["flags"]["samples_per_prompt"] == 2
+    other = tmp_path / "other"
+    shutil.copytree(template_store, other)
+    with np.load(other / "stats" / "hoi269.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["mean"] = arrays["mean"] + 0.5
+    np.savez(other / "stats" / "hoi269.npz", **arrays)
+    with pytest.raises(StoreMismatch, match="normalisation statistics"):
+        sample(tiny_run[0], other, tmp_path / "sub2", steps=2, log=None)
+
+
+def test_training_and_sampling_import_only_torch_numpy_safetensors(tiny_run, template_store, tmp_path):
+    code = f"""
+import sys
+for m in ("scipy", "open3d", "pyvista", "pymeshlab", "trimesh", "transformers", "sentence_transformers",
+          "matplotlib", "pandas", "smplx"):
+    sys.modules[m] = None
+from hoibench.baselines.chainhoi.sample import sample
+from hoibench.baselines.chainhoi.train import train
+from hoibench.baselines.chainhoi.config import preset
+cfg = preset("tiny").replace(**{{"train.steps": 1, "train.batch_size": 2, "train.max_frames": 16}})
+train({str(template_store)!r}, {str(tmp_path / 'r')!r}, cfg, log=None)
+sample({str(tiny_run[0])!r}, {str(template_store)!r}, {str(tmp_path / 's')!r}, steps=1, limit=1, log=None)
+print("ok")
+"""
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0 and "ok" in res.stdout, res.stderr[-2000:]
+
+
+def test_cli_train_sample_show_and_one_line_errors(template_store, tmp_path):
+    exe = [sys.executable, "-m", "hoibench.cli"]
+    run = tmp_path / "run0"
+    r = subprocess.run(exe + ["baseline", "train", "chainhoi", str(template_store), "--out", str(run), "--steps", "0"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run(exe + ["baseline", "show", str(run)], capture_output=True, text=True, timeout=120)
+    assert "verified" in r.stdout and "0 steps" in r.stdout
+    r = subprocess.run(exe + ["baseline", "sample", "chainhoi", str(run), "--data", str(template_store), "--out",
+                              str(tmp_path / "sub"), "--ddim-steps", "1"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "sub" / "submission.json").exists()
+    for args, needle in [(["baseline", "sample", "chainhoi", str(tmp_path), "--data", str(template_store), "--out",
+                           str(tmp_path / "x")], "not a baseline run folder"),
+                         (["baseline", "sample", "chainhoi", str(run), "--data", str(template_store), "--out",
+                           str(tmp_path / "x"), "--samples", "0"], "--samples"),
+                         (["baseline", "train", "chainhoi", str(template_store), "--out", str(run), "--steps", "3"],
+                          "already holds run"),
+                         (["baseline", "sample", "chainhoi", str(run), "--data", str(template_store), "--out",
+                           str(tmp_path / "x"), "--device", "cuda:0"], None)]:
+        r = subprocess.run(exe + args, capture_output=True, text=True, timeout=300)
+        if needle is None and torch.cuda.is_available():
+            continue
+        assert r.returncode == 2, (args, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("hoibench baseline: error:"), r.stderr
+        assert needle is None or needle in lines[0]
