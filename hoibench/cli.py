@@ -206,6 +206,7 @@ def _cmd_demo(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .baselines.registry import SPECS as BASELINES
     p = argparse.ArgumentParser(prog="hoibench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
@@ -352,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     bsub = s.add_subparsers(dest="action", required=True)
     b = bsub.add_parser("train", help="train a baseline on a store's train split")
-    b.add_argument("name", choices=["chainhoi"])
+    b.add_argument("name", choices=sorted(BASELINES))
     b.add_argument("data", type=Path)
     b.add_argument("--out", type=Path, required=True)
     b.add_argument("--config", choices=["tiny", "paper"], default="tiny")
@@ -364,7 +365,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--threads", type=int, default=None)
     b.set_defaults(func=_cmd_baseline)
     b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
-    b.add_argument("name", choices=["chainhoi", "mean-pose"])
+    b.add_argument("name", choices=sorted(BASELINES) + ["mean-pose"])
     b.add_argument("run", type=Path, nargs="?", default=None, help="run folder (chainhoi)")
     b.add_argument("--data", type=Path, required=True)
     b.add_argument("--out", type=Path, required=True)

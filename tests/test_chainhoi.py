@@ -11,14 +11,17 @@ import numpy as np
 import pytest
 import torch
 
-from hoibench.baselines.chainhoi import data as D
+from hoibench.baselines import joint_data as D
 from hoibench.baselines.chainhoi import graph
-from hoibench.baselines.chainhoi.config import ChainHOIConfig, preset
+from hoibench.baselines.chainhoi.config import preset
 from hoibench.baselines.chainhoi.model import ChainHOI, KinematicDecoderLayer, farthest_point_sample
-from hoibench.baselines.chainhoi.train import (TextConditioner, chainhoi_losses, interaction_positions, make_batch,
-                                               train, training_set)
+from hoibench.baselines.chainhoi.spec import losses as chainhoi_losses
 from hoibench.baselines.checkpoint import RunFolderError, verify_run
+from hoibench.baselines.config import RunConfig
 from hoibench.baselines.diffusion import GaussianDiffusion
+from hoibench.baselines.joint_losses import interaction_positions
+from hoibench.baselines.text import TextConditioner
+from hoibench.baselines.trainer import make_batch, train, training_set
 
 # ------------------------------------------------------------------ definitions, written out independently
 SMPL_BONES = {(0, 1), (0, 2), (0, 3), (1, 4), (2, 5), (3, 6), (4, 7), (5, 8), (6, 9), (7, 10), (8, 11), (9, 12),
@@ -29,7 +32,7 @@ CHAINS = [[0, 2, 5, 8, 11], [0, 1, 4, 7, 10], [0, 3, 6, 9, 12, 15], [9, 14, 17, 
           [0, 10, 11, 12, 16, 17, 20, 21, 23]]
 
 
-def small_config(**over) -> ChainHOIConfig:
+def small_config(**over) -> RunConfig:
     base = {"train.steps": 4, "train.batch_size": 4, "train.max_frames": 40, "train.checkpoint_every": 2,
             "train.log_every": 1, "model.object_points": 64, "model.object_knn": 8, "train.contact_points": 32}
     base.update(over)
@@ -192,7 +195,7 @@ def test_contact_loss_is_the_gated_squared_distance(template_store):
 @pytest.fixture(scope="module")
 def tiny_run(template_store, tmp_path_factory):
     out = tmp_path_factory.mktemp("chainhoi") / "run"
-    res = train(template_store, out, small_config(), log=None)
+    res = train("chainhoi", template_store, out, small_config(), log=None)
     return out, res
 
 
@@ -214,16 +217,16 @@ def test_run_folder_verifies_and_detects_edits(tiny_run, tmp_path):
 def test_resume_gives_the_uninterrupted_run(template_store, tiny_run, tmp_path):
     out, res = tiny_run
     part = tmp_path / "resumed"
-    train(template_store, part, small_config(), stop_after=2, log=None)
+    train("chainhoi", template_store, part, small_config(), stop_after=2, log=None)
     assert (part / "checkpoint" / "last.pt").exists() and not (part / "card.json").exists()
-    again = train(template_store, part, small_config(), log=None)
+    again = train("chainhoi", template_store, part, small_config(), log=None)
     assert again.resumed_from == 2
     assert again.checkpoint_id == res.checkpoint_id
-    assert train(template_store, part, small_config(), log=None).already_trained
+    assert train("chainhoi", template_store, part, small_config(), log=None).already_trained
 
 
 def test_sampling_is_deterministic_and_guidance_one_is_conditional(tiny_run, template_store):
-    from hoibench.baselines.chainhoi.sample import LoadedRun
+    from hoibench.baselines.sampler import LoadedRun
     from hoibench.store import Store
     run = LoadedRun(tiny_run[0])
     st = Store(template_store)
@@ -251,7 +254,7 @@ def test_sampling_is_deterministic_and_guidance_one_is_conditional(tiny_run, tem
 
 
 def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, template_store, tmp_path):
-    from hoibench.baselines.chainhoi.sample import StoreMismatch, sample
+    from hoibench.baselines.sampler import StoreMismatch, sample
     from hoibench.submission import validation_report
     sub = sample(tiny_run[0], template_store, tmp_path / "sub", samples=2, steps=2, log=None)
     rep = validation_report(sub, template_store)
@@ -274,11 +277,11 @@ import sys
 for m in ("scipy", "open3d", "pyvista", "pymeshlab", "trimesh", "transformers", "sentence_transformers",
           "matplotlib", "pandas", "smplx"):
     sys.modules[m] = None
-from hoibench.baselines.chainhoi.sample import sample
-from hoibench.baselines.chainhoi.train import train
+from hoibench.baselines.sampler import sample
+from hoibench.baselines.trainer import train
 from hoibench.baselines.chainhoi.config import preset
 cfg = preset("tiny").replace(**{{"train.steps": 1, "train.batch_size": 2, "train.max_frames": 16}})
-train({str(template_store)!r}, {str(tmp_path / 'r')!r}, cfg, log=None)
+train("chainhoi", {str(template_store)!r}, {str(tmp_path / 'r')!r}, cfg, log=None)
 sample({str(tiny_run[0])!r}, {str(template_store)!r}, {str(tmp_path / 's')!r}, steps=1, limit=1, log=None)
 print("ok")
 """

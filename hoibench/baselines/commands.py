@@ -11,8 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-TRAINABLE = ("chainhoi",)
-NAMES = ("chainhoi", "mean-pose")
+from .registry import SPECS
+
+TRAINABLE = tuple(SPECS)
+NAMES = TRAINABLE + ("mean-pose",)
 
 
 def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny", device: str = "cpu",
@@ -21,9 +23,9 @@ def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny
     if name not in TRAINABLE:
         raise ValueError(f"baseline {name!r} has nothing to train; `hoibench baseline sample {name} ...` uses the "
                          f"store's train statistics directly")
-    from .chainhoi.config import preset
-    from .chainhoi.train import train
-    cfg = preset(config)
+    from .registry import get_spec
+    from .trainer import train
+    cfg = get_spec(name).preset(config)
     over = {}
     if steps is not None:
         over["train.steps"] = steps
@@ -34,7 +36,7 @@ def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny
     if over:
         cfg = cfg.replace(**over)
     _check_device(device)
-    train(data, out, cfg, device=device, threads=threads)
+    train(name, data, out, cfg, device=device, threads=threads)
     return 0
 
 
@@ -53,9 +55,9 @@ def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | 
     if run is None:
         raise ValueError(f"baseline sample {name}: the RUN folder (from `hoibench baseline train {name}`) is required")
     _check_device(device)
-    from .chainhoi.sample import sample
+    from .sampler import sample
     sample(run, data, out, samples=samples, seed=seed, device=device, guidance=guidance, steps=ddim_steps,
-           as_zip=as_zip)
+           as_zip=as_zip, baseline=name)
     return 0
 
 

@@ -24,9 +24,11 @@ in the paper; 8 heads and kernel 3 with dilations (1, 2) are hoibench's choices.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass
 
-from ..diffusion import DiffusionConfig
+from ..config import RunConfig, TrainConfig
+
+ChainHOIConfig = RunConfig      # a RunConfig whose model is a chainhoi ModelConfig
 
 MASK_MODES = ("paper", "released")
 TEXT_ENCODERS = ("tokens", "minilm")
@@ -72,89 +74,12 @@ class ModelConfig:
             raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {self.text_encoder!r}")
 
 
-@dataclass(frozen=True)
-class TrainConfig:
-    steps: int = 50_000
-    batch_size: int = 32
-    lr: float = 1e-4
-    weight_decay: float = 0.01
-    max_frames: int = 196
-    min_frames: int = 8
-    ema_decay: float = 0.999
-    grad_clip: float = 1.0
-    lambda_contact: float = 2.0      # lambda_1, L_h
-    lambda_object: float = 1.0       # lambda_2, L_o
-    contact_points: int = 256        # GT object surface samples for L_h
-    checkpoint_every: int = 500
-    log_every: int = 50
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        for name in ("steps", "batch_size", "max_frames", "min_frames", "contact_points", "checkpoint_every",
-                     "log_every"):
-            v = getattr(self, name)
-            lo = 0 if name == "steps" else 1
-            if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= 10_000_000):
-                raise ValueError(f"train.{name}: expected an integer >= {lo}, got {v!r}")
-        if not 0 < self.lr < 1:
-            raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
-        if not 0 <= self.ema_decay < 1:
-            raise ValueError(f"train.ema_decay: expected [0, 1), got {self.ema_decay!r}")
-        if self.lambda_contact < 0 or self.lambda_object < 0:
-            raise ValueError("train.lambda_contact and train.lambda_object must be >= 0")
-
-
-@dataclass(frozen=True)
-class ChainHOIConfig:
-    name: str = "paper"
-    model: ModelConfig = field(default_factory=ModelConfig)
-    train: TrainConfig = field(default_factory=TrainConfig)
-    diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["model"]["temporal_dilations"] = list(self.model.temporal_dilations)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict, where: str = "config") -> "ChainHOIConfig":
-        if not isinstance(d, dict):
-            raise ValueError(f"{where}: expected an object")
-        parts = {}
-        for key, sub in (("model", ModelConfig), ("train", TrainConfig), ("diffusion", DiffusionConfig)):
-            block = d.get(key, {})
-            if not isinstance(block, dict):
-                raise ValueError(f"{where}.{key}: expected an object")
-            known = {f.name for f in fields(sub)}
-            unknown = sorted(set(block) - known)
-            if unknown:
-                raise ValueError(f"{where}.{key}: unknown field(s) {', '.join(unknown)}")
-            block = dict(block)
-            if "temporal_dilations" in block:
-                block["temporal_dilations"] = tuple(block["temporal_dilations"])
-            try:
-                parts[key] = sub(**block)
-            except TypeError as exc:
-                raise ValueError(f"{where}.{key}: {exc}") from None
-        return cls(name=str(d.get("name", "custom")), **parts)
-
-    def replace(self, **changes) -> "ChainHOIConfig":
-        """A copy with dotted overrides, e.g. ``replace(**{"train.steps": 10, "model.mask": "released"})``."""
-        d = self.to_dict()
-        for dotted, value in changes.items():
-            section, _, key = dotted.partition(".")
-            if section not in ("model", "train", "diffusion") or not key:
-                raise ValueError(f"override {dotted!r}: expected model.<field>, train.<field> or diffusion.<field>")
-            d[section][key] = value
-        return ChainHOIConfig.from_dict(d)
-
-
-def preset(name: str = "tiny") -> ChainHOIConfig:
+def preset(name: str = "tiny") -> RunConfig:
     """``paper`` (appendix B.1 sizes) or ``tiny`` (trains on the synthetic track on 2 CPU cores)."""
     if name == "paper":
-        return ChainHOIConfig(name="paper")
+        return RunConfig(name="paper", model=ModelConfig(), train=TrainConfig())
     if name == "tiny":
-        return ChainHOIConfig(
+        return RunConfig(
             name="tiny",
             model=ModelConfig(blocks=2, d_model=32, d_text=64, heads=4, object_points=256, object_knn=16,
                               text_encoder="tokens", dropout=0.0),

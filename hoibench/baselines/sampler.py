@@ -1,4 +1,4 @@
-"""Sampling a trained ChainHOI run into a standard submission (``hoibench baseline sample chainhoi``).
+"""Sampling a trained joint-level diffusion run into a standard submission (``hoibench baseline sample``).
 
 For each clip of the split (the test split by default): the condition is its first caption
 (``DATA/texts/<id>.txt``) and its object's centred template; ``K`` samples of the ground
@@ -22,16 +22,17 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ... import __version__
-from ...interrupts import check_interrupted
-from ...representations import hoi269, joint_level
-from ...store import Store
-from .. import checkpoint as ckpt
-from ..diffusion import GaussianDiffusion
-from . import data as D
-from .config import ChainHOIConfig
-from .model import ChainHOI
-from .train import BASELINE, TextConditioner, _seed
+from .. import __version__
+from ..interrupts import check_interrupted
+from ..representations import hoi269, joint_level
+from ..store import Store
+from . import checkpoint as ckpt
+from . import joint_data as D
+from .config import RunConfig
+from .diffusion import GaussianDiffusion
+from .registry import get_spec
+from .text import TextConditioner
+from .trainer import _seed
 
 
 class StoreMismatch(ckpt.RunFolderError):
@@ -41,12 +42,14 @@ class StoreMismatch(ckpt.RunFolderError):
 class LoadedRun:
     """A verified run: config, model (EMA weights, eval mode), statistics, text conditioner."""
 
-    def __init__(self, folder: str | Path, device: str = "cpu"):
+    def __init__(self, folder: str | Path, device: str = "cpu", baseline: str | None = None):
         from safetensors.torch import load as load_tensors
         self.folder = Path(folder)
-        self.card, data = ckpt.verify_run(self.folder, BASELINE)
+        self.card, data = ckpt.verify_run(self.folder, baseline)
         self.id = self.card[ckpt.ID_KEY]
-        self.config = ChainHOIConfig.from_dict(self.card["config"], f"{self.folder / ckpt.CARD}: config")
+        self.spec = get_spec(self.card["baseline"])
+        self.config = RunConfig.from_dict(self.card["config"], self.spec.model_config,
+                                          f"{self.folder / ckpt.CARD}: config")
         tensors = load_tensors(data)
         self.stats = D.JointStats(tensors.pop("stats.mean").numpy(), tensors.pop("stats.std").numpy())
         text_info = self.card.get("text", {})
@@ -56,7 +59,7 @@ class LoadedRun:
             raise ckpt.RunFolderError(f"{self.folder / ckpt.CARD}: field text.weights_sha256: the local sentence "
                                       f"encoder differs from the one this run was trained with")
         self.device = torch.device(device)
-        self.model = ChainHOI(self.config.model, vocab=len(vocab or []), text_width=self.text.width)
+        self.model = self.spec.build_model(self.config, len(vocab or []), self.text.width)
         state = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
         try:
             self.model.load_state_dict(state)
@@ -116,13 +119,14 @@ def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
 
 def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int = 1, seed: int = 0,
            split: str = "test", device: str = "cpu", guidance: float | None = None, steps: int | None = None,
-           as_zip: bool = False, limit: int | None = None,
+           as_zip: bool = False, limit: int | None = None, baseline: str | None = None,
            log: Callable[[str], None] | None = print) -> Path:
-    """Write a submission of ``samples`` (K) samples per clip of ``split`` to ``out``."""
+    """Write a submission of ``samples`` (K) samples per clip of ``split`` to ``out``
+    (``baseline``: refuse a run of another baseline)."""
     log = log or (lambda s: None)
     if not (isinstance(samples, int) and 1 <= samples <= 1000):
         raise ValueError(f"--samples: expected an integer in 1..1000, got {samples!r}")
-    loaded = LoadedRun(run, device)
+    loaded = LoadedRun(run, device, baseline)
     store = Store(data)
     loaded.check_store(store)
     ids = store.clip_ids(split)
@@ -130,16 +134,17 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
         ids = ids[:limit]
     if not ids:
         raise ValueError(f"{data}: split {split!r} has no clips")
-    from ...evaluator.text import read_captions
+    from ..evaluator.text import read_captions
     cfg = loaded.config
     scale = cfg.diffusion.guidance if guidance is None else float(guidance)
     n_steps = cfg.diffusion.ddim_steps if steps is None else int(steps)
     points_cache: dict[str, np.ndarray] = {}
-    meta = {"method": f"ChainHOI ({cfg.name}, hoibench reproduction)", "version": __version__, "url": "",
+    tag = f"[{loaded.spec.name}]"
+    meta = {"method": f"{loaded.spec.title} ({cfg.name}, hoibench reproduction)", "version": __version__, "url": "",
             "representation": store.manifest.get("representations", {}).get("hml263", ""),
             "fps": float(store.manifest["config"]["fps"]),
             "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"},
-            "source": {"baseline": BASELINE, "checkpoint_id": loaded.id, "config": cfg.name, "seed": seed,
+            "source": {"baseline": loaded.spec.name, "checkpoint_id": loaded.id, "config": cfg.name, "seed": seed,
                        "ddim_steps": n_steps, "guidance": scale, "caption": "first caption of each clip",
                        "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__}}
     t0 = time.perf_counter()
@@ -149,7 +154,8 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
             check_interrupted()
             clip = store.load(cid)
             if "object_name" not in clip:
-                raise ValueError(f"{data}: clip {cid}: field object_name missing: ChainHOI samples human-object clips")
+                raise ValueError(f"{data}: clip {cid}: field object_name missing: {loaded.spec.title} samples "
+                                 f"human-object clips")
             caps = read_captions(store.root, cid)
             if not caps:
                 raise ValueError(f"{store.root}/texts/{cid}.txt: missing or empty: no caption to condition on "
@@ -162,11 +168,11 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
             rows = loaded.generate(caps[0].text, points_cache[name], T, samples, (seed, "sample", cid),
                                    guidance=scale, steps=n_steps)
             el = time.perf_counter() - t0
-            log(f"[chainhoi] sampled {i + 1}/{len(ids)} {cid} (K={samples}, T={T}) {el:.1f} s")
+            log(f"{tag} sampled {i + 1}/{len(ids)} {cid} (K={samples}, T={T}) {el:.1f} s")
             yield cid, rows_to_sample(rows)
 
-    from ...submission import write_submission
+    from ..submission import write_submission
     path = write_submission(out, meta, gen(), as_zip=as_zip)
-    log(f"[chainhoi] wrote {path}: {len(ids)} clips x {samples} samples in {time.perf_counter() - t0:.1f} s "
+    log(f"{tag} wrote {path}: {len(ids)} clips x {samples} samples in {time.perf_counter() - t0:.1f} s "
         f"(AIT {(time.perf_counter() - t0) / (len(ids) * samples):.3f} s per sample)")
     return path

@@ -1,4 +1,4 @@
-"""Training and sampling inputs for ChainHOI, from a prepared store (numpy only).
+"""Training and sampling inputs of the joint-level diffusion baselines (ChainHOI, EJIM), from a prepared store (numpy only).
 
 - **Rows**: a clip's ``joint_level`` (T-1, 24, 12) (clean mode), normalised per (node,
   channel) with the train split's mean and std (:class:`JointStats`; channels with std
@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ... import skeleton as sk
-from ...store import Store
+from .. import skeleton as sk
+from ..store import Store
 
 INTERACTION_JOINTS: tuple[int, ...] = sk.OBJECT_NODE_NEIGHBOURS     # 0, 10, 11, 12, 16, 17, 20, 21
 _WORD = re.compile(r"[a-z]+")
@@ -119,7 +119,7 @@ def recentre_window(rows: np.ndarray, start: int, length: int) -> np.ndarray:
     """Rows ``[start, start + length)`` of a joint_level clip in the window's own canonical
     frame: yaw - yaw_a; root and object translation ``R_y(yaw_a) (p - root_a)`` in x, z (y
     unchanged); object rotation ``R_y(yaw_a) R``. Relative channels are frame-free."""
-    from ...geometry import axis_angle_to_matrix, matrix_to_axis_angle
+    from ..geometry import axis_angle_to_matrix, matrix_to_axis_angle
 
     w = np.array(rows[start:start + length], dtype=np.float64)
     if start == 0:
@@ -141,7 +141,7 @@ def recentre_window(rows: np.ndarray, start: int, length: int) -> np.ndarray:
 def clip_item(store: Store, cid: str, captions: list[str]) -> ClipItem:
     clip = store.load(cid)
     if "joint_level" not in clip or "obj_rot" not in clip:
-        raise ValueError(f"{store.root}: clip {cid}: ChainHOI needs a human-object clip (field joint_level with "
+        raise ValueError(f"{store.root}: clip {cid}: the joint-level baselines need a human-object clip (field joint_level with "
                          f"an object pose); this clip has no object")
     rows = clip["joint_level"]
     L = rows.shape[0]
@@ -154,7 +154,7 @@ def clip_item(store: Store, cid: str, captions: list[str]) -> ClipItem:
 
 def read_split(data: str | Path, split: str) -> tuple[Store, list[ClipItem], list[str]]:
     """(store, items with captions, ids without captions) of a split."""
-    from ...evaluator.text import read_captions
+    from ..evaluator.text import read_captions
     store = data if isinstance(data, Store) else Store(data)
     items, missing = [], []
     for cid in store.clip_ids(split):

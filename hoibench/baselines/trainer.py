@@ -1,22 +1,13 @@
-"""Training ChainHOI on a prepared store (``hoibench baseline train chainhoi``).
+"""Training a joint-level diffusion baseline on a prepared store (``hoibench baseline train``).
 
-Loss (ChainHOI eq. 8): ``L = L_diff + lambda_1 L_h + lambda_2 L_o`` with
+Shared by every :class:`~hoibench.baselines.registry.Spec` (ChainHOI, EJIM): the spec gives
+the model and its losses; this module draws batches, steps the optimiser, keeps the EMA of
+the weights, checkpoints, resumes and writes the run folder.
 
-- ``L_diff``: mean squared error of the x0 prediction over valid rows, nodes and channels
-  (normalised joint-level space);
-- ``L_h`` (eq. 6): for the eight interaction joints (0, 10, 11, 12, 16, 17, 20, 21), the squared
-  distance (m^2) from the predicted joint (absolute position recovered from the predicted
-  heading, root and relative position) to the nearest of ``contact_points`` samples of the GT
-  object surface (template posed by the GT object pose), gated by the GT contact label;
-  averaged over gated joint-rows (the paper sums; the mean keeps lambda_1 independent of
-  clip length and batch size);
-- ``L_o`` (eq. 7): squared error of the predicted object 6-DoF (axis-angle rad, translation
-  m) against the GT, averaged over valid rows.
-
-Every step draws its batch, crops, captions, timesteps, noise and condition drops from
-generators seeded by ``(seed, step)``, so a resumed run equals an uninterrupted one.
-Checkpoints (``RUN/checkpoint/last.pt``) are written atomically every ``checkpoint_every``
-steps; the final folder holds the EMA weights.
+Every step draws its batch, windows, captions, timesteps, noise and condition drops from
+generators seeded by ``(seed, step)``, and reseeds dropout, so a resumed run equals an
+uninterrupted one (same checkpoint id). Checkpoints (``RUN/checkpoint/last.pt``) are written
+atomically every ``checkpoint_every`` steps; the final folder holds the EMA weights.
 """
 from __future__ import annotations
 
@@ -30,111 +21,25 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ... import __version__
-from ...geometry import axis_angle_to_matrix
-from ...interrupts import check_interrupted
-from ...io import atomic_write_bytes, atomic_write_json, clean_stale_tmp
-from ...store import Store
-from .. import checkpoint as ckpt
-from ..diffusion import EMA, GaussianDiffusion, drop_condition, masked_mse
-from . import data as D
-from .config import ChainHOIConfig, preset
-from .model import ChainHOI
+from .. import __version__
+from ..errors import HoibenchError
+from ..interrupts import check_interrupted
+from ..io import atomic_write_bytes, atomic_write_json, clean_stale_tmp
+from ..store import Store
+from . import checkpoint as ckpt
+from . import joint_data as D
+from .config import RunConfig
+from .diffusion import EMA, GaussianDiffusion
+from .registry import Spec, get_spec
+from .text import TextConditioner
 
-BASELINE = "chainhoi"
+
+class TrainingDiverged(HoibenchError, FloatingPointError):
+    """A loss became NaN or infinite (the checkpoint before it is kept)."""
 
 
 def _seed(*parts) -> int:
     return int.from_bytes(hashlib.sha256(repr(parts).encode()).digest()[:8], "little") & ((1 << 63) - 1)
-
-
-# ------------------------------------------------------------------------------ text condition
-class TextConditioner:
-    """Captions -> (text input, pad) for :meth:`ChainHOI.encode_text`: word ids for the
-    ``tokens`` encoder; frozen sentence-encoder token states for ``minilm`` (cached)."""
-
-    def __init__(self, encoder: str, max_tokens: int, vocab: list[str] | None = None):
-        self.encoder, self.max_tokens, self.vocab = encoder, max_tokens, vocab
-        self._tok = self._net = None
-        self.width = 0
-        self.weights_sha256 = ""
-        if encoder == "minilm":
-            from ...evaluator.text import load_pretrained, packaged_minilm_path, weights_sha256
-            folder = packaged_minilm_path()
-            self._tok, self._net = load_pretrained(folder)
-            self._net.eval()
-            self.width = int(self._net.config.hidden_size)
-            self.weights_sha256 = weights_sha256(folder)
-
-    def describe(self) -> dict:
-        if self.encoder == "tokens":
-            return {"encoder": "tokens", "vocab": list(self.vocab or [])}
-        return {"encoder": "minilm", "width": self.width, "weights_sha256": self.weights_sha256}
-
-    def __call__(self, texts: list[str], device) -> tuple[torch.Tensor, torch.Tensor]:
-        if self.encoder == "tokens":
-            ids, pad = D.tokenize(texts, self.vocab, self.max_tokens)
-            return torch.from_numpy(ids).to(device), torch.from_numpy(pad).to(device)
-        with torch.no_grad():
-            b = self._tok(list(texts), padding=True, truncation=True, max_length=self.max_tokens, return_tensors="pt")
-            states = self._net(**{k: v for k, v in b.items()
-                                  if k in ("input_ids", "attention_mask", "token_type_ids")}).last_hidden_state
-        return states.float().to(device), (b["attention_mask"] == 0).to(device)
-
-
-# ------------------------------------------------------------------------------ geometry in torch
-def interaction_positions(rows: torch.Tensor) -> torch.Tensor:
-    """(B, L, 8, 3) absolute positions (canonical frame, m) of the interaction joints from raw
-    joint-level rows (B, L, 24, 12): ``p = R_y(yaw)^T ric + (root_x, 0, root_z)``; the pelvis
-    is the root itself."""
-    yaw = rows[..., 0, 7]
-    root = rows[..., 0, 8:11]
-    c, s = torch.cos(yaw)[..., None], torch.sin(yaw)[..., None]
-    idx = list(D.INTERACTION_JOINTS[1:])
-    ric = rows[..., idx, 0:3]
-    x = c * ric[..., 0] - s * ric[..., 2] + root[..., None, 0]
-    z = s * ric[..., 0] + c * ric[..., 2] + root[..., None, 2]
-    others = torch.stack([x, ric[..., 1], z], -1)
-    return torch.cat([root[..., None, :], others], -2)
-
-
-def posed_points(rows: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
-    """(B, L, P, 3): object surface points (B, P, 3) posed by the object node of raw rows."""
-    R = axis_angle_to_matrix(rows[..., 23, 0:3])                 # (B, L, 3, 3)
-    t = rows[..., 23, 3:6]
-    return torch.einsum("blij,bpj->blpi", R, points) + t[..., None, :]
-
-
-def chainhoi_losses(model: ChainHOI, diffusion: GaussianDiffusion, batch: dict, cfg: ChainHOIConfig,
-                    mean: torch.Tensor, std: torch.Tensor, generator: torch.Generator) -> dict[str, torch.Tensor]:
-    """The three losses and their weighted sum on one batch (see the module docstring)."""
-    x0 = batch["x0"]
-    B = x0.shape[0]
-    dev = x0.device
-    t = diffusion.sample_timesteps(B, generator).to(dev)
-    noise = torch.randn(x0.shape, generator=generator).to(dev)
-    keep = drop_condition(B, cfg.diffusion.cond_drop, generator).to(dev)
-    xt = diffusion.q_sample(x0, t, noise)
-    text = model.encode_text(batch["text"], batch["text_pad"])
-    obj = model.encode_object(batch["points"])
-    pred = model(xt, t, keep, text, batch["text_pad"], obj, batch["valid"])
-    valid = batch["valid"]
-    l_diff = masked_mse(pred, x0, valid)
-    raw_pred = pred * std + mean
-    raw_gt = x0 * std + mean
-    gate = batch["contacts"] & valid[..., None]                           # (B, L, 8)
-    if cfg.train.lambda_contact > 0 and bool(gate.any()):
-        joints = interaction_positions(raw_pred)                          # (B, L, 8, 3)
-        surf = posed_points(raw_gt, batch["contact_points"])              # (B, L, P, 3)
-        B_, L_ = joints.shape[:2]
-        d2 = torch.cdist(joints.reshape(B_ * L_, -1, 3), surf.reshape(B_ * L_, -1, 3)).min(-1).values
-        d2 = d2.reshape(B_, L_, -1) ** 2
-        l_h = (d2 * gate).sum() / gate.sum()
-    else:
-        l_h = pred.sum() * 0.0
-    l_o = masked_mse(raw_pred[..., 23, 0:6], raw_gt[..., 23, 0:6], valid)
-    total = l_diff + cfg.train.lambda_contact * l_h + cfg.train.lambda_object * l_o
-    return {"loss": total, "diffusion": l_diff, "contact": l_h, "object": l_o}
 
 
 # ------------------------------------------------------------------------------ data
@@ -149,7 +54,7 @@ class TrainingSet:
     missing_texts: list[str]
 
 
-def training_set(data: str | Path, cfg: ChainHOIConfig) -> TrainingSet:
+def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
     store, items, missing = D.read_split(data, "train")
     items = [it for it in items if len(it.rows) >= cfg.train.min_frames]
     if not items:
@@ -162,7 +67,7 @@ def training_set(data: str | Path, cfg: ChainHOIConfig) -> TrainingSet:
                        D.object_points(store, names, cfg.train.contact_points), vocab, missing)
 
 
-def make_batch(ts: TrainingSet, cfg: ChainHOIConfig, step: int, text: TextConditioner, device) -> dict:
+def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner, device) -> dict:
     """The batch of ``step``: clips, windows and captions drawn from ``(seed, step)``."""
     rng = np.random.default_rng(_seed(cfg.train.seed, "batch", step))
     B, W = cfg.train.batch_size, cfg.train.max_frames
@@ -190,9 +95,9 @@ def make_batch(ts: TrainingSet, cfg: ChainHOIConfig, step: int, text: TextCondit
             "points": f(np.stack(pts)), "contact_points": f(np.stack(cpts))}
 
 
-def build_model(cfg: ChainHOIConfig, text: TextConditioner, seed: int) -> ChainHOI:
+def build_model(spec: Spec, cfg: RunConfig, text: TextConditioner, seed: int):
     torch.manual_seed(_seed(seed, "init"))
-    return ChainHOI(cfg.model, vocab=len(text.vocab or []), text_width=text.width)
+    return spec.build_model(cfg, len(text.vocab or []), text.width)
 
 
 # ------------------------------------------------------------------------------ training
@@ -206,7 +111,7 @@ class TrainResult:
     already_trained: bool = False
 
 
-def _identity(cfg: ChainHOIConfig, store: Store, ts: TrainingSet) -> dict:
+def _identity(cfg: RunConfig, store: Store, ts: TrainingSet) -> dict:
     return {"config": json.dumps(cfg.to_dict(), sort_keys=True), "store": _manifest_sha(store),
             "stats": ts.stats.sha256()}
 
@@ -232,10 +137,11 @@ def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
     import io
 
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 4, figsize=(14, 3.2))
+    keys = [k for k in curve[0] if k != "step"]
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.5 * len(keys), 3.2))
     steps = [c["step"] for c in curve]
-    for ax, key in zip(axes, ("loss", "diffusion", "contact", "object")):
-        ax.plot(steps, [c[key] for c in curve], lw=1.3)
+    for ax, key in zip(axes, keys):
+        ax.plot(steps, [max(c[key], 1e-12) for c in curve], lw=1.3)
         ax.set_title(key if key != "loss" else "total loss", fontsize=10)
         ax.set_xlabel("step")
         ax.set_yscale("log")
@@ -279,7 +185,7 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
     return step, curve
 
 
-def _existing(out: Path, cfg: ChainHOIConfig, msha: str) -> dict | None:
+def _existing(out: Path, spec: Spec, cfg: RunConfig, msha: str) -> dict | None:
     if not out.exists():
         return None
     if not out.is_dir():
@@ -292,24 +198,26 @@ def _existing(out: Path, cfg: ChainHOIConfig, msha: str) -> dict | None:
                                       f"choose another --out")
         return None
     card, _ = ckpt.verify_run(out)
-    if card.get("baseline") == BASELINE and card.get("config") == cfg.to_dict() \
+    if card.get("baseline") == spec.name and card.get("config") == cfg.to_dict() \
             and card.get("dataset", {}).get("manifest_sha256") == msha:
         return card
     raise ckpt.RunFolderError(f"{out}: already holds run {card.get(ckpt.ID_KEY, '?')[:12]} of another config or store; "
                               f"choose another --out or delete the folder")
 
 
-def train(data: str | Path, out: str | Path, config: ChainHOIConfig | str = "tiny", *, device: str = "cpu",
-          resume: bool = True, stop_after: int | None = None, threads: int | None = None,
+def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | str = "tiny", *,
+          device: str = "cpu", resume: bool = True, stop_after: int | None = None, threads: int | None = None,
           log: Callable[[str], None] | None = print) -> TrainResult:
-    """Train ChainHOI on ``data``'s train split into the run folder ``out``.
+    """Train ``baseline`` (``chainhoi``, ``ejim``) on ``data``'s train split into the run folder ``out``.
 
-    ``config``: a :class:`ChainHOIConfig` or a preset name (``tiny``, ``paper``). ``resume``:
+    ``config``: a :class:`RunConfig` or a preset name (``tiny``, ``paper``). ``resume``:
     continue from ``OUT/checkpoint/last.pt``. ``stop_after``: stop after this many steps with
     the checkpoint written and no final folder (an interruption, for tests). ``steps = 0``
     writes the untrained model (the "untrained" reference row).
     """
-    cfg = preset(config) if isinstance(config, str) else config
+    spec = get_spec(baseline)
+    cfg = spec.preset(config) if isinstance(config, str) else config
+    tag = f"[{spec.name}]"
     log = log or (lambda s: None)
     out = Path(out)
     dev = torch.device(device)
@@ -318,29 +226,29 @@ def train(data: str | Path, out: str | Path, config: ChainHOIConfig | str = "tin
     t0 = time.perf_counter()
     ts = training_set(data, cfg)
     msha = _manifest_sha(ts.store)
-    done = _existing(out, cfg, msha)
+    done = _existing(out, spec, cfg, msha)
     if done is not None:
-        log(f"[chainhoi] {out} already holds this run ({done[ckpt.ID_KEY][:12]}); nothing to do")
+        log(f"{tag} {out} already holds this run ({done[ckpt.ID_KEY][:12]}); nothing to do")
         return TrainResult(out, done[ckpt.ID_KEY], done, 0.0, already_trained=True)
     out.mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(out)
     clean_stale_tmp(out / ckpt.CHECKPOINT_DIR)
     text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, ts.vocab)
-    model = build_model(cfg, text, cfg.train.seed).to(dev)
+    model = build_model(spec, cfg, text, cfg.train.seed).to(dev)
     ema = EMA(model, cfg.train.ema_decay)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
     diffusion = GaussianDiffusion(cfg.diffusion)
     mean = torch.from_numpy(ts.stats.mean).to(dev)
     std = torch.from_numpy(ts.stats.std).to(dev)
-    ident = _identity(cfg, ts.store, ts)
+    ident = {**_identity(cfg, ts.store, ts), "baseline": spec.name}
     cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
     step, curve = 0, []
     if resume and cpath.exists():
         step, curve = _load_checkpoint(cpath, ident, cfg.train.steps, model, ema, opt, dev)
-        log(f"[chainhoi] resuming at step {step}/{cfg.train.steps}")
+        log(f"{tag} resuming at step {step}/{cfg.train.steps}")
     start = step
     n_params = sum(p.numel() for p in model.parameters())
-    log(f"[chainhoi] training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
+    log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
         f"{cfg.train.steps} steps of {cfg.train.batch_size}, device {dev}")
     window: dict[str, list[float]] = {}
     tl = time.perf_counter()
@@ -350,10 +258,10 @@ def train(data: str | Path, out: str | Path, config: ChainHOIConfig | str = "tin
         torch.manual_seed(_seed(cfg.train.seed, "dropout", step))
         gen = torch.Generator().manual_seed(_seed(cfg.train.seed, "noise", step))
         batch = make_batch(ts, cfg, step, text, dev)
-        losses = chainhoi_losses(model, diffusion, batch, cfg, mean, std, gen)
+        losses = spec.losses(model, diffusion, batch, cfg, mean, std, gen)
         if not torch.isfinite(losses["loss"]):
-            raise FloatingPointError(f"[chainhoi] step {step}: non-finite loss ({ {k: float(v) for k, v in losses.items()} }); "
-                                     f"lower train.lr")
+            raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
+                                   f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
         opt.zero_grad(set_to_none=True)
         losses["loss"].backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
@@ -367,15 +275,15 @@ def train(data: str | Path, out: str | Path, config: ChainHOIConfig | str = "tin
             curve.append(row)
             window = {}
             rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
-            log(f"[chainhoi] step {step}/{cfg.train.steps} loss {row['loss']:.4f} (diffusion {row['diffusion']:.4f} "
-                f"contact {row['contact']:.5f} object {row['object']:.4f}) {rate:.2f} steps/s")
+            parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
+            log(f"{tag} step {step}/{cfg.train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
         if step % cfg.train.checkpoint_every == 0 or step == cfg.train.steps:
             _save_checkpoint(cpath, step, curve, model, ema, opt, ident)
         if stop_after is not None and step - start >= stop_after and step < cfg.train.steps:
             return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
     state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
     state.update({k: torch.from_numpy(v) for k, v in ts.stats.tensors().items()})
-    card = {"baseline": BASELINE, "config": cfg.to_dict(), "dataset": _store_block(ts.store, ts),
+    card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": _store_block(ts.store, ts),
             "text": text.describe(), "curve": curve,
             "summary": {"steps": cfg.train.steps, "parameters": n_params,
                         "final_loss": curve[-1]["loss"] if curve else None},
@@ -384,10 +292,10 @@ def train(data: str | Path, out: str | Path, config: ChainHOIConfig | str = "tin
     seconds = time.perf_counter() - t0
     if curve:
         try:
-            _plot_curve(curve, out / ckpt.CURVE_PNG, f"ChainHOI {cfg.name} on {ts.store.manifest.get('dataset', '')} "
+            _plot_curve(curve, out / ckpt.CURVE_PNG, f"{spec.title} {cfg.name} on {ts.store.manifest.get('dataset', '')} "
                                                      f"({cid[:12]})")
         except ImportError:              # a GPU machine with only torch, numpy and safetensors
-            log(f"[chainhoi] matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
+            log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev), "resumed_from": start,
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
@@ -398,5 +306,5 @@ def train(data: str | Path, out: str | Path, config: ChainHOIConfig | str = "tin
         except OSError:
             pass
     card = json.loads((out / ckpt.CARD).read_text())
-    log(f"[chainhoi] wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
+    log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
     return TrainResult(out, cid, card, seconds, resumed_from=start)

@@ -1,0 +1,104 @@
+"""Average inference time per sample (AIT) of the diffusion baselines, 50 DDIM steps.
+
+AIT as ChainHOI's Table 1 measures it: wall-clock seconds to generate one sample (text and
+object encoding, 50 DDIM steps with classifier-free guidance, i.e. two network passes per
+step, de-normalisation and decoding to joints), averaged over ``--samples`` samples after
+one warm-up sample. Weights are random (AIT does not depend on them).
+
+    python benchmarks/baselines.py                       # tiny and paper, CPU, T = 120 frames
+    python benchmarks/baselines.py --device cuda --samples 20
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+import torch
+
+from hoibench.baselines import joint_data as D
+from hoibench.baselines.chainhoi.config import preset
+from hoibench.baselines.chainhoi.model import ChainHOI
+from hoibench.baselines.sampler import rows_to_sample
+from hoibench.baselines.text import TextConditioner
+from hoibench.baselines.diffusion import GaussianDiffusion
+
+CAPTION = "a person lifts the big box with both hands and puts it down"
+
+
+def chainhoi_sampler(size: str, device: torch.device):
+    cfg = preset(size)
+    vocab = D.build_vocab([CAPTION])
+    text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, vocab)
+    torch.manual_seed(0)
+    model = ChainHOI(cfg.model, vocab=len(vocab), text_width=text.width).to(device).eval()
+    diffusion = GaussianDiffusion(cfg.diffusion)
+    stats = D.JointStats(np.zeros((24, 12), np.float32), np.ones((24, 12), np.float32))
+    verts = np.array([[0, 0, 0], [0.4, 0, 0], [0, 0.4, 0], [0, 0, 0.4]], float)
+    faces = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+    points = D.surface_points(verts, faces, cfg.model.object_points, "box")
+
+    @torch.no_grad()
+    def one(length: int, seed: int) -> None:
+        tt, pad = text([CAPTION], device)
+        tokens = model.encode_text(tt, pad)
+        obj = model.encode_object(torch.from_numpy(points[None]).to(device))
+
+        def x0(x, t, keep):
+            n = x.shape[0]
+            return model(x, t, keep, tokens.expand(n, -1, -1), pad.expand(n, -1), obj.expand(n, -1, -1))
+
+        out = diffusion.ddim_sample(x0, (1, length, 24, 12), generator=torch.Generator().manual_seed(seed),
+                                    device=device)
+        if device.type == "cuda":
+            torch.cuda.synchronize()
+        rows_to_sample(stats.denormalize(out.float().cpu().numpy()))
+
+    params = sum(p.numel() for p in model.parameters())
+    return one, params
+
+
+SAMPLERS = {"chainhoi": chainhoi_sampler}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--models", nargs="+", default=list(SAMPLERS))
+    ap.add_argument("--sizes", nargs="+", default=["tiny", "paper"])
+    ap.add_argument("--frames", type=int, default=120, help="sample length (frames); BEHAVE clips average ~6 s")
+    ap.add_argument("--samples", type=int, default=3)
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--threads", type=int, default=None)
+    args = ap.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    dev = torch.device(args.device)
+    print(f"# AIT, 50 DDIM steps with guidance, T = {args.frames}, device {dev}, torch {torch.__version__}, "
+          f"{torch.get_num_threads()} threads, {platform.processor() or platform.machine()}, "
+          f"load {os.getloadavg()[0]:.2f}")
+    print("| model | size | parameters (M) | AIT (s/sample) | samples |")
+    print("|---|---|---:|---:|---:|")
+    rows = {}
+    for name in args.models:
+        for size in args.sizes:
+            one, params = SAMPLERS[name](size, dev)
+            one(args.frames, 999)                            # warm-up
+            t0 = time.perf_counter()
+            for s in range(args.samples):
+                one(args.frames, s)
+            ait = (time.perf_counter() - t0) / args.samples
+            rows[(name, size)] = ait
+            print(f"| {name} | {size} | {params / 1e6:.2f} | {ait:.3f} | {args.samples} |", flush=True)
+    names = sorted({n for n, _ in rows})
+    if len(names) > 1:
+        for size in args.sizes:
+            base = rows.get((names[0], size))
+            for n in names[1:]:
+                if base and (n, size) in rows:
+                    print(f"ratio {n}/{names[0]} ({size}): {rows[(n, size)] / base:.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,44 @@
+"""What makes ChainHOI ChainHOI for the shared trainer and sampler: model and losses.
+
+Loss (ChainHOI eq. 8): ``L = L_diff + lambda_1 L_h + lambda_2 L_o`` (lambda_1 = 2, lambda_2 = 1);
+:mod:`hoibench.baselines.joint_losses` defines the terms.
+"""
+from __future__ import annotations
+
+import torch
+
+from ..diffusion import GaussianDiffusion, drop_condition, masked_mse
+from ..joint_losses import contact_loss, object_loss
+from .config import ModelConfig, preset  # noqa: F401  (the spec's preset and model config)
+from .model import ChainHOI
+
+
+def build_model(cfg, vocab: int, text_width: int) -> ChainHOI:
+    return ChainHOI(cfg.model, vocab=vocab, text_width=text_width)
+
+
+def denoise(model, diffusion: GaussianDiffusion, batch: dict, cfg, generator: torch.Generator):
+    """(x0 prediction, clean x0) for a batch: random timesteps, noise and condition drops."""
+    x0 = batch["x0"]
+    B = x0.shape[0]
+    dev = x0.device
+    t = diffusion.sample_timesteps(B, generator).to(dev)
+    noise = torch.randn(x0.shape, generator=generator).to(dev)
+    keep = drop_condition(B, cfg.diffusion.cond_drop, generator).to(dev)
+    xt = diffusion.q_sample(x0, t, noise)
+    text = model.encode_text(batch["text"], batch["text_pad"])
+    obj = model.encode_object(batch["points"])
+    return model(xt, t, keep, text, batch["text_pad"], obj, batch["valid"]), x0
+
+
+def losses(model, diffusion: GaussianDiffusion, batch: dict, cfg, mean: torch.Tensor, std: torch.Tensor,
+           generator: torch.Generator) -> dict[str, torch.Tensor]:
+    pred, x0 = denoise(model, diffusion, batch, cfg, generator)
+    valid = batch["valid"]
+    l_diff = masked_mse(pred, x0, valid)
+    raw_pred, raw_gt = pred * std + mean, x0 * std + mean
+    l_h = contact_loss(raw_pred, raw_gt, batch["contacts"], valid, batch["contact_points"]) \
+        if cfg.train.lambda_contact > 0 else pred.sum() * 0.0
+    l_o = object_loss(raw_pred, raw_gt, valid)
+    total = l_diff + cfg.train.lambda_contact * l_h + cfg.train.lambda_object * l_o
+    return {"loss": total, "diffusion": l_diff, "contact": l_h, "object": l_o}

@@ -1,0 +1,98 @@
+"""Configuration shared by the joint-level diffusion baselines: training recipe and run config.
+
+A run config is ``name`` + a baseline's model config + :class:`TrainConfig` +
+:class:`~hoibench.baselines.diffusion.DiffusionConfig`; it round-trips through the JSON of a
+run card (:meth:`RunConfig.to_dict`, :meth:`RunConfig.from_dict`), and unknown or
+out-of-range fields are refused naming the field.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, is_dataclass
+
+from .diffusion import DiffusionConfig
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    steps: int = 50_000
+    batch_size: int = 32
+    lr: float = 1e-4
+    weight_decay: float = 0.01
+    max_frames: int = 196
+    min_frames: int = 8
+    ema_decay: float = 0.999
+    grad_clip: float = 1.0
+    lambda_contact: float = 2.0      # ChainHOI lambda_1 (L_h); 0 for EJIM
+    lambda_object: float = 1.0       # ChainHOI lambda_2 / EJIM lambda_o (L_o)
+    lambda_smooth: float = 0.0       # EJIM lambda_s (L_smooth); 0 for ChainHOI
+    contact_points: int = 256        # GT object surface samples for L_h
+    checkpoint_every: int = 500
+    log_every: int = 50
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "batch_size", "max_frames", "min_frames", "contact_points", "checkpoint_every",
+                     "log_every"):
+            v = getattr(self, name)
+            lo = 0 if name == "steps" else 1
+            if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= 10_000_000):
+                raise ValueError(f"train.{name}: expected an integer >= {lo}, got {v!r}")
+        if not 0 < self.lr < 1:
+            raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
+        if not 0 <= self.ema_decay < 1:
+            raise ValueError(f"train.ema_decay: expected [0, 1), got {self.ema_decay!r}")
+        for name in ("lambda_contact", "lambda_object", "lambda_smooth"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"train.{name}: expected >= 0, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    name: str
+    model: object                   # the baseline's frozen model-config dataclass
+    train: TrainConfig = field(default_factory=TrainConfig)
+    diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
+
+    def __post_init__(self) -> None:
+        if not is_dataclass(self.model):
+            raise ValueError(f"config.model: expected a model config dataclass, got {type(self.model).__name__}")
+
+    def to_dict(self) -> dict:
+        d = {"name": self.name, "model": asdict(self.model), "train": asdict(self.train),
+             "diffusion": asdict(self.diffusion)}
+        for k, v in d["model"].items():
+            if isinstance(v, tuple):
+                d["model"][k] = list(v)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, model_cls: type, where: str = "config") -> "RunConfig":
+        if not isinstance(d, dict):
+            raise ValueError(f"{where}: expected an object")
+        parts = {}
+        for key, sub in (("model", model_cls), ("train", TrainConfig), ("diffusion", DiffusionConfig)):
+            block = d.get(key, {})
+            if not isinstance(block, dict):
+                raise ValueError(f"{where}.{key}: expected an object")
+            known = {f.name: f for f in fields(sub)}
+            unknown = sorted(set(block) - set(known))
+            if unknown:
+                raise ValueError(f"{where}.{key}: unknown field(s) {', '.join(unknown)}")
+            block = {k: tuple(v) if isinstance(v, list) else v for k, v in block.items()}
+            try:
+                parts[key] = sub(**block)
+            except TypeError as exc:
+                raise ValueError(f"{where}.{key}: {exc}") from None
+        return cls(name=str(d.get("name", "custom")), **parts)
+
+    def replace(self, **changes) -> "RunConfig":
+        """A copy with dotted overrides, e.g. ``replace(**{"train.steps": 10, "model.mask": "released"})``."""
+        d = self.to_dict()
+        for dotted, value in changes.items():
+            section, _, key = dotted.partition(".")
+            if section not in ("model", "train", "diffusion") or not key:
+                raise ValueError(f"override {dotted!r}: expected model.<field>, train.<field> or diffusion.<field>")
+            if key not in d[section]:
+                raise ValueError(f"override {dotted!r}: unknown field {key!r} of {section}")
+            d[section][key] = value
+        return RunConfig.from_dict(d, type(self.model))
