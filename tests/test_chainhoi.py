@@ -14,7 +14,8 @@ import torch
 from hoibench.baselines import joint_data as D
 from hoibench.baselines.chainhoi import graph
 from hoibench.baselines.chainhoi.config import preset
-from hoibench.baselines.chainhoi.model import ChainHOI, KinematicDecoderLayer, farthest_point_sample
+from hoibench.baselines.chainhoi.model import ChainHOI, KinematicDecoderLayer
+from hoibench.baselines.layers import farthest_point_sample
 from hoibench.baselines.chainhoi.spec import losses as chainhoi_losses
 from hoibench.baselines.checkpoint import RunFolderError, verify_run
 from hoibench.baselines.config import RunConfig

@@ -39,6 +39,7 @@ class Spec:
 
 SPECS: dict[str, Spec] = {
     "chainhoi": Spec("chainhoi", "ChainHOI", "chainhoi.spec"),
+    "ejim": Spec("ejim", "EJIM", "ejim.spec"),
 }
 
 

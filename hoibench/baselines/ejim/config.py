@@ -1,0 +1,82 @@
+"""EJIM configurations: ``paper`` (the sizes the paper gives) and ``tiny`` (CPU minutes).
+
+=================  ======  ======  ===========================================================
+field              paper   tiny    meaning
+=================  ======  ======  ===========================================================
+modules            6       2       Joint-level Interaction Modules (DHM, DIB, DCI, DIB)
+d_model            128     16      token width
+d_state            16      4       SSM state size (paper: not given; Mamba-1 default)
+expand             2       1       Mamba inner width = expand x d_model (Mamba-1 default)
+d_conv             4       4       depthwise causal convolution width (Mamba-1 default)
+mask_k             3       3       joints masked per module (progressive masking)
+heads              1       1       DIB attention heads (eq. 4 is single-head)
+text_encoder       minilm  tokens  frozen sentence-encoder states, or trainable word tokens
+object_points      512     256     surface samples for the point encoder (16 tokens)
+=================  ======  ======  ===========================================================
+
+Training (both): losses ``L_diff + 1 L_obj + 0.5 L_smooth`` (EJIM Tab. VII's adopted row),
+no contact term; paper AdamW, batch 32, lr 1e-4; tiny batch 8, lr 1e-3, 1,500 steps. The tiny
+sizes are what fits 15 minutes on 2 CPU cores: every Mamba scan materialises
+(sequences, frames, inner width, state) tensors, 23 joint sequences per clip.
+Diffusion: the shared core (T = 1000, linear betas 1e-4..0.02, x0, DDIM 50, guidance 2,
+text dropped with probability 0.2).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..config import RunConfig, TrainConfig
+
+TEXT_ENCODERS = ("tokens", "minilm")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    modules: int = 6
+    d_model: int = 128
+    d_state: int = 16
+    expand: int = 2
+    d_conv: int = 4
+    mask_k: int = 3
+    heads: int = 1
+    dropout: float = 0.1
+    object_points: int = 512
+    object_tokens: int = 16
+    object_knn: int = 32
+    text_encoder: str = "minilm"
+    text_max_tokens: int = 32
+    text_layers: int = 1
+
+    def __post_init__(self) -> None:
+        for name in ("modules", "d_model", "d_state", "expand", "d_conv", "heads", "object_points",
+                     "object_tokens", "object_knn", "text_max_tokens", "text_layers"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000):
+                raise ValueError(f"model.{name}: expected an integer in [1, 100000], got {v!r}")
+        if not (isinstance(self.mask_k, int) and 0 <= self.mask_k <= 22):
+            raise ValueError(f"model.mask_k: expected an integer in [0, 22], got {self.mask_k!r}")
+        if self.d_model % self.heads:
+            raise ValueError(f"model.d_model ({self.d_model}) must be divisible by model.heads ({self.heads})")
+        if self.object_tokens > self.object_points or self.object_knn > self.object_points:
+            raise ValueError("model.object_tokens and model.object_knn must not exceed model.object_points")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"model.dropout: expected [0, 1), got {self.dropout!r}")
+        if self.text_encoder not in TEXT_ENCODERS:
+            raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {self.text_encoder!r}")
+
+
+def preset(name: str = "tiny") -> RunConfig:
+    """``paper`` or ``tiny`` (trains on the synthetic track on 2 CPU cores)."""
+    paper_train = TrainConfig(steps=50_000, batch_size=32, lr=1e-4, lambda_contact=0.0, lambda_object=1.0,
+                              lambda_smooth=0.5)
+    if name == "paper":
+        return RunConfig(name="paper", model=ModelConfig(), train=paper_train)
+    if name == "tiny":
+        return RunConfig(
+            name="tiny",
+            model=ModelConfig(modules=2, d_model=16, d_state=4, expand=1, object_points=256, object_knn=16,
+                              text_encoder="tokens", dropout=0.0),
+            train=TrainConfig(steps=1500, batch_size=8, lr=1e-3, max_frames=96, ema_decay=0.99,
+                              lambda_contact=0.0, lambda_object=1.0, lambda_smooth=0.5, checkpoint_every=250,
+                              log_every=50))
+    raise ValueError(f"unknown EJIM config {name!r}; choose 'paper' or 'tiny'")

@@ -1,0 +1,205 @@
+"""The EJIM denoiser (Huang et al., ICME 2025): joint tokens, dual-branch HOI Mamba, condition
+injector, dynamic interaction blocks with progressive masking.
+
+Tokens per frame: 23 human tokens (nodes 0-21 and the virtual foot-ground node 22 of the
+joint-level layout) and one object token (node 23), embedded by linear encoders (plus a
+learned joint embedding, so the shared encoder knows which joint it reads). Each of N
+Joint-level Interaction Modules runs
+
+1. **DHM** (dual-branch HOI Mamba): human temporal Mamba (each joint over time), object
+   temporal Mamba (the object over time), then the limb-guided spatial Mamba: per frame, the
+   human tokens reordered by limb with a learnable separator token before each group
+   (torso, left leg, right leg, left arm, right arm; the foot node in both leg groups, its
+   two outputs averaged), 29 tokens;
+2. **DIB #1**: per frame, attention over [object; 23 human tokens] with the current mask;
+3. **DCI** (dual-branch condition injector): the condition tokens (timestep, pooled text,
+   16 object-geometry tokens) are prepended to each joint's and the object's temporal
+   sequence, scanned, and dropped again;
+4. **DIB #2**, whose object-to-joint attention scores update the mask for the next module.
+
+**Progressive masking** (:func:`update_mask`): per sample and frame, the ``mask_k`` visible
+human joints with the lowest object-to-joint attention in DIB #2 are masked, cumulatively
+(all visible at the start; after 5 of 6 modules with k = 3, 8 joints stay visible, the number
+of interaction joints HOI-Diff and ChainHOI use). A masked joint is excluded as a key in
+every later DIB (it receives no attention) and its token is not updated by a DIB; the Mamba
+scans still carry all joints. The object token is never masked.
+
+Every Mamba sub-module is a :class:`~.mamba.BiMamba` (a forward and a backward block). What
+the paper leaves open and hoibench chose is listed in docs/baselines.md.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ..layers import PointEncoder, TokenTextEncoder, sinusoidal
+from .config import ModelConfig
+from .mamba import BiMamba
+
+HUMAN = 23            # nodes 0..22 (22 = virtual foot-ground node)
+WIDTH = 12
+#: limb groups of the spatial scan, each read after its own learnable separator token
+LIMB_GROUPS: tuple[tuple[int, ...], ...] = (
+    (0, 3, 6, 9, 12, 15),        # torso and head
+    (1, 4, 7, 10, 22),           # left leg + foot-ground node
+    (2, 5, 8, 11, 22),           # right leg + foot-ground node
+    (13, 16, 18, 20),            # left arm
+    (14, 17, 19, 21),            # right arm
+)
+
+
+def limb_order() -> tuple[list[int], list[int]]:
+    """(sequence, separator positions): the spatial scan's token order as indices into the 23
+    human tokens, -1 for a separator; and where each group's separator sits."""
+    seq, seps = [], []
+    for g in LIMB_GROUPS:
+        seps.append(len(seq))
+        seq.append(-1)
+        seq.extend(g)
+    return seq, seps
+
+
+def update_mask(masked: torch.Tensor, scores: torch.Tensor, k: int, keep_visible: int = 1) -> torch.Tensor:
+    """Progressive masking: mask the ``k`` visible joints with the lowest ``scores`` (per row,
+    ties broken by joint index), keeping at least ``keep_visible`` joints visible.
+    ``masked``, ``scores``: (..., 23); returns the new bool mask (True = masked)."""
+    if k <= 0:
+        return masked
+    visible = (~masked).sum(-1, keepdim=True)
+    n = (visible - keep_visible).clamp(min=0).clamp(max=k)             # how many to mask per row
+    s = scores.masked_fill(masked, float("inf"))
+    order = torch.argsort(s, dim=-1, stable=True)
+    rank = torch.empty_like(order)
+    rank.scatter_(-1, order, torch.arange(order.shape[-1], device=order.device).expand_as(order))
+    return masked | (rank < n)
+
+
+class DIB(nn.Module):
+    """Dynamic Interaction Block: per-frame attention over [object; human tokens], masked joints
+    excluded as keys and left unchanged; pre-norm, residual, feed-forward on visible tokens."""
+
+    def __init__(self, d: int, heads: int, dropout: float):
+        super().__init__()
+        self.norm = nn.LayerNorm(d)
+        self.attn = nn.MultiheadAttention(d, heads, dropout=dropout, batch_first=True)
+        self.ff = nn.Sequential(nn.LayerNorm(d), nn.Linear(d, 2 * d), nn.GELU(), nn.Linear(2 * d, d))
+
+    def forward(self, h: torch.Tensor, o: torch.Tensor, masked: torch.Tensor):
+        """h (B, L, 23, d), o (B, L, d), masked (B, L, 23) -> (h, o, object-to-joint scores (B, L, 23))."""
+        B, L, J, d = h.shape
+        tok = torch.cat([o[:, :, None], h], 2).reshape(B * L, J + 1, d)
+        keymask = torch.cat([torch.zeros(B, L, 1, dtype=torch.bool, device=h.device), masked], 2).reshape(B * L, J + 1)
+        x = self.norm(tok)
+        upd, w = self.attn(x, x, x, key_padding_mask=keymask, need_weights=True, average_attn_weights=True)
+        live = (~keymask)[..., None].to(tok.dtype)                         # masked tokens: no update
+        tok = tok + upd * live
+        tok = tok + self.ff(tok) * live
+        tok = tok.reshape(B, L, J + 1, d)
+        scores = w[:, 0, 1:].reshape(B, L, J)                              # object query -> joint keys
+        return tok[:, :, 1:], tok[:, :, 0], scores
+
+
+class Module(nn.Module):
+    """One Joint-level Interaction Module: DHM -> DIB #1 -> DCI -> DIB #2 (+ mask update)."""
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        d = cfg.d_model
+        mk = lambda: BiMamba(d, cfg.d_state, cfg.expand, cfg.d_conv, cfg.dropout)   # noqa: E731
+        self.human_time, self.object_time, self.limb_space = mk(), mk(), mk()
+        self.separators = nn.Parameter(torch.randn(len(LIMB_GROUPS), d) * 0.02)
+        self.dib1, self.dib2 = DIB(d, cfg.heads, cfg.dropout), DIB(d, cfg.heads, cfg.dropout)
+        self.human_cond, self.object_cond = mk(), mk()
+        seq, seps = limb_order()
+        self.register_buffer("seq", torch.tensor([max(i, 0) for i in seq]), persistent=False)
+        self.register_buffer("is_sep", torch.tensor([i < 0 for i in seq]), persistent=False)
+        self.register_buffer("sep_pos", torch.tensor(seps), persistent=False)
+        # back from the 29-token order to the 23 tokens: each joint's positions (22 appears twice)
+        back = torch.zeros(HUMAN, len(seq))
+        for p, j in enumerate(seq):
+            if j >= 0:
+                back[j, p] = 1.0
+        self.register_buffer("back", back / back.sum(1, keepdim=True), persistent=False)
+
+    def spatial(self, h: torch.Tensor) -> torch.Tensor:
+        B, L, J, d = h.shape
+        x = h.reshape(B * L, J, d)[:, self.seq]                            # (BL, 29, d)
+        sep = torch.zeros_like(x)
+        sep[:, self.sep_pos] = self.separators
+        x = torch.where(self.is_sep[None, :, None], sep, x)
+        y = self.limb_space(x)
+        return torch.einsum("jp,npd->njd", self.back, y).reshape(B, L, J, d)
+
+    def forward(self, h, o, cond, valid, masked, k: int):
+        B, L, J, d = h.shape
+        vj = valid[:, None].expand(B, J, L).reshape(B * J, L)
+        h = self.human_time(h.permute(0, 2, 1, 3).reshape(B * J, L, d), vj).reshape(B, J, L, d).permute(0, 2, 1, 3)
+        o = self.object_time(o, valid)
+        h = self.spatial(h)
+        h, o, _ = self.dib1(h, o, masked)
+        nc = cond.shape[1]
+        ones = torch.ones(B, nc, dtype=torch.bool, device=h.device)
+        hc = torch.cat([cond[:, None].expand(B, J, nc, d).reshape(B * J, nc, d),
+                        h.permute(0, 2, 1, 3).reshape(B * J, L, d)], 1)
+        vjc = torch.cat([ones[:, None].expand(B, J, nc).reshape(B * J, nc), vj], 1)
+        h = self.human_cond(hc, vjc, prefix=nc)[:, nc:].reshape(B, J, L, d).permute(0, 2, 1, 3)
+        o = self.object_cond(torch.cat([cond, o], 1), torch.cat([ones, valid], 1), prefix=nc)[:, nc:]
+        h, o, scores = self.dib2(h, o, masked)
+        with torch.no_grad():
+            new_mask = update_mask(masked, scores.detach(), k)
+        return h * valid[..., None, None], o * valid[..., None], new_mask
+
+
+class EJIM(nn.Module):
+    """x0-predicting denoiser with the shared baseline interface (see :mod:`..registry`)."""
+
+    def __init__(self, cfg: ModelConfig, vocab: int = 0, text_width: int = 0):
+        super().__init__()
+        self.cfg = cfg
+        d = cfg.d_model
+        if cfg.text_encoder == "tokens":
+            if vocab < 2:
+                raise ValueError("EJIM: the 'tokens' text encoder needs a vocabulary (>= 2 entries)")
+            heads = next(n for n in (4, 2, 1) if d % n == 0)
+            self.text_tokens = TokenTextEncoder(vocab, d, heads, cfg.text_layers, cfg.dropout)
+            self.text_proj = nn.Identity()
+        else:
+            if text_width < 1:
+                raise ValueError("EJIM: the 'minilm' text encoder needs text_width (its hidden size)")
+            self.text_tokens = None
+            self.text_proj = nn.Linear(text_width, d)
+        self.points = PointEncoder(d, cfg.object_tokens, cfg.object_knn)
+        self.time = nn.Sequential(nn.Linear(d, d), nn.SiLU(), nn.Linear(d, d))
+        self.null_text = nn.Parameter(torch.zeros(d))
+        self.enc_h, self.enc_o = nn.Linear(WIDTH, d), nn.Linear(WIDTH, d)
+        self.joint_embed = nn.Parameter(torch.randn(HUMAN, d) * 0.02)
+        self.modules_ = nn.ModuleList(Module(cfg) for _ in range(cfg.modules))
+        self.dec_h, self.dec_o = nn.Linear(d, WIDTH), nn.Linear(d, WIDTH)
+        self.last_masks: list[torch.Tensor] = []
+
+    def encode_text(self, text: torch.Tensor, text_pad: torch.Tensor) -> torch.Tensor:
+        if self.text_tokens is not None:
+            return self.text_tokens(text, text_pad)
+        return self.text_proj(text)
+
+    def encode_object(self, points: torch.Tensor) -> torch.Tensor:
+        return self.points(points)
+
+    def forward(self, x: torch.Tensor, t: torch.Tensor, keep: torch.Tensor, text_tokens: torch.Tensor,
+                text_pad: torch.Tensor, obj_tokens: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
+        B, L = x.shape[:2]
+        if valid is None:
+            valid = torch.ones(B, L, dtype=torch.bool, device=x.device)
+        w = (~text_pad)[..., None].to(text_tokens.dtype)
+        pooled = (text_tokens * w).sum(1) / w.sum(1).clamp(min=1.0)
+        text = torch.where(keep[:, None], pooled, self.null_text.expand_as(pooled))
+        cond = torch.cat([self.time(sinusoidal(t, self.cfg.d_model))[:, None], text[:, None], obj_tokens], 1)
+        h = (self.enc_h(x[:, :, :HUMAN]) + self.joint_embed) * valid[..., None, None]
+        o = self.enc_o(x[:, :, HUMAN]) * valid[..., None]
+        masked = torch.zeros(B, L, HUMAN, dtype=torch.bool, device=x.device)
+        self.last_masks = []
+        for mod in self.modules_:
+            h, o, masked = mod(h, o, cond, valid, masked, self.cfg.mask_k)
+            self.last_masks.append(masked)
+        out = torch.cat([self.dec_h(h), self.dec_o(o)[:, :, None]], 2)
+        return out * valid[..., None, None]
