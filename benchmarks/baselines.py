@@ -19,21 +19,21 @@ import numpy as np
 import torch
 
 from hoibench.baselines import joint_data as D
-from hoibench.baselines.chainhoi.config import preset
-from hoibench.baselines.chainhoi.model import ChainHOI
+from hoibench.baselines.diffusion import GaussianDiffusion
+from hoibench.baselines.registry import SPECS, get_spec
 from hoibench.baselines.sampler import rows_to_sample
 from hoibench.baselines.text import TextConditioner
-from hoibench.baselines.diffusion import GaussianDiffusion
 
 CAPTION = "a person lifts the big box with both hands and puts it down"
 
 
-def chainhoi_sampler(size: str, device: torch.device):
-    cfg = preset(size)
+def make_sampler(name: str, size: str, device: torch.device):
+    spec = get_spec(name)
+    cfg = spec.preset(size)
     vocab = D.build_vocab([CAPTION])
     text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, vocab)
     torch.manual_seed(0)
-    model = ChainHOI(cfg.model, vocab=len(vocab), text_width=text.width).to(device).eval()
+    model = spec.build_model(cfg, len(vocab), text.width).to(device).eval()
     diffusion = GaussianDiffusion(cfg.diffusion)
     stats = D.JointStats(np.zeros((24, 12), np.float32), np.ones((24, 12), np.float32))
     verts = np.array([[0, 0, 0], [0.4, 0, 0], [0, 0.4, 0], [0, 0, 0.4]], float)
@@ -60,15 +60,13 @@ def chainhoi_sampler(size: str, device: torch.device):
     return one, params
 
 
-SAMPLERS = {"chainhoi": chainhoi_sampler}
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--models", nargs="+", default=list(SAMPLERS))
+    ap.add_argument("--models", nargs="+", default=list(SPECS))
     ap.add_argument("--sizes", nargs="+", default=["tiny", "paper"])
     ap.add_argument("--frames", type=int, default=120, help="sample length (frames); BEHAVE clips average ~6 s")
-    ap.add_argument("--samples", type=int, default=3)
+    ap.add_argument("--samples", type=int, default=3, help="timed samples per model (tiny sizes)")
+    ap.add_argument("--paper-samples", type=int, default=1, help="timed samples per model at paper size")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--threads", type=int, default=None)
     args = ap.parse_args()
@@ -83,14 +81,15 @@ def main() -> None:
     rows = {}
     for name in args.models:
         for size in args.sizes:
-            one, params = SAMPLERS[name](size, dev)
+            one, params = make_sampler(name, size, dev)
+            n = args.paper_samples if size == "paper" else args.samples
             one(args.frames, 999)                            # warm-up
             t0 = time.perf_counter()
-            for s in range(args.samples):
+            for s in range(n):
                 one(args.frames, s)
-            ait = (time.perf_counter() - t0) / args.samples
+            ait = (time.perf_counter() - t0) / n
             rows[(name, size)] = ait
-            print(f"| {name} | {size} | {params / 1e6:.2f} | {ait:.3f} | {args.samples} |", flush=True)
+            print(f"| {name} | {size} | {params / 1e6:.2f} | {ait:.3f} | {n} |", flush=True)
     names = sorted({n for n, _ in rows})
     if len(names) > 1:
         for size in args.sizes:

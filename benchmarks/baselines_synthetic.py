@@ -1,7 +1,8 @@
 """The baseline table of docs/baselines.md on the synthetic track, end to end through the public path.
 
 Rows: ground truth (real motion), ChainHOI tiny (paper chain mask), ChainHOI tiny with the
-released code's mask, the untrained ChainHOI tiny (0 steps), and mean pose + static object.
+released code's mask, EJIM tiny, the untrained ChainHOI tiny (0 steps), and mean pose + static
+object.
 Each is written as a standard submission and scored by ``hoibench.evaluate.evaluate`` under
 the store's default protocol (synthetic-clean: 20 replications, pools of 32) with the given
 evaluator. Runs, submissions and results are reused when they already exist (training and
@@ -19,7 +20,7 @@ import os
 import time
 from pathlib import Path
 
-from hoibench.baselines.chainhoi.config import preset
+from hoibench.baselines.registry import get_spec
 from hoibench.baselines.sampler import sample
 from hoibench.baselines.trainer import train
 from hoibench.baselines.trivial import write_mean_pose_submission
@@ -37,6 +38,7 @@ def rows_spec(steps: int | None) -> list[tuple[str, str, dict | None]]:
     return [("GT (real motion)", "gt", None),
             ("ChainHOI tiny", "chainhoi", tiny),
             ("ChainHOI tiny, released mask", "chainhoi", {**tiny, "model.mask": "released"}),
+            ("EJIM tiny", "ejim", tiny),
             ("ChainHOI tiny, untrained", "chainhoi", {"train.steps": 0}),
             ("mean pose + static object", "mean-pose", None)]
 
@@ -74,9 +76,10 @@ def main() -> None:
             elif kind == "mean-pose":
                 write_mean_pose_submission(args.data, sub)
             else:
-                cfg = preset("tiny").replace(**over) if over else preset("tiny")
+                spec = get_spec(kind)
+                cfg = spec.preset("tiny").replace(**over) if over else spec.preset("tiny")
                 run = work / "runs" / slug
-                r = train("chainhoi", args.data, run, cfg)
+                r = train(kind, args.data, run, cfg)
                 timing["train_s"] = round(r.seconds, 1)
                 t1 = time.perf_counter()
                 sample(run, args.data, sub, samples=args.samples, log=None)

@@ -218,3 +218,22 @@ def load_raw_npz(path: str | os.PathLike, max_bytes: int = MAX_RAW_NPZ_BYTES, wh
                          "limit for a raw file: not read")
     with np.load(io.BytesIO(raw), allow_pickle=False) as z:
         return {k: z[k] for k in z.files}
+
+
+def atomic_save_figure(fig, path: str | os.PathLike, dpi: int = 100) -> Path:
+    """A matplotlib figure as PNG, written atomically; the figure is closed."""
+    import matplotlib.pyplot as plt
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format="png")
+    plt.close(fig)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def atomic_torch_save(obj, path: str | os.PathLike) -> Path:
+    """``torch.save`` through :func:`atomic_write_bytes` (a ``.<name>.*.tmp`` file renamed into
+    place; leftovers are cleaned by :func:`clean_stale_tmp` when the command runs again)."""
+    import torch
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    return atomic_write_bytes(path, buf.getvalue())
+

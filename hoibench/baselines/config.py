@@ -12,6 +12,27 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass
 from .diffusion import DiffusionConfig
 
 
+TEXT_ENCODERS = ("tokens", "minilm")
+
+
+def check_ints(cfg, names: tuple[str, ...], section: str, lo: int = 1, hi: int = 10_000_000) -> None:
+    """ValueError naming ``section.field`` unless every field in ``names`` is an int in [lo, hi]."""
+    for name in names:
+        v = getattr(cfg, name)
+        if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi):
+            raise ValueError(f"{section}.{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+
+
+def check_conditioning(cfg) -> None:
+    """The fields every baseline model config shares: text encoder, object points, dropout."""
+    if cfg.object_tokens > cfg.object_points or cfg.object_knn > cfg.object_points:
+        raise ValueError("model.object_tokens and model.object_knn must not exceed model.object_points")
+    if not 0 <= cfg.dropout < 1:
+        raise ValueError(f"model.dropout: expected [0, 1), got {cfg.dropout!r}")
+    if cfg.text_encoder not in TEXT_ENCODERS:
+        raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {cfg.text_encoder!r}")
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     steps: int = 50_000
@@ -31,12 +52,9 @@ class TrainConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("steps", "batch_size", "max_frames", "min_frames", "contact_points", "checkpoint_every",
-                     "log_every"):
-            v = getattr(self, name)
-            lo = 0 if name == "steps" else 1
-            if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= 10_000_000):
-                raise ValueError(f"train.{name}: expected an integer >= {lo}, got {v!r}")
+        check_ints(self, ("steps",), "train", lo=0)
+        check_ints(self, ("batch_size", "max_frames", "min_frames", "contact_points", "checkpoint_every", "log_every"),
+                   "train")
         if not 0 < self.lr < 1:
             raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
         if not 0 <= self.ema_decay < 1:

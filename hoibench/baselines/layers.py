@@ -70,3 +70,34 @@ class TokenTextEncoder(nn.Module):
     def forward(self, ids: torch.Tensor, pad: torch.Tensor) -> torch.Tensor:
         x = self.embed(ids) + sinusoidal(torch.arange(ids.shape[1], device=ids.device), self.embed.embedding_dim)
         return self.encoder(x, src_key_padding_mask=pad)
+
+
+class ConditionEncoders(nn.Module):
+    """Text and object-geometry encoders every baseline denoiser shares: ``encode_text``
+    (trainable word tokens, or a projection of frozen sentence-encoder states) and
+    ``encode_object`` (the point encoder), both to ``width``."""
+
+    def __init__(self, name: str, text_encoder: str, width: int, vocab: int, text_width: int, heads: int,
+                 text_layers: int, dropout: float, object_tokens: int, object_knn: int):
+        super().__init__()
+        if text_encoder == "tokens":
+            if vocab < 2:
+                raise ValueError(f"{name}: the 'tokens' text encoder needs a vocabulary (>= 2 entries)")
+            self.text_tokens = TokenTextEncoder(vocab, width, heads, text_layers, dropout)
+            self.text_proj = nn.Identity()
+        else:
+            if text_width < 1:
+                raise ValueError(f"{name}: the 'minilm' text encoder needs text_width (its hidden size)")
+            self.text_tokens = None
+            self.text_proj = nn.Linear(text_width, width)
+        self.points = PointEncoder(width, object_tokens, object_knn)
+
+    def encode_text(self, text: torch.Tensor, text_pad: torch.Tensor) -> torch.Tensor:
+        """(B, Lt, width) text tokens from ids (``tokens``) or sentence-encoder states (``minilm``)."""
+        if self.text_tokens is not None:
+            return self.text_tokens(text, text_pad)
+        return self.text_proj(text)
+
+    def encode_object(self, points: torch.Tensor) -> torch.Tensor:
+        """(B, object_tokens, width) from (B, P, 3) surface points."""
+        return self.points(points)

@@ -24,7 +24,7 @@ import torch
 from .. import __version__
 from ..errors import HoibenchError
 from ..interrupts import check_interrupted
-from ..io import atomic_write_bytes, atomic_write_json, clean_stale_tmp
+from ..io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp
 from ..store import Store
 from . import checkpoint as ckpt
 from . import joint_data as D
@@ -134,8 +134,6 @@ def _store_block(store: Store, ts: TrainingSet) -> dict:
 def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
     import matplotlib
     matplotlib.use("Agg")
-    import io
-
     import matplotlib.pyplot as plt
     keys = [k for k in curve[0] if k != "step"]
     fig, axes = plt.subplots(1, len(keys), figsize=(3.5 * len(keys), 3.2))
@@ -148,18 +146,12 @@ def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=100, format="png")
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_save_figure(fig, path)
 
 
 def _save_checkpoint(path: Path, step: int, curve: list[dict], model, ema: EMA, opt, ident: dict) -> None:
-    import io
-    buf = io.BytesIO()
-    torch.save({"step": step, "curve": json.dumps(curve), "model": model.state_dict(), "ema": ema.state_dict(),
-                "optimizer": opt.state_dict(), **ident}, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_torch_save({"step": step, "curve": json.dumps(curve), "model": model.state_dict(),
+                       "ema": ema.state_dict(), "optimizer": opt.state_dict(), **ident}, path)
 
 
 def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device) -> tuple[int, list[dict]]:

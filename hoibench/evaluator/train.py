@@ -35,7 +35,7 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..io import atomic_write_bytes, atomic_write_text, clean_stale_tmp
+from ..io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp
 from ..store import Store
 from . import card as card_mod
 from . import text as text_mod
@@ -132,15 +132,6 @@ def _batches(perm: np.ndarray, batch_size: int) -> list[np.ndarray]:
     return [b for b in out if len(b) >= 2]
 
 
-def _atomic_torch_save(obj, path: Path) -> None:
-    """``torch.save`` through :func:`hoibench.io.atomic_write_bytes` (a ``.<name>.*.tmp``
-    file renamed into place; leftovers are cleaned when training starts again)."""
-    import io
-    buf = io.BytesIO()
-    torch.save(obj, buf)
-    atomic_write_bytes(path, buf.getvalue())
-
-
 def _curve_summary(curve: list[dict]) -> dict:
     if not curve:
         return {}
@@ -167,11 +158,7 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    import io
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=100, format="png")
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_save_figure(fig, path)
 
 
 def store_protocol(store):
@@ -425,7 +412,7 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
                 f"{c['batch_top1']:.3f} temperature {c['temperature']:.4f}{' (text frozen)' if frozen else ''}")
             stop = interrupt_after_epoch is not None and e + 1 >= interrupt_after_epoch and e + 1 < tc.epochs
             if (e + 1) % max(1, checkpoint_every) == 0 or e + 1 == tc.epochs or stop:
-                _atomic_torch_save({**ident, "epoch": e + 1,
+                atomic_torch_save({**ident, "epoch": e + 1,
                                     "model": model.own_state_dict(None if frozen else tc.text_finetune_layers),
                                     "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
                                     "torch_rng": torch.get_rng_state(), "curve": json.dumps(curve)}, ckpt_path)

@@ -26,12 +26,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import RunConfig, TrainConfig
+from ..config import TEXT_ENCODERS, RunConfig, TrainConfig, check_conditioning, check_ints  # noqa: F401
 
 ChainHOIConfig = RunConfig      # a RunConfig whose model is a chainhoi ModelConfig
 
 MASK_MODES = ("paper", "released")
-TEXT_ENCODERS = ("tokens", "minilm")
 
 
 @dataclass(frozen=True)
@@ -53,25 +52,17 @@ class ModelConfig:
     mask: str = "paper"              # Kinematic-aware Decoder mask: "paper" (boolean) | "released"
 
     def __post_init__(self) -> None:
-        for name in ("blocks", "d_model", "d_text", "heads", "ff_mult", "temporal_kernel", "object_points",
-                     "object_tokens", "object_knn", "text_max_tokens", "text_layers"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000):
-                raise ValueError(f"model.{name}: expected an integer in [1, 100000], got {v!r}")
+        check_ints(self, ("blocks", "d_model", "d_text", "heads", "ff_mult", "temporal_kernel", "object_points",
+                          "object_tokens", "object_knn", "text_max_tokens", "text_layers"), "model", hi=100_000)
+        check_conditioning(self)
         if self.d_text % self.heads:
             raise ValueError(f"model.d_text ({self.d_text}) must be divisible by model.heads ({self.heads})")
         if self.temporal_kernel % 2 == 0:
             raise ValueError(f"model.temporal_kernel: expected an odd integer, got {self.temporal_kernel}")
         if not self.temporal_dilations or any(not isinstance(d, int) or d < 1 for d in self.temporal_dilations):
             raise ValueError(f"model.temporal_dilations: expected positive integers, got {self.temporal_dilations!r}")
-        if self.object_tokens > self.object_points or self.object_knn > self.object_points:
-            raise ValueError("model.object_tokens and model.object_knn must not exceed model.object_points")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"model.dropout: expected [0, 1), got {self.dropout!r}")
         if self.mask not in MASK_MODES:
             raise ValueError(f"model.mask: expected one of {MASK_MODES}, got {self.mask!r}")
-        if self.text_encoder not in TEXT_ENCODERS:
-            raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {self.text_encoder!r}")
 
 
 def preset(name: str = "tiny") -> RunConfig:

@@ -32,7 +32,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..layers import PointEncoder, TokenTextEncoder, sinusoidal
+from ..layers import ConditionEncoders, sinusoidal
 from .config import ModelConfig
 from .graph import NODES, chain_mask, partitions
 
@@ -171,25 +171,15 @@ class Block(nn.Module):
         return self.kim(y, text, text_pad, obj) * valid[:, :, None, None]
 
 
-class ChainHOI(nn.Module):
+class ChainHOI(ConditionEncoders):
     """x0-predicting denoiser. ``text_width``: width of the text-token inputs (the sentence
     encoder's hidden size), or ``vocab`` for the trainable ``tokens`` encoder."""
 
     def __init__(self, cfg: ModelConfig, vocab: int = 0, text_width: int = 0):
-        super().__init__()
+        super().__init__("ChainHOI", cfg.text_encoder, cfg.d_text, vocab, text_width, cfg.heads, cfg.text_layers,
+                         cfg.dropout, cfg.object_tokens, cfg.object_knn)
         self.cfg = cfg
         dm, dt = cfg.d_model, cfg.d_text
-        if cfg.text_encoder == "tokens":
-            if vocab < 2:
-                raise ValueError("ChainHOI: the 'tokens' text encoder needs a vocabulary (>= 2 entries)")
-            self.text_tokens = TokenTextEncoder(vocab, dt, cfg.heads, cfg.text_layers, cfg.dropout)
-            self.text_proj = nn.Identity()
-        else:
-            if text_width < 1:
-                raise ValueError("ChainHOI: the 'minilm' text encoder needs text_width (its hidden size)")
-            self.text_tokens = None
-            self.text_proj = nn.Linear(text_width, dt)
-        self.points = PointEncoder(dt, cfg.object_tokens, cfg.object_knn)
         self.time_text = nn.Sequential(nn.Linear(dt, dt), nn.SiLU(), nn.Linear(dt, dt))
         self.time_motion = nn.Sequential(nn.Linear(dt, dm), nn.SiLU(), nn.Linear(dm, dm))
         self.null_text = nn.Parameter(torch.zeros(dt))
@@ -197,15 +187,6 @@ class ChainHOI(nn.Module):
         self.node_embed = nn.Parameter(torch.randn(NODES, dm) * 0.02)
         self.blocks = nn.ModuleList(Block(cfg) for _ in range(cfg.blocks))
         self.out_proj = nn.Linear(dm, WIDTH)
-
-    def encode_text(self, text: torch.Tensor, text_pad: torch.Tensor) -> torch.Tensor:
-        """(B, Lt, D_t) text tokens from ids (``tokens``) or sentence-encoder states (``minilm``)."""
-        if self.text_tokens is not None:
-            return self.text_tokens(text, text_pad)
-        return self.text_proj(text)
-
-    def encode_object(self, points: torch.Tensor) -> torch.Tensor:
-        return self.points(points)
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, keep: torch.Tensor, text_tokens: torch.Tensor,
                 text_pad: torch.Tensor, obj_tokens: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:

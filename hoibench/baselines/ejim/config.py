@@ -25,9 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import RunConfig, TrainConfig
-
-TEXT_ENCODERS = ("tokens", "minilm")
+from ..config import RunConfig, TrainConfig, check_conditioning, check_ints
 
 
 @dataclass(frozen=True)
@@ -48,21 +46,12 @@ class ModelConfig:
     text_layers: int = 1
 
     def __post_init__(self) -> None:
-        for name in ("modules", "d_model", "d_state", "expand", "d_conv", "heads", "object_points",
-                     "object_tokens", "object_knn", "text_max_tokens", "text_layers"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000):
-                raise ValueError(f"model.{name}: expected an integer in [1, 100000], got {v!r}")
-        if not (isinstance(self.mask_k, int) and 0 <= self.mask_k <= 22):
-            raise ValueError(f"model.mask_k: expected an integer in [0, 22], got {self.mask_k!r}")
+        check_ints(self, ("modules", "d_model", "d_state", "expand", "d_conv", "heads", "object_points",
+                          "object_tokens", "object_knn", "text_max_tokens", "text_layers"), "model", hi=100_000)
+        check_ints(self, ("mask_k",), "model", lo=0, hi=22)
+        check_conditioning(self)
         if self.d_model % self.heads:
             raise ValueError(f"model.d_model ({self.d_model}) must be divisible by model.heads ({self.heads})")
-        if self.object_tokens > self.object_points or self.object_knn > self.object_points:
-            raise ValueError("model.object_tokens and model.object_knn must not exceed model.object_points")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"model.dropout: expected [0, 1), got {self.dropout!r}")
-        if self.text_encoder not in TEXT_ENCODERS:
-            raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {self.text_encoder!r}")
 
 
 def preset(name: str = "tiny") -> RunConfig:

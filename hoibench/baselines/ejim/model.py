@@ -32,7 +32,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..layers import PointEncoder, TokenTextEncoder, sinusoidal
+from ..layers import ConditionEncoders, sinusoidal
 from .config import ModelConfig
 from .mamba import BiMamba
 
@@ -150,25 +150,14 @@ class Module(nn.Module):
         return h * valid[..., None, None], o * valid[..., None], new_mask
 
 
-class EJIM(nn.Module):
+class EJIM(ConditionEncoders):
     """x0-predicting denoiser with the shared baseline interface (see :mod:`..registry`)."""
 
     def __init__(self, cfg: ModelConfig, vocab: int = 0, text_width: int = 0):
-        super().__init__()
-        self.cfg = cfg
         d = cfg.d_model
-        if cfg.text_encoder == "tokens":
-            if vocab < 2:
-                raise ValueError("EJIM: the 'tokens' text encoder needs a vocabulary (>= 2 entries)")
-            heads = next(n for n in (4, 2, 1) if d % n == 0)
-            self.text_tokens = TokenTextEncoder(vocab, d, heads, cfg.text_layers, cfg.dropout)
-            self.text_proj = nn.Identity()
-        else:
-            if text_width < 1:
-                raise ValueError("EJIM: the 'minilm' text encoder needs text_width (its hidden size)")
-            self.text_tokens = None
-            self.text_proj = nn.Linear(text_width, d)
-        self.points = PointEncoder(d, cfg.object_tokens, cfg.object_knn)
+        super().__init__("EJIM", cfg.text_encoder, d, vocab, text_width, next(n for n in (4, 2, 1) if d % n == 0),
+                         cfg.text_layers, cfg.dropout, cfg.object_tokens, cfg.object_knn)
+        self.cfg = cfg
         self.time = nn.Sequential(nn.Linear(d, d), nn.SiLU(), nn.Linear(d, d))
         self.null_text = nn.Parameter(torch.zeros(d))
         self.enc_h, self.enc_o = nn.Linear(WIDTH, d), nn.Linear(WIDTH, d)
@@ -176,14 +165,6 @@ class EJIM(nn.Module):
         self.modules_ = nn.ModuleList(Module(cfg) for _ in range(cfg.modules))
         self.dec_h, self.dec_o = nn.Linear(d, WIDTH), nn.Linear(d, WIDTH)
         self.last_masks: list[torch.Tensor] = []
-
-    def encode_text(self, text: torch.Tensor, text_pad: torch.Tensor) -> torch.Tensor:
-        if self.text_tokens is not None:
-            return self.text_tokens(text, text_pad)
-        return self.text_proj(text)
-
-    def encode_object(self, points: torch.Tensor) -> torch.Tensor:
-        return self.points(points)
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, keep: torch.Tensor, text_tokens: torch.Tensor,
                 text_pad: torch.Tensor, obj_tokens: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
