@@ -117,3 +117,16 @@ def test_submission_validates_and_matches_samples(store, samples, tmp_path, as_z
             assert set(got) == set(samples[sid])
             for k, a in samples[sid].items():
                 np.testing.assert_array_equal(got[k], a)
+
+
+def test_cli_writes_the_mean_pose_submission_and_refuses_a_run_folder(store, tmp_path):
+    import subprocess
+    import sys
+    exe = [sys.executable, "-m", "hoibench.cli", "baseline", "sample", "mean-pose"]
+    r = subprocess.run(exe + ["--data", str(store), "--out", str(tmp_path / "sub")], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert validation_report(tmp_path / "sub", store).complete
+    r = subprocess.run(exe + [str(tmp_path), "--data", str(store), "--out", str(tmp_path / "x")], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.strip().startswith("hoibench baseline: error: mean-pose takes no RUN")
