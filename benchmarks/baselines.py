@@ -41,7 +41,7 @@ def make_sampler(name: str, size: str, device: torch.device):
     points = D.surface_points(verts, faces, cfg.model.object_points, "box")
 
     @torch.no_grad()
-    def one(length: int, seed: int) -> None:
+    def one(length: int, seed: int, steps: int | None = None) -> None:
         tt, pad = text([CAPTION], device)
         tokens = model.encode_text(tt, pad)
         obj = model.encode_object(torch.from_numpy(points[None]).to(device))
@@ -51,7 +51,7 @@ def make_sampler(name: str, size: str, device: torch.device):
             return model(x, t, keep, tokens.expand(n, -1, -1), pad.expand(n, -1), obj.expand(n, -1, -1))
 
         out = diffusion.ddim_sample(x0, (1, length, 24, 12), generator=torch.Generator().manual_seed(seed),
-                                    device=device)
+                                    device=device, steps=steps)
         if device.type == "cuda":
             torch.cuda.synchronize()
         rows_to_sample(stats.denormalize(out.float().cpu().numpy()))
@@ -83,7 +83,7 @@ def main() -> None:
         for size in args.sizes:
             one, params = make_sampler(name, size, dev)
             n = args.paper_samples if size == "paper" else args.samples
-            one(args.frames, 999)                            # warm-up
+            one(args.frames, 999, steps=2)                   # warm-up
             t0 = time.perf_counter()
             for s in range(n):
                 one(args.frames, s)

@@ -15,6 +15,7 @@ ones the run was trained with.
 """
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Callable
@@ -109,6 +110,17 @@ class LoadedRun:
         return self.stats.denormalize(x0.float().cpu().numpy())
 
 
+def samples_cap(manifest: dict) -> tuple[int, str]:
+    """(K cap, protocol id): the default protocol's ``max_samples_per_prompt`` for a store
+    (30 when no protocol ships for it)."""
+    from ..protocol import default_protocol_id, get_protocol
+    pid = default_protocol_id(manifest)
+    try:
+        return get_protocol(pid).max_samples_per_prompt, pid
+    except (KeyError, ValueError):
+        return 30, f"default ({pid} is not shipped)"
+
+
 def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
     """Raw joint-level rows (K, T, 24, 12) -> submission arrays (joints, obj_rot, obj_trans)."""
     feats = joint_level.to_hoi269(rows)
@@ -129,6 +141,10 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     loaded = LoadedRun(run, device, baseline)
     store = Store(data)
     loaded.check_store(store)
+    cap, pid = samples_cap(store.manifest)
+    if samples > cap:
+        raise ValueError(f"--samples: {samples} samples per prompt; the {pid} protocol reads at most {cap} (replication "
+                         f"r uses sample r mod K, MultiModality the first 30), and validation refuses more")
     ids = store.clip_ids(split)
     if limit is not None:
         ids = ids[:limit]
@@ -137,7 +153,11 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     from ..evaluator.text import read_captions
     cfg = loaded.config
     scale = cfg.diffusion.guidance if guidance is None else float(guidance)
+    if not (math.isfinite(scale) and 0 <= scale <= 100):
+        raise ValueError(f"--guidance: expected a number in [0, 100], got {guidance!r}")
     n_steps = cfg.diffusion.ddim_steps if steps is None else int(steps)
+    if not 1 <= n_steps <= cfg.diffusion.steps:
+        raise ValueError(f"--ddim-steps: expected an integer in [1, {cfg.diffusion.steps}], got {steps!r}")
     points_cache: dict[str, np.ndarray] = {}
     tag = f"[{loaded.spec.name}]"
     meta = {"method": f"{loaded.spec.title} ({cfg.name}, hoibench reproduction)", "version": __version__, "url": "",
