@@ -195,7 +195,7 @@ def _cmd_baseline(args) -> int:
     if args.action == "sample":
         return commands.main_sample(args.name, args.run, args.data, args.out, samples=args.samples, seed=args.seed,
                                     device=args.device, guidance=args.guidance, ddim_steps=args.ddim_steps,
-                                    as_zip=args.zip)
+                                    as_zip=args.zip, threads=args.threads)
     return commands.main_show(args.run)
 
 
@@ -356,24 +356,27 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("name", choices=sorted(BASELINES))
     b.add_argument("data", type=Path)
     b.add_argument("--out", type=Path, required=True)
-    b.add_argument("--config", choices=["tiny", "paper"], default="tiny")
+    b.add_argument("--config", choices=["tiny", "paper"], default="tiny", help="tiny (default; CPU minutes) or paper")
     b.add_argument("--steps", type=int, default=None, help="optimiser steps (0: the untrained model)")
     b.add_argument("--seed", type=int, default=None)
     b.add_argument("--mask", choices=["paper", "released"], default=None,
-                   help="Kinematic-aware Decoder mask (released: the published code's additive float mask)")
+                   help="chainhoi only: Kinematic-aware Decoder mask (released: the published code's additive "
+                        "float mask)")
     b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
     b.add_argument("--threads", type=int, default=None)
     b.set_defaults(func=_cmd_baseline)
     b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
     b.add_argument("name", choices=sorted(BASELINES) + ["mean-pose"])
-    b.add_argument("run", type=Path, nargs="?", default=None, help="run folder (chainhoi)")
+    b.add_argument("run", type=Path, nargs="?", default=None, help="run folder (chainhoi, ejim; none for mean-pose)")
     b.add_argument("--data", type=Path, required=True)
     b.add_argument("--out", type=Path, required=True)
-    b.add_argument("--samples", "-k", type=int, default=1, help="samples per prompt (K)")
+    b.add_argument("--samples", "-k", type=int, default=1,
+                   help="samples per prompt (K, at most the protocol's 30; MultiModality needs 30)")
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--guidance", type=float, default=None, help="classifier-free guidance scale (default: config, 2)")
     b.add_argument("--ddim-steps", type=int, default=None, help="DDIM steps (default: config, 50)")
-    b.add_argument("--device", default="cpu")
+    b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    b.add_argument("--threads", type=int, default=None)
     b.add_argument("--zip", action="store_true")
     b.set_defaults(func=_cmd_baseline)
     b = bsub.add_parser("show", help="show (and verify) a baseline run folder")

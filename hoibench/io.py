@@ -170,8 +170,14 @@ def load_json_bytes(raw: bytes, source: str | os.PathLike) -> object:
     the standard parser; reported as such, never as a traceback)."""
     def _no_constants(tok: str):
         raise ValueError(f"the token {tok} is not JSON (numbers must be finite)")
+
+    def _finite(text: str) -> float:
+        value = float(text)
+        if value in (float("inf"), float("-inf")):
+            raise ValueError(f"the number {text[:40]} overflows a float (numbers must be finite)")
+        return value
     try:
-        return json.loads(raw.decode("utf-8"), parse_constant=_no_constants)
+        return json.loads(raw.decode("utf-8"), parse_constant=_no_constants, parse_float=_finite)
     except RecursionError:
         raise ValueError(f"{source}: JSON nested too deeply: not read") from None
     except UnicodeDecodeError as e:

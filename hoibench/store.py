@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
+import zipfile
 from contextlib import closing
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -139,8 +140,18 @@ class Store:
 
     def load(self, clip_id: str) -> dict[str, np.ndarray]:
         check_id(clip_id, "clip id", self.root / MANIFEST)
-        with np.load(self.root / "clips" / f"{clip_id}.npz", allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
+        path = self.root / "clips" / f"{clip_id}.npz"
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        except FileNotFoundError:
+            raise FileNotFoundError(f"{path}: missing: clip {clip_id} is in the manifest but its file is not "
+                                    f"(incomplete copy? rerun `hoibench prepare`)") from None
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            why = "not an .npz archive of arrays" if "pickle" in str(exc) else \
+                f"{type(exc).__name__}: {' '.join(str(exc).split())[:120]}"
+            raise ValueError(f"{path}: not a readable clip file ({why}); rerun `hoibench prepare` to rebuild it") \
+                from None
 
     def object_template(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         check_id(name, "object name", self.root / MANIFEST)

@@ -974,17 +974,34 @@ def validate(sub, store, split: str = "test", protocol=None,
 
 
 # ====================================================================== writing
+def check_output_free(out: str | Path, as_zip: bool) -> None:
+    """``FileExistsError`` unless ``out`` is free: a ``.zip`` path that does not exist, or a
+    folder that does not exist or is empty. A submission never overwrites or mixes with
+    other files (a stale ``samples/`` file would join the submission)."""
+    out = Path(out)
+    if as_zip:
+        if out.exists() or out.is_symlink():
+            raise FileExistsError(f"{out}: already exists; a submission never overwrites a file: choose another --out")
+    elif out.exists() or out.is_symlink():
+        if not out.is_dir():
+            raise FileExistsError(f"{out}: exists and is not a folder; choose another --out")
+        if any(out.iterdir()):
+            raise FileExistsError(f"{out}: not empty; a submission is written into a new or empty folder only "
+                                  f"(delete it or choose another --out)")
+
+
 def write_submission(out: str | Path, meta: Mapping, samples: Iterable[tuple[str, Mapping[str, np.ndarray]]]
                      | Mapping[str, Mapping[str, np.ndarray]], as_zip: bool = False) -> Path:
     """Write a submission folder (or ``.zip`` when ``as_zip``): ``submission.json`` and
     ``samples/<id>.npz`` (byte-reproducible, no pickles). Atomic per file (the zip as a
     whole). Returns the path written."""
+    out = Path(out)
+    check_output_free(out, as_zip)
     items = samples.items() if isinstance(samples, Mapping) else samples
     files: dict[str, bytes] = {SUBMISSION_JSON: (json.dumps(dict(meta), indent=2, sort_keys=True) + "\n").encode()}
     for sid, arrays in items:
         check_id(str(sid), "sample id")
         files[f"{SAMPLES_DIR}/{sid}.npz"] = npz_bytes({k: np.asarray(v) for k, v in arrays.items()})
-    out = Path(out)
     if as_zip:
         buf = io.BytesIO()
         with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:

@@ -321,3 +321,62 @@ def test_cli_train_sample_show_and_one_line_errors(template_store, tmp_path):
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("hoibench baseline: error:"), r.stderr
         assert needle is None or needle in lines[0]
+
+
+def test_an_interrupt_between_checkpoints_keeps_the_work_and_resumes_exactly(template_store, tiny_run, tmp_path,
+                                                                             monkeypatch):
+    import hoibench.baselines.trainer as trainer_mod
+    calls = {"n": 0}
+
+    def interrupt_at_step_3():
+        calls["n"] += 1
+        if calls["n"] == 4:                       # before step index 3: steps 0, 1, 2 are done
+            raise KeyboardInterrupt
+
+    cfg = small_config(**{"train.checkpoint_every": 4, "train.log_every": 2})
+    ref = train("chainhoi", template_store, tmp_path / "ref", cfg, log=None)
+    monkeypatch.setattr(trainer_mod, "check_interrupted", interrupt_at_step_3)
+    with pytest.raises(KeyboardInterrupt):
+        train("chainhoi", template_store, tmp_path / "run", cfg, log=None)
+    monkeypatch.undo()
+    ck = torch.load(tmp_path / "run" / "checkpoint" / "last.pt", weights_only=True)
+    assert ck["step"] == 3 and json.loads(ck["window"])            # mid-window state kept
+    again = train("chainhoi", template_store, tmp_path / "run", cfg, log=None)
+    assert again.resumed_from == 3 and again.checkpoint_id == ref.checkpoint_id
+
+
+def test_a_finished_run_names_what_differs(template_store, tiny_run):
+    with pytest.raises(RunFolderError, match=r"config\.train\.seed"):
+        train("chainhoi", template_store, tiny_run[0], small_config(**{"train.seed": 7}), log=None)
+
+
+def test_submission_output_must_be_new_or_empty(tmp_path):
+    from hoibench.submission import write_submission
+    meta = {"method": "x"}
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "notes.txt").write_text("mine")
+    with pytest.raises(FileExistsError, match="not empty"):
+        write_submission(tmp_path / "full", meta, {})
+    (tmp_path / "a.zip").write_bytes(b"keep")
+    with pytest.raises(FileExistsError, match="already exists"):
+        write_submission(tmp_path / "a.zip", meta, {}, as_zip=True)
+    assert (tmp_path / "a.zip").read_bytes() == b"keep" and (tmp_path / "full" / "notes.txt").read_text() == "mine"
+    write_submission(tmp_path / "new", meta, {})                     # a new folder is fine
+    assert (tmp_path / "new" / "submission.json").exists()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["baseline", "train", "chainhoi", "DATA", "--out", "OUT", "--threads", "0"], "--threads"),
+    (["baseline", "train", "chainhoi", "DATA", "--out", "OUT", "--device", "meta"], "--device"),
+    (["baseline", "train", "ejim", "DATA", "--out", "OUT", "--mask", "released"], "--mask"),
+    (["baseline", "train", "chainhoi", "DATA", "--out", "OUT", "--seed", "-1"], "--seed"),
+    (["baseline", "sample", "mean-pose", "--data", "DATA", "--out", "OUT", "--guidance", "3"], "--guidance"),
+    (["baseline", "show", "NOWHERE"], "does not exist"),
+])
+def test_cli_refuses_bad_options_in_one_line(template_store, tmp_path, args, needle):
+    args = [str(template_store) if a == "DATA" else str(tmp_path / "o") if a == "OUT" else
+            str(tmp_path / "nowhere") if a == "NOWHERE" else a for a in args]
+    r = subprocess.run([sys.executable, "-m", "hoibench.cli"] + args, capture_output=True, text=True, timeout=300)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and needle in lines[0], r.stderr
+    assert not (tmp_path / "o").exists()

@@ -87,8 +87,8 @@ def verify_run(folder: str | Path, baseline: str | None = None) -> tuple[dict, b
         raise RunFolderError(str(exc)) from None
     actual = compute_id(data, card, ID_KEY)
     if actual != card[ID_KEY]:
-        detail = "; ".join(changed_parts(card, data, WEIGHTS, CARD, ID_KEY)) or f"{CARD} field {ID_KEY} or integrity"
+        detail = "; ".join(changed_parts(card, data, WEIGHTS, CARD, ID_KEY)) or \
+            f"{CARD} field {ID_KEY} or integrity was modified"
         raise RunFolderError(f"{folder}: checkpoint id mismatch: {CARD} says {card[ID_KEY][:12]}... but the files hash "
-                             f"to {actual[:12]}...: {detail} was modified after training; retrain or restore the "
-                             f"folder")
+                             f"to {actual[:12]}...: {detail} after training; retrain or restore the folder")
     return card, data

@@ -17,9 +17,27 @@ TRAINABLE = tuple(SPECS)
 NAMES = TRAINABLE + ("mean-pose",)
 
 
+MAX_SEED = 2 ** 63 - 1
+
+
+def _check_threads(threads: int | None) -> None:
+    import os
+    if threads is not None and not 1 <= threads <= max(64, 4 * (os.cpu_count() or 1)):
+        raise ValueError(f"--threads: expected an integer in [1, {max(64, 4 * (os.cpu_count() or 1))}], got {threads}")
+
+
+def _check_seed(seed: int | None) -> None:
+    if seed is not None and not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"--seed: expected an integer in [0, 2^63 - 1], got {seed}")
+
+
 def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny", device: str = "cpu",
                steps: int | None = None, seed: int | None = None, mask: str | None = None,
                threads: int | None = None) -> int:
+    _check_threads(threads)
+    _check_seed(seed)
+    if mask is not None and name != "chainhoi":
+        raise ValueError(f"--mask: the chain mask is ChainHOI's; {name} has none")
     if name not in TRAINABLE:
         raise ValueError(f"baseline {name!r} has nothing to train; `hoibench baseline sample {name} ...` uses the "
                          f"store's train statistics directly")
@@ -42,12 +60,18 @@ def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny
 
 def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | Path, samples: int = 1,
                 seed: int = 0, device: str = "cpu", guidance: float | None = None, ddim_steps: int | None = None,
-                as_zip: bool = False) -> int:
+                as_zip: bool = False, threads: int | None = None) -> int:
+    _check_threads(threads)
+    _check_seed(seed)
     if name == "mean-pose":
         if run is not None:
             raise ValueError("mean-pose takes no RUN folder (it uses the store's train statistics)")
-        if samples != 1:
-            raise ValueError("--samples: mean-pose is deterministic; it writes one sample per prompt")
+        unused = [flag for flag, given in (("--samples", samples != 1), ("--seed", seed != 0),
+                                           ("--guidance", guidance is not None), ("--ddim-steps", ddim_steps is not None),
+                                           ("--device", device != "cpu"), ("--threads", threads is not None)) if given]
+        if unused:
+            raise ValueError(f"{', '.join(unused)}: mean-pose is deterministic and has no model; it writes one sample "
+                             f"per prompt and takes none of these")
         from .trivial import write_mean_pose_submission
         path = write_mean_pose_submission(data, out, as_zip=as_zip)
         print(f"[mean-pose] wrote {path}")
@@ -55,6 +79,9 @@ def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | 
     if run is None:
         raise ValueError(f"baseline sample {name}: the RUN folder (from `hoibench baseline train {name}`) is required")
     _check_device(device)
+    if threads:
+        import torch
+        torch.set_num_threads(threads)
     from .sampler import sample
     sample(run, data, out, samples=samples, seed=seed, device=device, guidance=guidance, steps=ddim_steps,
            as_zip=as_zip, baseline=name)
@@ -65,6 +92,8 @@ def main_show(run: str | Path) -> int:
     import json
 
     from .checkpoint import ID_KEY, verify_run
+    if not Path(run).exists():
+        raise FileNotFoundError(f"{run}: does not exist")
     card, _ = verify_run(run)
     ds = card["dataset"]
     curve = card.get("curve") or []
@@ -81,13 +110,13 @@ def main_show(run: str | Path) -> int:
 
 
 def _check_device(device: str) -> None:
+    import re
     if device == "cpu":
         return
+    if not re.fullmatch(r"cuda(:[0-9]{1,2})?", device):
+        raise ValueError(f"--device: expected cpu or cuda[:N], got {device!r}")
     import torch
-    try:
-        dev = torch.device(device)
-    except RuntimeError as exc:
-        raise ValueError(f"--device: {exc}") from None
+    dev = torch.device(device)
     if dev.type == "cuda" and not torch.cuda.is_available():
         raise ValueError(f"--device {device}: CUDA is not available on this machine (torch {torch.__version__}); "
                          f"use --device cpu")

@@ -101,6 +101,8 @@ class RunConfig:
                 parts[key] = sub(**block)
             except TypeError as exc:
                 raise ValueError(f"{where}.{key}: {exc}") from None
+            except ValueError as exc:
+                raise ValueError(f"{where}: {exc}") from None
         return cls(name=str(d.get("name", "custom")), **parts)
 
     def replace(self, **changes) -> "RunConfig":

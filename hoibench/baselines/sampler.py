@@ -66,7 +66,7 @@ class LoadedRun:
             self.model.load_state_dict(state)
         except RuntimeError as exc:
             raise ckpt.RunFolderError(f"{self.folder / ckpt.WEIGHTS}: tensors do not match the card's config "
-                                      f"({' '.join(str(exc).split())[:200]})") from None
+                                      f"({' '.join(str(exc).split())[:400]})") from None
         self.model.to(self.device).eval()
         self.diffusion = GaussianDiffusion(self.config.diffusion)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -113,7 +114,7 @@ class TrainResult:
 
 def _identity(cfg: RunConfig, store: Store, ts: TrainingSet) -> dict:
     return {"config": json.dumps(cfg.to_dict(), sort_keys=True), "store": _manifest_sha(store),
-            "stats": ts.stats.sha256()}
+            "stats": ts.stats.sha256(), "store_stats": _store_block(store, ts)["store_hoi269_stats_sha256"]}
 
 
 def _manifest_sha(store: Store) -> str:
@@ -149,12 +150,16 @@ def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
     atomic_save_figure(fig, path)
 
 
-def _save_checkpoint(path: Path, step: int, curve: list[dict], model, ema: EMA, opt, ident: dict) -> None:
-    atomic_torch_save({"step": step, "curve": json.dumps(curve), "model": model.state_dict(),
-                       "ema": ema.state_dict(), "optimizer": opt.state_dict(), **ident}, path)
+def _save_checkpoint(path: Path, step: int, curve: list[dict], model, ema: EMA, opt, ident: dict,
+                     window: dict | None = None) -> None:
+    """``window``: the loss values since the last curve row (an interrupt between log steps)."""
+    atomic_torch_save({"step": step, "curve": json.dumps(curve), "window": json.dumps(window or {}),
+                       "model": model.state_dict(), "ema": ema.state_dict(), "optimizer": opt.state_dict(),
+                       **ident}, path)
 
 
-def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device) -> tuple[int, list[dict]]:
+def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device
+                     ) -> tuple[int, list[dict], dict]:
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
     except Exception as exc:                  # torch raises many types for a bad file
@@ -165,7 +170,7 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
         raise ckpt.RunFolderError(f"{path}: checkpoint of another {', '.join(other)}; delete it or choose another "
                                   f"--out")
     try:
-        step, curve = int(ck["step"]), json.loads(ck["curve"])
+        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))
         if not 0 < step <= steps:
             raise ValueError(f"step {step} outside 1..{steps}")
         model.load_state_dict(ck["model"])
@@ -174,10 +179,10 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
     except Exception as exc:
         raise ckpt.RunFolderError(f"{path}: inconsistent training checkpoint ({type(exc).__name__}: "
                                   f"{' '.join(str(exc).split())[:160]}); delete it to restart training") from None
-    return step, curve
+    return step, curve, window
 
 
-def _existing(out: Path, spec: Spec, cfg: RunConfig, msha: str) -> dict | None:
+def _existing(out: Path, spec: Spec, cfg: RunConfig, msha: str, hoi_sha: str) -> dict | None:
     if not out.exists():
         return None
     if not out.is_dir():
@@ -185,15 +190,24 @@ def _existing(out: Path, spec: Spec, cfg: RunConfig, msha: str) -> dict | None:
     if not (out / ckpt.CARD).exists():
         allowed = {ckpt.CHECKPOINT_DIR, ckpt.WEIGHTS, ckpt.CURVE_PNG, ckpt.TRAIN_LOG}
         extra = sorted(p.name for p in out.iterdir() if p.name not in allowed and ".tmp" not in p.name)
+        if (out / ckpt.CHECKPOINT_DIR).exists() and not (out / ckpt.CHECKPOINT_DIR).is_dir():
+            extra.insert(0, f"{ckpt.CHECKPOINT_DIR} (a file)")
         if extra:
             raise ckpt.RunFolderError(f"{out}: not empty and not a baseline run (holds {', '.join(extra[:3])}); "
                                       f"choose another --out")
         return None
     card, _ = ckpt.verify_run(out)
-    if card.get("baseline") == spec.name and card.get("config") == cfg.to_dict() \
-            and card.get("dataset", {}).get("manifest_sha256") == msha:
+    from ..evaluator.card import dict_diff
+    diff = [] if card.get("baseline") == spec.name else [f"baseline ({card.get('baseline')!r})"]
+    diff += dict_diff(card.get("config"), cfg.to_dict(), "config")
+    ds = card.get("dataset", {})
+    for key, value in (("manifest_sha256", msha), ("store_hoi269_stats_sha256", hoi_sha)):
+        if ds.get(key) != value:
+            diff.append(f"dataset.{key} (another store)")
+    if not diff:
         return card
-    raise ckpt.RunFolderError(f"{out}: already holds run {card.get(ckpt.ID_KEY, '?')[:12]} of another config or store; "
+    raise ckpt.RunFolderError(f"{out}: already holds run {card.get(ckpt.ID_KEY, '?')[:12]}, trained with another "
+                              f"recipe or store (differs in {', '.join(diff[:4])}{'...' if len(diff) > 4 else ''}); "
                               f"choose another --out or delete the folder")
 
 
@@ -218,8 +232,10 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
     t0 = time.perf_counter()
     ts = training_set(data, cfg)
     msha = _manifest_sha(ts.store)
-    done = _existing(out, spec, cfg, msha)
+    done = _existing(out, spec, cfg, msha, _store_block(ts.store, ts)["store_hoi269_stats_sha256"])
     if done is not None:
+        if (out / ckpt.CHECKPOINT_DIR).is_dir():        # interrupted after the folder was written
+            shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
         log(f"{tag} {out} already holds this run ({done[ckpt.ID_KEY][:12]}); nothing to do")
         return TrainResult(out, done[ckpt.ID_KEY], done, 0.0, already_trained=True)
     out.mkdir(parents=True, exist_ok=True)
@@ -234,19 +250,24 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
     std = torch.from_numpy(ts.stats.std).to(dev)
     ident = {**_identity(cfg, ts.store, ts), "baseline": spec.name}
     cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
-    step, curve = 0, []
+    step, curve, window = 0, [], {}
     if resume and cpath.exists():
-        step, curve = _load_checkpoint(cpath, ident, cfg.train.steps, model, ema, opt, dev)
+        step, curve, window = _load_checkpoint(cpath, ident, cfg.train.steps, model, ema, opt, dev)
         log(f"{tag} resuming at step {step}/{cfg.train.steps}")
     start = step
     n_params = sum(p.numel() for p in model.parameters())
     log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
         f"{cfg.train.steps} steps of {cfg.train.batch_size}, device {dev}")
-    window: dict[str, list[float]] = {}
     tl = time.perf_counter()
     model.train()
+    saved = step
     while step < cfg.train.steps:
-        check_interrupted()
+        try:
+            check_interrupted()
+        except KeyboardInterrupt:
+            if step > saved:                             # keep the work done since the last checkpoint
+                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            raise
         torch.manual_seed(_seed(cfg.train.seed, "dropout", step))
         gen = torch.Generator().manual_seed(_seed(cfg.train.seed, "noise", step))
         batch = make_batch(ts, cfg, step, text, dev)
@@ -270,8 +291,11 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
             parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
             log(f"{tag} step {step}/{cfg.train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
         if step % cfg.train.checkpoint_every == 0 or step == cfg.train.steps:
-            _save_checkpoint(cpath, step, curve, model, ema, opt, ident)
+            _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            saved = step
         if stop_after is not None and step - start >= stop_after and step < cfg.train.steps:
+            if step > saved:
+                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
             return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
     state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
     state.update({k: torch.from_numpy(v) for k, v in ts.stats.tensors().items()})

@@ -76,7 +76,10 @@ def read_captions(data_root: str | Path, clip_id: str) -> list[Caption] | None:
     path = texts_dir(data_root) / f"{clip_id}.txt"
     if not path.exists():
         return None
-    return parse_text_file(path.read_text(encoding="utf-8"))
+    try:
+        return parse_text_file(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
 
 
 def texts_sha256(data_root: str | Path, clip_ids) -> str:
