@@ -77,7 +77,11 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = 
     print("[evaluator] training a tiny contrastive text-motion evaluator on the train split")
     ev_dir = out / "evaluator"
     main_train_evaluator(data, ev_dir, size="tiny", seed=seed)
-    from_store(data, out / "gt_submission")
+    gt_sub = out / "gt_submission"
+    if (gt_sub / "submission.json").exists():     # the demo's own output from an earlier run
+        import shutil
+        shutil.rmtree(gt_sub)
+    from_store(data, gt_sub)
     result = evaluate(out / "gt_submission", data, ev_dir, executor=executor)
     atomic_write_json(out / "gt_result.json", result)
     print("[evaluate] the ground-truth ('real motion') submission:")
