@@ -23,12 +23,16 @@ def test_linear_schedule_matches_its_definition():
 
 def test_q_sample_is_the_closed_form():
     d = GaussianDiffusion()
-    x0, noise = torch.randn(3, 5), torch.randn(3, 5)
+    g = torch.Generator().manual_seed(0)
+    x0, noise = torch.randn(3, 5, generator=g, dtype=torch.float64), torch.randn(3, 5, generator=g, dtype=torch.float64)
     t = torch.tensor([0, 499, 999])
     xt = d.q_sample(x0, t, noise)
     for i, ti in enumerate(t.tolist()):
         a = float(d.alphas_cumprod[ti])
-        assert torch.allclose(xt[i], math.sqrt(a) * x0[i] + math.sqrt(1 - a) * noise[i], atol=1e-6)
+        assert torch.allclose(xt[i], math.sqrt(a) * x0[i] + math.sqrt(1 - a) * noise[i], rtol=0, atol=1e-12)
+    # float32 inputs: the same within float32 rounding
+    x32 = d.q_sample(x0.float(), t, noise.float())
+    assert torch.allclose(x32.double(), xt, rtol=1e-6, atol=1e-6)
 
 
 def test_ddim_timesteps_are_fifty_evenly_spaced_descending():
