@@ -18,7 +18,7 @@ import time
 
 import torch
 
-from hoibench.baselines.scan import _LinearScan, linear_scan, linear_scan_reference
+from hoibench.baselines.scan import linear_scan, linear_scan_reference
 
 
 def doubling(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -55,7 +55,6 @@ def main() -> None:
         fns["mambapy"] = lambda a, b: pscan(a, b) if a.requires_grad else pscan(a.clone(), b.clone())
     except ImportError:
         print("(mambapy not installed: pip install mambapy to compare)")
-    assert _LinearScan is not None
     sizes = {"EJIM paper temporal (B 32 x 23 joints, 196 frames, 256 x 16)": (32 * 23 // 8, 196, 256, 16),
              "EJIM tiny temporal (B 8 x 23 joints, 96 frames, 16 x 4)": (8 * 23, 96, 16, 4)}
     print(f"# threads {torch.get_num_threads()}, load {os.getloadavg()[0]:.2f}, torch {torch.__version__}; "

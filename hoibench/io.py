@@ -243,3 +243,27 @@ def atomic_torch_save(obj, path: str | os.PathLike) -> Path:
     torch.save(obj, buf)
     return atomic_write_bytes(path, buf.getvalue())
 
+
+def finished_output(out: str | os.PathLike, marker: str, leftovers: set[str], folders: set[str], what: str,
+                    error: type[Exception]) -> bool:
+    """Whether the output folder ``out`` of a training command already holds a finished result.
+
+    True when ``out/marker`` exists (the caller verifies it); False when ``out`` is free:
+    missing, empty, or holding only an interrupted run's ``leftovers`` (and ``.tmp`` files).
+    ``error`` otherwise, naming what is there: ``out`` is not a folder, holds other files,
+    or one of ``folders`` (leftovers that must be folders) is not one."""
+    out = Path(out)
+    if not out.exists():
+        return False
+    if not out.is_dir():
+        raise error(f"{out}: exists and is not a folder; choose another --out")
+    if (out / marker).exists():
+        return True
+    extra = sorted(p.name for p in out.iterdir() if p.name not in leftovers and ".tmp" not in p.name)
+    extra = [f"{name} (a file)" for name in sorted(folders) if (out / name).exists() and not (out / name).is_dir()] \
+        + extra
+    if extra:
+        raise error(f"{out}: not empty and not {what} (holds {', '.join(extra[:3])}{'...' if len(extra) > 3 else ''}); "
+                    f"choose another --out")
+    return False
+

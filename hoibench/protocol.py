@@ -245,6 +245,15 @@ def default_protocol_id(manifest: dict) -> str:
     return f"{manifest.get('dataset', '?')}-{'legacy' if mode.startswith('legacy') else 'clean'}"
 
 
+def default_protocol(manifest: dict) -> Protocol | None:
+    """The shipped protocol a store is scored under by default (:func:`default_protocol_id`),
+    or None when none ships for it."""
+    try:
+        return get_protocol(default_protocol_id(manifest))
+    except (KeyError, ValueError, FileNotFoundError):
+        return None
+
+
 def protocol_mismatches(protocol: Protocol, manifest: dict) -> list[str]:
     """Why ``protocol`` does not fit the store ``manifest`` (dataset, mode, fps,
     representation); empty when it fits."""

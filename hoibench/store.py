@@ -161,6 +161,19 @@ class Store:
     def stats(self, name: str) -> normalization.NormStats:
         return normalization.NormStats.from_npz(self.root / "stats" / f"{name}.npz")
 
+    def stats_sha256(self, name: str) -> str:
+        """sha256 of the ``name`` normalisation statistics; ``""`` when the store has none."""
+        return self.stats(name).sha256() if (self.root / "stats" / f"{name}.npz").exists() else ""
+
+    def manifest_sha256(self) -> str:
+        return manifest_sha256(self.manifest)
+
+
+def manifest_sha256(manifest: dict) -> str:
+    """sha256 of the canonical JSON of a manifest: the store identity evaluator and baseline
+    cards record."""
+    return hashlib.sha256(json.dumps(manifest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
 
 def _stored_result(path: Path, clip_id: str, split: str, sha: str) -> UnitResult | None:
     """The already-prepared clip at ``path`` when its ``source_sha256`` equals ``sha`` (one

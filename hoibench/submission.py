@@ -868,11 +868,8 @@ def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, 
     rows = {c["id"]: c for c in st.manifest["clips"] if c["split"] == split}
     fps = float(st.manifest["config"]["fps"])
     if protocol is None:        # the store's default protocol fixes the K cap when it exists
-        from .protocol import default_protocol_id, get_protocol
-        try:
-            protocol = get_protocol(default_protocol_id(st.manifest))
-        except (KeyError, ValueError, FileNotFoundError):
-            protocol = None
+        from .protocol import default_protocol
+        protocol = default_protocol(st.manifest)
     cap = protocol.max_samples_per_prompt if protocol is not None else DEFAULT_MAX_SAMPLES_PER_PROMPT
     mode = "legacy" if str(st.manifest["config"].get("mode", "clean")).startswith("legacy") else "clean"
     return rows, fps, int(cap), mode

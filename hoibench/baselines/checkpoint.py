@@ -21,17 +21,15 @@ import json
 from pathlib import Path
 
 from ..errors import HoibenchError
+# the same file names, size limits and id scheme as an evaluator folder
+from ..evaluator.card import (CARD, CURVE_PNG, MAX_CARD_BYTES, MAX_WEIGHTS_BYTES, TRAIN_LOG, WEIGHTS,  # noqa: F401
+                              changed_parts, check_safetensors, compute_id, integrity_block, weights_bytes)
+from ..evaluator.errors import CorruptEvaluatorFile
 from ..io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
 
 FORMAT = "hoibench-baseline-1"
-WEIGHTS = "weights.safetensors"
-CARD = "card.json"
-CURVE_PNG = "curve.png"
-TRAIN_LOG = "train_log.json"
 CHECKPOINT_DIR = "checkpoint"
 ID_KEY = "checkpoint_id"
-MAX_CARD_BYTES = 64 * 1024 ** 2
-MAX_WEIGHTS_BYTES = 8 * 1024 ** 3
 
 
 class RunFolderError(HoibenchError, ValueError):
@@ -40,7 +38,6 @@ class RunFolderError(HoibenchError, ValueError):
 
 def write_run(out: str | Path, state_dict: dict, card: dict) -> str:
     """Write weights and card (card last: it marks a complete folder); return the id."""
-    from ..evaluator.card import compute_id, integrity_block, weights_bytes
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     data = weights_bytes(state_dict)
@@ -56,8 +53,6 @@ def write_run(out: str | Path, state_dict: dict, card: dict) -> str:
 def verify_run(folder: str | Path, baseline: str | None = None) -> tuple[dict, bytes]:
     """(card, weights bytes) of a complete, unmodified run folder; :class:`RunFolderError`
     naming the file and field otherwise."""
-    from ..evaluator.card import changed_parts, check_safetensors, compute_id
-    from ..evaluator.errors import CorruptEvaluatorFile
     folder = Path(folder)
     cpath = folder / CARD
     if not cpath.exists():

@@ -4,6 +4,7 @@
 name       train                                  sample
 =========  =====================================  ==========================================
 chainhoi   ``train chainhoi DATA --out RUN``      ``sample chainhoi RUN --data DATA --out SUB``
+ejim       ``train ejim DATA --out RUN``          ``sample ejim RUN --data DATA --out SUB``
 mean-pose  (nothing to train: train statistics)   ``sample mean-pose --data DATA --out SUB``
 =========  =====================================  ==========================================
 """
@@ -14,16 +15,14 @@ from pathlib import Path
 from .registry import SPECS
 
 TRAINABLE = tuple(SPECS)
-NAMES = TRAINABLE + ("mean-pose",)
-
-
 MAX_SEED = 2 ** 63 - 1
 
 
 def _check_threads(threads: int | None) -> None:
     import os
-    if threads is not None and not 1 <= threads <= max(64, 4 * (os.cpu_count() or 1)):
-        raise ValueError(f"--threads: expected an integer in [1, {max(64, 4 * (os.cpu_count() or 1))}], got {threads}")
+    most = max(64, 4 * (os.cpu_count() or 1))
+    if threads is not None and not 1 <= threads <= most:
+        raise ValueError(f"--threads: expected an integer in [1, {most}], got {threads}")
 
 
 def _check_seed(seed: int | None) -> None:

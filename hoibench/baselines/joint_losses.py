@@ -1,4 +1,5 @@
-"""Loss terms of the joint-level diffusion baselines, on raw (de-normalised) joint-level rows.
+"""Loss terms of the joint-level diffusion baselines, on raw (de-normalised) joint-level rows,
+and :func:`denoise`, the noising and x0 prediction every baseline's losses start from.
 
 - :func:`contact_loss` (ChainHOI eq. 6, ``L_h``): squared distance (m^2) from each of the eight
   interaction joints (0, 10, 11, 12, 16, 17, 20, 21) of the prediction to the nearest sample of
@@ -16,7 +17,21 @@ import torch
 
 from ..geometry import axis_angle_to_matrix
 from . import joint_data as D
-from .diffusion import masked_mse
+from .diffusion import GaussianDiffusion, drop_condition, masked_mse
+
+
+def denoise(model, diffusion: GaussianDiffusion, batch: dict, cfg, generator: torch.Generator):
+    """(x0 prediction, clean x0) for a batch: random timesteps, noise and condition drops."""
+    x0 = batch["x0"]
+    B = x0.shape[0]
+    dev = x0.device
+    t = diffusion.sample_timesteps(B, generator).to(dev)
+    noise = torch.randn(x0.shape, generator=generator).to(dev)
+    keep = drop_condition(B, cfg.diffusion.cond_drop, generator).to(dev)
+    xt = diffusion.q_sample(x0, t, noise)
+    text = model.encode_text(batch["text"], batch["text_pad"])
+    obj = model.encode_object(batch["points"])
+    return model(xt, t, keep, text, batch["text_pad"], obj, batch["valid"]), x0
 
 
 def interaction_positions(rows: torch.Tensor) -> torch.Tensor:

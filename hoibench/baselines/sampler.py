@@ -74,8 +74,7 @@ class LoadedRun:
         """:class:`StoreMismatch` when ``store``'s hoi269 statistics or representation differ
         from the card's (the run's normalisation would not fit its data)."""
         ds = self.card["dataset"]
-        stats_path = store.root / "stats" / "hoi269.npz"
-        sha = store.stats("hoi269").sha256() if stats_path.exists() else ""
+        sha = store.stats_sha256("hoi269")
         diffs = []
         if sha != ds.get("store_hoi269_stats_sha256"):
             diffs.append(f"normalisation statistics (stats/hoi269.npz sha256 {sha[:12] or 'missing'}..., the run's "
@@ -110,17 +109,6 @@ class LoadedRun:
         return self.stats.denormalize(x0.float().cpu().numpy())
 
 
-def samples_cap(manifest: dict) -> tuple[int, str]:
-    """(K cap, protocol id): the default protocol's ``max_samples_per_prompt`` for a store
-    (30 when no protocol ships for it)."""
-    from ..protocol import default_protocol_id, get_protocol
-    pid = default_protocol_id(manifest)
-    try:
-        return get_protocol(pid).max_samples_per_prompt, pid
-    except (KeyError, ValueError):
-        return 30, f"default ({pid} is not shipped)"
-
-
 def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
     """Raw joint-level rows (K, T, 24, 12) -> submission arrays (joints, obj_rot, obj_trans)."""
     feats = joint_level.to_hoi269(rows)
@@ -141,10 +129,13 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     loaded = LoadedRun(run, device, baseline)
     store = Store(data)
     loaded.check_store(store)
-    cap, pid = samples_cap(store.manifest)
+    from ..protocol import default_protocol_id
+    from ..submission import submission_context
+    cap = submission_context(store, None)[2]         # validation's K cap: the default protocol's
     if samples > cap:
-        raise ValueError(f"--samples: {samples} samples per prompt; the {pid} protocol reads at most {cap} (replication "
-                         f"r uses sample r mod K, MultiModality the first 30), and validation refuses more")
+        raise ValueError(f"--samples: {samples} samples per prompt; the {default_protocol_id(store.manifest)} protocol "
+                         f"reads at most {cap} (replication r uses sample r mod K, MultiModality the first "
+                         f"mm_samples), and validation refuses more")
     ids = store.clip_ids(split)
     if limit is not None:
         ids = ids[:limit]

@@ -25,7 +25,7 @@ import torch
 from .. import __version__
 from ..errors import HoibenchError
 from ..interrupts import check_interrupted
-from ..io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp
+from ..io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp, finished_output
 from ..store import Store
 from . import checkpoint as ckpt
 from . import joint_data as D
@@ -112,24 +112,20 @@ class TrainResult:
     already_trained: bool = False
 
 
-def _identity(cfg: RunConfig, store: Store, ts: TrainingSet) -> dict:
-    return {"config": json.dumps(cfg.to_dict(), sort_keys=True), "store": _manifest_sha(store),
-            "stats": ts.stats.sha256(), "store_stats": _store_block(store, ts)["store_hoi269_stats_sha256"]}
-
-
-def _manifest_sha(store: Store) -> str:
-    return hashlib.sha256(json.dumps(store.manifest, sort_keys=True).encode()).hexdigest()
+def _identity(cfg: RunConfig, dataset: dict) -> dict:
+    """What a checkpoint must share with the run that resumes it (``dataset``: :func:`_store_block`)."""
+    return {"config": json.dumps(cfg.to_dict(), sort_keys=True), "store": dataset["manifest_sha256"],
+            "stats": dataset["joint_stats_sha256"], "store_stats": dataset["store_hoi269_stats_sha256"]}
 
 
 def _store_block(store: Store, ts: TrainingSet) -> dict:
+    """The card's ``dataset`` block: which store, split and statistics the run was trained on."""
     m = store.manifest
-    stats_path = store.root / "stats" / "hoi269.npz"
-    hoi_sha = store.stats("hoi269").sha256() if stats_path.exists() else ""
-    return {"name": m.get("dataset", ""), "manifest_sha256": _manifest_sha(store), "split": "train",
+    return {"name": m.get("dataset", ""), "manifest_sha256": store.manifest_sha256(), "split": "train",
             "clips": len(ts.items), "clips_without_texts": len(ts.missing_texts),
             "fps": float(m.get("config", {}).get("fps", 0.0)), "mode": m.get("config", {}).get("mode", ""),
             "representation": m.get("representations", {}).get("hoi269", ""),
-            "store_hoi269_stats_sha256": hoi_sha, "joint_stats_sha256": ts.stats.sha256()}
+            "store_hoi269_stats_sha256": store.stats_sha256("hoi269"), "joint_stats_sha256": ts.stats.sha256()}
 
 
 def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
@@ -182,27 +178,17 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
     return step, curve, window
 
 
-def _existing(out: Path, spec: Spec, cfg: RunConfig, msha: str, hoi_sha: str) -> dict | None:
-    if not out.exists():
-        return None
-    if not out.is_dir():
-        raise ckpt.RunFolderError(f"{out}: exists and is not a folder; choose another --out")
-    if not (out / ckpt.CARD).exists():
-        allowed = {ckpt.CHECKPOINT_DIR, ckpt.WEIGHTS, ckpt.CURVE_PNG, ckpt.TRAIN_LOG}
-        extra = sorted(p.name for p in out.iterdir() if p.name not in allowed and ".tmp" not in p.name)
-        if (out / ckpt.CHECKPOINT_DIR).exists() and not (out / ckpt.CHECKPOINT_DIR).is_dir():
-            extra.insert(0, f"{ckpt.CHECKPOINT_DIR} (a file)")
-        if extra:
-            raise ckpt.RunFolderError(f"{out}: not empty and not a baseline run (holds {', '.join(extra[:3])}); "
-                                      f"choose another --out")
+def _existing(out: Path, spec: Spec, cfg: RunConfig, dataset: dict) -> dict | None:
+    leftovers = {ckpt.CHECKPOINT_DIR, ckpt.WEIGHTS, ckpt.CURVE_PNG, ckpt.TRAIN_LOG}
+    if not finished_output(out, ckpt.CARD, leftovers, {ckpt.CHECKPOINT_DIR}, "a baseline run", ckpt.RunFolderError):
         return None
     card, _ = ckpt.verify_run(out)
     from ..evaluator.card import dict_diff
     diff = [] if card.get("baseline") == spec.name else [f"baseline ({card.get('baseline')!r})"]
     diff += dict_diff(card.get("config"), cfg.to_dict(), "config")
     ds = card.get("dataset", {})
-    for key, value in (("manifest_sha256", msha), ("store_hoi269_stats_sha256", hoi_sha)):
-        if ds.get(key) != value:
+    for key in ("manifest_sha256", "store_hoi269_stats_sha256"):
+        if ds.get(key) != dataset[key]:
             diff.append(f"dataset.{key} (another store)")
     if not diff:
         return card
@@ -231,8 +217,8 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
         torch.set_num_threads(threads)
     t0 = time.perf_counter()
     ts = training_set(data, cfg)
-    msha = _manifest_sha(ts.store)
-    done = _existing(out, spec, cfg, msha, _store_block(ts.store, ts)["store_hoi269_stats_sha256"])
+    dataset = _store_block(ts.store, ts)
+    done = _existing(out, spec, cfg, dataset)
     if done is not None:
         if (out / ckpt.CHECKPOINT_DIR).is_dir():        # interrupted after the folder was written
             shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
@@ -248,7 +234,7 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
     diffusion = GaussianDiffusion(cfg.diffusion)
     mean = torch.from_numpy(ts.stats.mean).to(dev)
     std = torch.from_numpy(ts.stats.std).to(dev)
-    ident = {**_identity(cfg, ts.store, ts), "baseline": spec.name}
+    ident = {**_identity(cfg, dataset), "baseline": spec.name}
     cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
     step, curve, window = 0, [], {}
     if resume and cpath.exists():
@@ -299,7 +285,7 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
             return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
     state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
     state.update({k: torch.from_numpy(v) for k, v in ts.stats.tensors().items()})
-    card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": _store_block(ts.store, ts),
+    card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": dataset,
             "text": text.describe(), "curve": curve,
             "summary": {"steps": cfg.train.steps, "parameters": n_params,
                         "final_loss": curve[-1]["loss"] if curve else None},

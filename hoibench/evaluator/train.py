@@ -22,7 +22,6 @@ gate (:mod:`hoibench.evaluator.gate`), and the evaluator folder (:mod:`hoibench.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import sys
@@ -35,8 +34,8 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp
-from ..store import Store
+from ..io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp, finished_output
+from ..store import Store, manifest_sha256
 from . import card as card_mod
 from . import text as text_mod
 from .config import EvaluatorConfig, preset
@@ -62,10 +61,6 @@ class TrainResult:
     card: dict | None
     gate: GateResult | None
     epochs_run: int                  # epochs run by this call
-
-
-def manifest_sha256(manifest: dict) -> str:
-    return hashlib.sha256(json.dumps(manifest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def _epoch_seed(seed: int, epoch: int) -> int:
@@ -180,15 +175,8 @@ def existing_output(out: Path, cfg: EvaluatorConfig, msha: str) -> dict | None:
     """The card when ``out`` already holds this evaluator (same config and store manifest);
     None when ``out`` is free (missing, empty, or an interrupted run: checkpoint, partial
     files). :class:`EvaluatorFolderExists` otherwise, saying what is there."""
-    if not out.exists():
-        return None
-    if not out.is_dir():
-        raise EvaluatorFolderExists(f"{out}: exists and is not a folder; choose another --out")
-    if not (out / card_mod.CARD).exists():
-        extra = sorted(p.name for p in out.iterdir() if p.name not in _OUTPUT_ENTRIES and ".tmp" not in p.name)
-        if extra:
-            raise EvaluatorFolderExists(f"{out}: not empty and not an evaluator folder (holds {', '.join(extra[:3])}"
-                                        f"{'...' if len(extra) > 3 else ''}); choose another --out")
+    if not finished_output(out, card_mod.CARD, _OUTPUT_ENTRIES, {CHECKPOINT_DIR}, "an evaluator folder",
+                           EvaluatorFolderExists):
         return None
     try:
         card, _ = card_mod.verify_folder(out)

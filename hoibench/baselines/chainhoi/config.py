@@ -26,9 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import TEXT_ENCODERS, RunConfig, TrainConfig, check_conditioning, check_ints  # noqa: F401
-
-ChainHOIConfig = RunConfig      # a RunConfig whose model is a chainhoi ModelConfig
+from ..config import RunConfig, TrainConfig, check_conditioning, check_ints
 
 MASK_MODES = ("paper", "released")
 

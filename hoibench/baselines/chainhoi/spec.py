@@ -7,28 +7,14 @@ from __future__ import annotations
 
 import torch
 
-from ..diffusion import GaussianDiffusion, drop_condition, masked_mse
-from ..joint_losses import contact_loss, object_loss
+from ..diffusion import GaussianDiffusion, masked_mse
+from ..joint_losses import contact_loss, denoise, object_loss
 from .config import ModelConfig, preset  # noqa: F401  (the spec's preset and model config)
 from .model import ChainHOI
 
 
 def build_model(cfg, vocab: int, text_width: int) -> ChainHOI:
     return ChainHOI(cfg.model, vocab=vocab, text_width=text_width)
-
-
-def denoise(model, diffusion: GaussianDiffusion, batch: dict, cfg, generator: torch.Generator):
-    """(x0 prediction, clean x0) for a batch: random timesteps, noise and condition drops."""
-    x0 = batch["x0"]
-    B = x0.shape[0]
-    dev = x0.device
-    t = diffusion.sample_timesteps(B, generator).to(dev)
-    noise = torch.randn(x0.shape, generator=generator).to(dev)
-    keep = drop_condition(B, cfg.diffusion.cond_drop, generator).to(dev)
-    xt = diffusion.q_sample(x0, t, noise)
-    text = model.encode_text(batch["text"], batch["text_pad"])
-    obj = model.encode_object(batch["points"])
-    return model(xt, t, keep, text, batch["text_pad"], obj, batch["valid"]), x0
 
 
 def losses(model, diffusion: GaussianDiffusion, batch: dict, cfg, mean: torch.Tensor, std: torch.Tensor,

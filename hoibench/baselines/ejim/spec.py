@@ -7,9 +7,8 @@ from __future__ import annotations
 
 import torch
 
-from ..chainhoi.spec import denoise
 from ..diffusion import GaussianDiffusion, masked_mse
-from ..joint_losses import contact_loss, object_loss, smooth_loss
+from ..joint_losses import contact_loss, denoise, object_loss, smooth_loss
 from .config import ModelConfig, preset  # noqa: F401  (the spec's preset and model config)
 from .model import EJIM
 
