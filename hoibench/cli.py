@@ -191,11 +191,12 @@ def _cmd_baseline(args) -> int:
     from .baselines import commands
     if args.action == "train":
         return commands.main_train(args.name, args.data, args.out, config=args.config, device=args.device,
-                                   steps=args.steps, seed=args.seed, mask=args.mask, threads=args.threads)
+                                   steps=args.steps, seed=args.seed, mask=args.mask, threads=args.threads,
+                                   overrides=args.set)
     if args.action == "sample":
         return commands.main_sample(args.name, args.run, args.data, args.out, samples=args.samples, seed=args.seed,
                                     device=args.device, guidance=args.guidance, ddim_steps=args.ddim_steps,
-                                    as_zip=args.zip, threads=args.threads)
+                                    temperature=args.temperature, as_zip=args.zip, threads=args.threads)
     return commands.main_show(args.run)
 
 
@@ -345,9 +346,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="score with an evaluator trained on another dataset or representation (recorded)")
     s.set_defaults(func=_cmd_evaluate)
 
-    s = sub.add_parser("baseline", help="train and sample reference baselines (chainhoi, mean-pose)",
+    s = sub.add_parser("baseline", help="train and sample reference baselines (chainhoi, ejim, catmo, mean-pose)",
                        epilog="examples:\n  hoibench baseline train chainhoi data --config tiny --out runs/chainhoi-tiny\n"
                               "  hoibench baseline sample chainhoi runs/chainhoi-tiny --data data --out sub\n"
+                              "  hoibench baseline train catmo data --out runs/catmo-tiny --set train.gpt_steps=3000\n"
+                              "  hoibench baseline sample catmo runs/catmo-tiny --data data --out sub-catmo -k 30\n"
                               "  hoibench baseline sample mean-pose --data data --out sub-mean\n"
                               "  hoibench baseline show runs/chainhoi-tiny",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -357,7 +360,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("data", type=Path)
     b.add_argument("--out", type=Path, required=True)
     b.add_argument("--config", choices=["tiny", "paper"], default="tiny", help="tiny (default; CPU minutes) or paper")
-    b.add_argument("--steps", type=int, default=None, help="optimiser steps (0: the untrained model)")
+    b.add_argument("--steps", type=int, default=None,
+                   help="optimiser steps (0: the untrained model); catmo: every stage's steps (0: untrained)")
+    b.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                   help="override one config field (JSON value), e.g. train.lr=5e-4; repeatable")
     b.add_argument("--seed", type=int, default=None)
     b.add_argument("--mask", choices=["paper", "released"], default=None,
                    help="chainhoi only: Kinematic-aware Decoder mask (released: the published code's additive "
@@ -367,7 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=_cmd_baseline)
     b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
     b.add_argument("name", choices=sorted(BASELINES) + ["mean-pose"])
-    b.add_argument("run", type=Path, nargs="?", default=None, help="run folder (chainhoi, ejim; none for mean-pose)")
+    b.add_argument("run", type=Path, nargs="?", default=None,
+                   help="run folder (chainhoi, ejim, catmo; none for mean-pose)")
     b.add_argument("--data", type=Path, required=True)
     b.add_argument("--out", type=Path, required=True)
     b.add_argument("--samples", "-k", type=int, default=1,
@@ -375,6 +382,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--guidance", type=float, default=None, help="classifier-free guidance scale (default: config, 2)")
     b.add_argument("--ddim-steps", type=int, default=None, help="DDIM steps (default: config, 50)")
+    b.add_argument("--temperature", type=float, default=None, help="catmo: sampling temperature (default: config, 1)")
     b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
     b.add_argument("--threads", type=int, default=None)
     b.add_argument("--zip", action="store_true")

@@ -5,6 +5,7 @@ name       train                                  sample
 =========  =====================================  ==========================================
 chainhoi   ``train chainhoi DATA --out RUN``      ``sample chainhoi RUN --data DATA --out SUB``
 ejim       ``train ejim DATA --out RUN``          ``sample ejim RUN --data DATA --out SUB``
+catmo      ``train catmo DATA --out RUN``         ``sample catmo RUN --data DATA --out SUB``
 mean-pose  (nothing to train: train statistics)   ``sample mean-pose --data DATA --out SUB``
 =========  =====================================  ==========================================
 """
@@ -30,9 +31,25 @@ def _check_seed(seed: int | None) -> None:
         raise ValueError(f"--seed: expected an integer in [0, 2^63 - 1], got {seed}")
 
 
+def parse_overrides(items: list[str] | None) -> dict:
+    """``["train.lr=5e-4", "model.mask=\"released\""]`` -> ``{"train.lr": 0.0005, ...}`` (values are
+    JSON; a bare word is taken as a string)."""
+    import json
+    out = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        if not sep or "." not in key:
+            raise ValueError(f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. train.lr=5e-4")
+        try:
+            out[key.strip()] = json.loads(raw)
+        except json.JSONDecodeError:
+            out[key.strip()] = raw
+    return out
+
+
 def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny", device: str = "cpu",
                steps: int | None = None, seed: int | None = None, mask: str | None = None,
-               threads: int | None = None) -> int:
+               threads: int | None = None, overrides: list[str] | None = None) -> int:
     _check_threads(threads)
     _check_seed(seed)
     if mask is not None and name != "chainhoi":
@@ -42,14 +59,26 @@ def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny
                          f"store's train statistics directly")
     from .registry import get_spec
     from .trainer import train
-    cfg = get_spec(name).preset(config)
+    spec = get_spec(name)
+    cfg = spec.preset(config)
     over = {}
     if steps is not None:
-        over["train.steps"] = steps
+        if steps < 0:
+            raise ValueError(f"--steps: expected an integer >= 0, got {steps}")
+        if spec.kind == "tokens":
+            if steps != 0:
+                raise ValueError("--steps: CATMO trains in stages; set their steps with --set train.vq_steps=N, "
+                                 "train.contact_steps, text.movement_ae_steps, text.match_steps, train.gpt_steps, "
+                                 "object.steps (--steps 0: the untrained model)")
+            over.update({k: 0 for k in ("train.vq_steps", "train.contact_steps", "text.movement_ae_steps",
+                                        "text.match_steps", "train.gpt_steps", "object.steps")})
+        else:
+            over["train.steps"] = steps
     if seed is not None:
         over["train.seed"] = seed
     if mask is not None:
         over["model.mask"] = mask
+    over.update(parse_overrides(overrides))
     if over:
         cfg = cfg.replace(**over)
     _check_device(device)
@@ -59,7 +88,7 @@ def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny
 
 def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | Path, samples: int = 1,
                 seed: int = 0, device: str = "cpu", guidance: float | None = None, ddim_steps: int | None = None,
-                as_zip: bool = False, threads: int | None = None) -> int:
+                as_zip: bool = False, threads: int | None = None, temperature: float | None = None) -> int:
     _check_threads(threads)
     _check_seed(seed)
     if name == "mean-pose":
@@ -67,6 +96,7 @@ def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | 
             raise ValueError("mean-pose takes no RUN folder (it uses the store's train statistics)")
         unused = [flag for flag, given in (("--samples", samples != 1), ("--seed", seed != 0),
                                            ("--guidance", guidance is not None), ("--ddim-steps", ddim_steps is not None),
+                                           ("--temperature", temperature is not None),
                                            ("--device", device != "cpu"), ("--threads", threads is not None)) if given]
         if unused:
             raise ValueError(f"{', '.join(unused)}: mean-pose is deterministic and has no model; it writes one sample "
@@ -83,7 +113,7 @@ def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | 
         torch.set_num_threads(threads)
     from .sampler import sample
     sample(run, data, out, samples=samples, seed=seed, device=device, guidance=guidance, steps=ddim_steps,
-           as_zip=as_zip, baseline=name)
+           temperature=temperature, as_zip=as_zip, baseline=name)
     return 0
 
 
@@ -104,6 +134,18 @@ def main_show(run: str | Path) -> int:
     if curve:
         print(f"  loss {curve[0]['loss']:.4f} (step {curve[0]['step']}) -> {curve[-1]['loss']:.4f} "
               f"(step {curve[-1]['step']})")
+    curves = card.get("curves") or {}                             # CATMO: one curve per stage
+    order = list((card.get("summary") or {}).get("stage_steps") or {})
+    for stage, rows in sorted(curves.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)):
+        if rows:
+            print(f"  {stage:12s} loss {rows[0]['loss']:.4f} (step {rows[0]['step']}) -> {rows[-1]['loss']:.4f} "
+                  f"(step {rows[-1]['step']})")
+    for split, rep in (card.get("vq") or {}).items():
+        mv, ct = rep["motion"], rep["contact"]
+        print(f"  VQ on {split} ({rep['clips']} clips): motion MPJPE {mv['mpjpe_m'] * 100:.2f} cm, perplexity "
+              f"{mv['perplexity']:.1f} ({mv['codes_used']}/{mv['codebook']} codes); contacts accuracy "
+              f"{ct['accuracy']:.3f}, F1 {ct['f1']:.3f}, perplexity {ct['perplexity']:.1f} "
+              f"({ct['codes_used']}/{ct['codebook']} codes)")
     print("  text encoder: " + json.dumps({k: v for k, v in card.get("text", {}).items() if k != "vocab"}))
     return 0
 

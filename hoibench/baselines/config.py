@@ -33,6 +33,39 @@ def check_conditioning(cfg) -> None:
         raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {cfg.text_encoder!r}")
 
 
+def section_from_dict(cls: type, block, where: str, outer: str = "config"):
+    """``cls(**block)`` for one config section read from JSON (lists become tuples); a
+    ValueError naming ``where`` and the field for a non-object, unknown or invalid field."""
+    if not isinstance(block, dict):
+        raise ValueError(f"{where}: expected an object")
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(block) - known)
+    if unknown:
+        raise ValueError(f"{where}: unknown field(s) {', '.join(unknown)}")
+    block = {k: tuple(v) if isinstance(v, list) else v for k, v in block.items()}
+    try:
+        return cls(**block)
+    except TypeError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    except ValueError as exc:
+        raise ValueError(f"{outer}: {exc}") from None
+
+
+def dotted_replace(d: dict, sections: tuple[str, ...], changes: dict) -> dict:
+    """A copy of the config dict ``d`` with ``section.field`` overrides (ValueError naming an
+    unknown section or field)."""
+    import copy
+    d = copy.deepcopy(d)
+    for dotted, value in changes.items():
+        section, _, key = dotted.partition(".")
+        if section not in sections or not key:
+            raise ValueError(f"override {dotted!r}: expected one of {', '.join(s + '.<field>' for s in sections)}")
+        if key not in d[section]:
+            raise ValueError(f"override {dotted!r}: unknown field {key!r} of {section}")
+        d[section][key] = value
+    return d
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     steps: int = 50_000
@@ -87,32 +120,11 @@ class RunConfig:
     def from_dict(cls, d: dict, model_cls: type, where: str = "config") -> "RunConfig":
         if not isinstance(d, dict):
             raise ValueError(f"{where}: expected an object")
-        parts = {}
-        for key, sub in (("model", model_cls), ("train", TrainConfig), ("diffusion", DiffusionConfig)):
-            block = d.get(key, {})
-            if not isinstance(block, dict):
-                raise ValueError(f"{where}.{key}: expected an object")
-            known = {f.name: f for f in fields(sub)}
-            unknown = sorted(set(block) - set(known))
-            if unknown:
-                raise ValueError(f"{where}.{key}: unknown field(s) {', '.join(unknown)}")
-            block = {k: tuple(v) if isinstance(v, list) else v for k, v in block.items()}
-            try:
-                parts[key] = sub(**block)
-            except TypeError as exc:
-                raise ValueError(f"{where}.{key}: {exc}") from None
-            except ValueError as exc:
-                raise ValueError(f"{where}: {exc}") from None
+        parts = {key: section_from_dict(sub, d.get(key, {}), f"{where}.{key}", where)
+                 for key, sub in (("model", model_cls), ("train", TrainConfig), ("diffusion", DiffusionConfig))}
         return cls(name=str(d.get("name", "custom")), **parts)
 
     def replace(self, **changes) -> "RunConfig":
         """A copy with dotted overrides, e.g. ``replace(**{"train.steps": 10, "model.mask": "released"})``."""
-        d = self.to_dict()
-        for dotted, value in changes.items():
-            section, _, key = dotted.partition(".")
-            if section not in ("model", "train", "diffusion") or not key:
-                raise ValueError(f"override {dotted!r}: expected model.<field>, train.<field> or diffusion.<field>")
-            if key not in d[section]:
-                raise ValueError(f"override {dotted!r}: unknown field {key!r} of {section}")
-            d[section][key] = value
-        return RunConfig.from_dict(d, type(self.model))
+        return RunConfig.from_dict(dotted_replace(self.to_dict(), ("model", "train", "diffusion"), changes),
+                                   type(self.model))

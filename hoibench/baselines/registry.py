@@ -1,4 +1,8 @@
-"""The joint-level diffusion baselines hoibench trains: one :class:`Spec` per baseline.
+"""The baselines hoibench trains: one :class:`Spec` per baseline.
+
+The joint-level diffusion baselines (ChainHOI, EJIM; ``kind = "diffusion"``) share the trainer
+below; CATMO (``kind = "tokens"``) trains in stages (:mod:`.catmo.trainer`) and shares the run
+folder and the sampler's submission path.
 
 A spec names what differs between baselines -- the model config class, the presets, how to
 build the denoiser and which losses train it -- while the trainer (:mod:`.trainer`), the run
@@ -18,6 +22,7 @@ class Spec:
     name: str
     title: str                       # method name in submissions and tables
     module: str                      # hoibench.baselines.<module> with preset, ModelConfig, build_model, losses
+    kind: str = "diffusion"          # "diffusion": the shared trainer/sampler; "tokens": CATMO's own stages
 
     def _mod(self):
         return import_module(f"hoibench.baselines.{self.module}")
@@ -40,6 +45,7 @@ class Spec:
 SPECS: dict[str, Spec] = {
     "chainhoi": Spec("chainhoi", "ChainHOI", "chainhoi.spec"),
     "ejim": Spec("ejim", "EJIM", "ejim.spec"),
+    "catmo": Spec("catmo", "CATMO", "catmo.config", kind="tokens"),
 }
 
 

@@ -43,10 +43,13 @@ class StoreMismatch(ckpt.RunFolderError):
 class LoadedRun:
     """A verified run: config, model (EMA weights, eval mode), statistics, text conditioner."""
 
-    def __init__(self, folder: str | Path, device: str = "cpu", baseline: str | None = None):
+    requires_object = True
+
+    def __init__(self, folder: str | Path, device: str = "cpu", baseline: str | None = None,
+                 verified: tuple[dict, bytes] | None = None):
         from safetensors.torch import load as load_tensors
         self.folder = Path(folder)
-        self.card, data = ckpt.verify_run(self.folder, baseline)
+        self.card, data = verified or ckpt.verify_run(self.folder, baseline)
         self.id = self.card[ckpt.ID_KEY]
         self.spec = get_spec(self.card["baseline"])
         self.config = RunConfig.from_dict(self.card["config"], self.spec.model_config,
@@ -69,6 +72,7 @@ class LoadedRun:
                                       f"({' '.join(str(exc).split())[:400]})") from None
         self.model.to(self.device).eval()
         self.diffusion = GaussianDiffusion(self.config.diffusion)
+        self.object_points = self.config.model.object_points
 
     def check_store(self, store: Store) -> None:
         """:class:`StoreMismatch` when ``store``'s hoi269 statistics or representation differ
@@ -108,6 +112,36 @@ class LoadedRun:
                                         steps=steps, guidance=guidance)
         return self.stats.denormalize(x0.float().cpu().numpy())
 
+    def options(self, guidance: float | None = None, steps: int | None = None, temperature: float | None = None
+                ) -> dict:
+        """The sampling options, checked: classifier-free guidance scale and DDIM steps."""
+        if temperature is not None:
+            raise ValueError(f"--temperature: {self.spec.title} samples by DDIM; the temperature is CATMO's")
+        cfg = self.config
+        scale = cfg.diffusion.guidance if guidance is None else float(guidance)
+        if not (math.isfinite(scale) and 0 <= scale <= 100):
+            raise ValueError(f"--guidance: expected a number in [0, 100], got {guidance!r}")
+        n_steps = cfg.diffusion.ddim_steps if steps is None else int(steps)
+        if not 1 <= n_steps <= cfg.diffusion.steps:
+            raise ValueError(f"--ddim-steps: expected an integer in [1, {cfg.diffusion.steps}], got {steps!r}")
+        return {"ddim_steps": n_steps, "guidance": scale}
+
+    def generate_sample(self, caption: str, points: np.ndarray | None, length: int, k: int, seed_parts: tuple,
+                        ddim_steps: int, guidance: float) -> dict[str, np.ndarray]:
+        """Submission arrays (joints, obj_rot, obj_trans) of ``k`` samples of ``length`` frames."""
+        return rows_to_sample(self.generate(caption, points, length, k, seed_parts, guidance=guidance,
+                                            steps=ddim_steps))
+
+
+def load_run(folder: str | Path, device: str = "cpu", baseline: str | None = None):
+    """The verified run folder as a sampler: :class:`LoadedRun` for the diffusion baselines,
+    :class:`~hoibench.baselines.catmo.sampler.LoadedCatmo` for CATMO."""
+    verified = ckpt.verify_run(Path(folder), baseline)
+    if get_spec(verified[0]["baseline"]).kind == "tokens":
+        from .catmo.sampler import LoadedCatmo
+        return LoadedCatmo(folder, device, verified)
+    return LoadedRun(folder, device, baseline, verified)
+
 
 def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
     """Raw joint-level rows (K, T, 24, 12) -> submission arrays (joints, obj_rot, obj_trans)."""
@@ -119,14 +153,14 @@ def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
 
 def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int = 1, seed: int = 0,
            split: str = "test", device: str = "cpu", guidance: float | None = None, steps: int | None = None,
-           as_zip: bool = False, limit: int | None = None, baseline: str | None = None,
-           log: Callable[[str], None] | None = print) -> Path:
+           temperature: float | None = None, as_zip: bool = False, limit: int | None = None,
+           baseline: str | None = None, log: Callable[[str], None] | None = print) -> Path:
     """Write a submission of ``samples`` (K) samples per clip of ``split`` to ``out``
     (``baseline``: refuse a run of another baseline)."""
     log = log or (lambda s: None)
     if not (isinstance(samples, int) and 1 <= samples <= 1000):
         raise ValueError(f"--samples: expected an integer in 1..1000, got {samples!r}")
-    loaded = LoadedRun(run, device, baseline)
+    loaded = load_run(run, device, baseline)
     store = Store(data)
     loaded.check_store(store)
     from ..protocol import default_protocol_id
@@ -142,21 +176,16 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     if not ids:
         raise ValueError(f"{data}: split {split!r} has no clips")
     from ..evaluator.text import read_captions
-    cfg = loaded.config
-    scale = cfg.diffusion.guidance if guidance is None else float(guidance)
-    if not (math.isfinite(scale) and 0 <= scale <= 100):
-        raise ValueError(f"--guidance: expected a number in [0, 100], got {guidance!r}")
-    n_steps = cfg.diffusion.ddim_steps if steps is None else int(steps)
-    if not 1 <= n_steps <= cfg.diffusion.steps:
-        raise ValueError(f"--ddim-steps: expected an integer in [1, {cfg.diffusion.steps}], got {steps!r}")
+    opts = loaded.options(guidance, steps, temperature)
     points_cache: dict[str, np.ndarray] = {}
     tag = f"[{loaded.spec.name}]"
-    meta = {"method": f"{loaded.spec.title} ({cfg.name}, hoibench reproduction)", "version": __version__, "url": "",
-            "representation": store.manifest.get("representations", {}).get("hml263", ""),
+    meta = {"method": f"{loaded.spec.title} ({loaded.config.name}, hoibench reproduction)", "version": __version__,
+            "url": "", "representation": store.manifest.get("representations", {}).get("hml263", ""),
             "fps": float(store.manifest["config"]["fps"]),
-            "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"},
-            "source": {"baseline": loaded.spec.name, "checkpoint_id": loaded.id, "config": cfg.name, "seed": seed,
-                       "ddim_steps": n_steps, "guidance": scale, "caption": "first caption of each clip",
+            "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"
+                      if loaded.spec.kind == "diffusion" else "last"},
+            "source": {"baseline": loaded.spec.name, "checkpoint_id": loaded.id, "config": loaded.config.name,
+                       "seed": seed, **opts, "caption": "first caption of each clip",
                        "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__}}
     t0 = time.perf_counter()
 
@@ -164,23 +193,25 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
         for i, cid in enumerate(ids):
             check_interrupted()
             clip = store.load(cid)
-            if "object_name" not in clip:
+            if loaded.requires_object and "object_name" not in clip:
                 raise ValueError(f"{data}: clip {cid}: field object_name missing: {loaded.spec.title} samples "
                                  f"human-object clips")
             caps = read_captions(store.root, cid)
             if not caps:
                 raise ValueError(f"{store.root}/texts/{cid}.txt: missing or empty: no caption to condition on "
                                  f"(annotate the store first)")
-            name = str(clip["object_name"])
-            if name not in points_cache:
-                v, f = store.object_template(name)
-                points_cache[name] = D.surface_points(v, f, cfg.model.object_points, name)
+            points = None
+            if loaded.requires_object:
+                name = str(clip["object_name"])
+                if name not in points_cache:
+                    v, f = store.object_template(name)
+                    points_cache[name] = D.surface_points(v, f, loaded.object_points, name)
+                points = points_cache[name]
             T = int(clip["joints"].shape[0])
-            rows = loaded.generate(caps[0].text, points_cache[name], T, samples, (seed, "sample", cid),
-                                   guidance=scale, steps=n_steps)
+            arrays = loaded.generate_sample(caps[0].text, points, T, samples, (seed, "sample", cid), **opts)
             el = time.perf_counter() - t0
             log(f"{tag} sampled {i + 1}/{len(ids)} {cid} (K={samples}, T={T}) {el:.1f} s")
-            yield cid, rows_to_sample(rows)
+            yield cid, arrays
 
     from ..submission import write_submission
     path = write_submission(out, meta, gen(), as_zip=as_zip)

@@ -178,16 +178,20 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
     return step, curve, window
 
 
-def _existing(out: Path, spec: Spec, cfg: RunConfig, dataset: dict) -> dict | None:
+def _existing(out: Path, name: str, config: dict, dataset: dict,
+              keys: tuple[str, ...] = ("manifest_sha256", "store_hoi269_stats_sha256")) -> dict | None:
+    """The card of a finished run folder ``out`` trained with this baseline, ``config`` and
+    store (the ``dataset`` fields ``keys``); None for an absent or unfinished folder;
+    :class:`RunFolderError` naming the differing fields otherwise."""
     leftovers = {ckpt.CHECKPOINT_DIR, ckpt.WEIGHTS, ckpt.CURVE_PNG, ckpt.TRAIN_LOG}
     if not finished_output(out, ckpt.CARD, leftovers, {ckpt.CHECKPOINT_DIR}, "a baseline run", ckpt.RunFolderError):
         return None
     card, _ = ckpt.verify_run(out)
     from ..evaluator.card import dict_diff
-    diff = [] if card.get("baseline") == spec.name else [f"baseline ({card.get('baseline')!r})"]
-    diff += dict_diff(card.get("config"), cfg.to_dict(), "config")
+    diff = [] if card.get("baseline") == name else [f"baseline ({card.get('baseline')!r})"]
+    diff += dict_diff(card.get("config"), config, "config")
     ds = card.get("dataset", {})
-    for key in ("manifest_sha256", "store_hoi269_stats_sha256"):
+    for key in keys:
         if ds.get(key) != dataset[key]:
             diff.append(f"dataset.{key} (another store)")
     if not diff:
@@ -208,6 +212,10 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
     writes the untrained model (the "untrained" reference row).
     """
     spec = get_spec(baseline)
+    if spec.kind == "tokens":
+        from .catmo.trainer import train as train_catmo
+        return train_catmo(data, out, config, device=device, resume=resume, stop_after=stop_after, threads=threads,
+                           log=log)
     cfg = spec.preset(config) if isinstance(config, str) else config
     tag = f"[{spec.name}]"
     log = log or (lambda s: None)
@@ -218,7 +226,7 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
     t0 = time.perf_counter()
     ts = training_set(data, cfg)
     dataset = _store_block(ts.store, ts)
-    done = _existing(out, spec, cfg, dataset)
+    done = _existing(out, spec.name, cfg.to_dict(), dataset)
     if done is not None:
         if (out / ckpt.CHECKPOINT_DIR).is_dir():        # interrupted after the folder was written
             shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)

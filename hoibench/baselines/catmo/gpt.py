@@ -1,0 +1,118 @@
+"""CATMO's intertwined GPT (CATMO sec. 4.2): one causal transformer over interleaved motion
+and contact indices.
+
+Token ids share one table: motion codes ``0..Km-1``, contact codes ``Km..Km+Kc-1``, ``END =
+Km+Kc`` and ``PAD = Km+Kc+1`` (input only). A clip of ``U`` units is the target sequence
+``[m_1, c_1, m_2, c_2, ..., m_U, c_U, END]`` (:func:`interleave`); the input is the
+condition vector followed by every target but the last, so position ``0`` (the condition)
+predicts ``m_1``, the position of ``m_i`` predicts ``c_i`` and the position of ``c_i``
+predicts ``m_{i+1}`` (or END): eq. 4's ``p(s_i | s_<i, s^c_<i, Z_t) p(s^c_i | s_<=i,
+s^c_<i, Z_t)``. No flag says which kind comes next; the position's parity is the only cue.
+Training uses cross-entropy over the whole table; sampling restricts each position to its
+modality's codes (:meth:`IntertwinedGPT.sample`).
+
+Multi-modal corruption (:func:`corrupt`): every input index is replaced, with probability
+``rate`` and independently of the others, by a random index of its own modality
+(``"token"``, CATMO's mixed-random strategy); ``"unit"`` corrupts ``m_i`` and ``c_i``
+together (the standard strategy CATMO compares against).
+"""
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+
+def vocab_layout(motion_codes: int, contact_codes: int) -> tuple[int, int, int]:
+    """(END id, PAD id, output classes)."""
+    end = motion_codes + contact_codes
+    return end, end + 1, end + 1
+
+
+def interleave(motion: torch.Tensor, contact: torch.Tensor, units: torch.Tensor, motion_codes: int,
+               contact_codes: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(targets (B, 2U+1), valid (B, 2U+1)) from (B, U) motion and contact indices and (B,)
+    unit counts: ``[m_1, c_1 + Km, ..., m_u, c_u + Km, END, PAD...]``."""
+    B, U = motion.shape
+    end, pad, _ = vocab_layout(motion_codes, contact_codes)
+    seq = torch.full((B, 2 * U + 1), pad, dtype=torch.long, device=motion.device)
+    seq[:, 0:2 * U:2] = motion
+    seq[:, 1:2 * U:2] = contact + motion_codes
+    pos = torch.arange(2 * U + 1, device=motion.device)[None]
+    n = 2 * units[:, None]
+    seq = torch.where(pos < n, seq, torch.full_like(seq, pad))
+    seq = torch.where(pos == n, torch.full_like(seq, end), seq)
+    return seq, pos <= n
+
+
+def corrupt(tokens: torch.Tensor, rate: float, motion_codes: int, contact_codes: int, mode: str,
+            generator: torch.Generator | None = None) -> torch.Tensor:
+    """Replace input indices (motion and contact slots, never END/PAD) by random indices of
+    the same modality with probability ``rate`` (per index: ``token``; per unit: ``unit``)."""
+    if rate <= 0:
+        return tokens
+    dev = tokens.device
+    B, N = tokens.shape
+    u = torch.rand(B, N, generator=generator)
+    if mode == "unit":              # m_i (even position) and c_i (the next one) share a draw
+        u = u[:, 0::2].repeat_interleave(2, 1)[:, :N]
+    hit = (u < rate).to(dev)
+    rand_m = torch.randint(0, motion_codes, (B, N), generator=generator).to(dev)
+    rand_c = torch.randint(0, contact_codes, (B, N), generator=generator).to(dev) + motion_codes
+    is_m = tokens < motion_codes
+    is_c = (tokens >= motion_codes) & (tokens < motion_codes + contact_codes)
+    out = torch.where(hit & is_m, rand_m, tokens)
+    return torch.where(hit & is_c, rand_c, out)
+
+
+class IntertwinedGPT(nn.Module):
+    def __init__(self, motion_codes: int, contact_codes: int, cond_dim: int, width: int, layers: int, heads: int,
+                 ff_mult: int, dropout: float, max_units: int):
+        super().__init__()
+        self.motion_codes, self.contact_codes, self.max_units = motion_codes, contact_codes, max_units
+        self.end, self.pad, classes = vocab_layout(motion_codes, contact_codes)
+        self.embed = nn.Embedding(classes + 1, width)
+        self.cond = nn.Linear(cond_dim, width)
+        self.pos = nn.Parameter(torch.zeros(1, 2 * max_units + 1, width))
+        nn.init.normal_(self.pos, std=0.02)
+        layer = nn.TransformerEncoderLayer(width, heads, ff_mult * width, dropout, batch_first=True, norm_first=True)
+        self.blocks = nn.TransformerEncoder(layer, layers, enable_nested_tensor=False)
+        self.norm = nn.LayerNorm(width)
+        self.head = nn.Linear(width, classes)
+        self.drop = nn.Dropout(dropout)
+
+    def forward(self, cond: torch.Tensor, tokens: torch.Tensor) -> torch.Tensor:
+        """(B, N + 1, classes) logits for (B, cond_dim) conditions and (B, N) input tokens."""
+        x = torch.cat([self.cond(cond)[:, None], self.embed(tokens)], 1)
+        n = x.shape[1]
+        if n > self.pos.shape[1]:
+            raise ValueError(f"catmo: {n} positions exceed the GPT's block of {self.pos.shape[1]} "
+                             f"(gpt.max_units = {self.max_units})")
+        x = self.drop(x + self.pos[:, :n])
+        causal = torch.triu(torch.ones(n, n, dtype=torch.bool, device=x.device), 1)
+        return self.head(self.norm(self.blocks(x, mask=causal, is_causal=True)))
+
+    def legal(self, position: int) -> tuple[int, int]:
+        """[lo, hi) of the ids a generated target position may take (even: motion, odd: contact)."""
+        if position % 2 == 0:
+            return 0, self.motion_codes
+        return self.motion_codes, self.motion_codes + self.contact_codes
+
+    @torch.no_grad()
+    def sample(self, cond: torch.Tensor, units: int, generator: torch.Generator, temperature: float = 1.0
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(motion (K, units), contact (K, units)) indices drawn for (K, cond_dim) conditions:
+        ``units`` motion/contact pairs, END never drawn (the length is given), each draw from
+        the softmax of the legal logits / ``temperature`` with ``generator`` (a CPU
+        generator: the same draws on every device)."""
+        if not 1 <= units <= self.max_units:
+            raise ValueError(f"catmo: {units} units to generate; this GPT holds 1..{self.max_units} "
+                             f"(gpt.max_units)")
+        K = cond.shape[0]
+        tokens = torch.zeros(K, 0, dtype=torch.long, device=cond.device)
+        for j in range(2 * units):
+            lo, hi = self.legal(j)
+            logits = self.forward(cond, tokens)[:, -1, lo:hi].float().cpu() / temperature
+            draw = torch.multinomial(F.softmax(logits, -1), 1, generator=generator) + lo
+            tokens = torch.cat([tokens, draw.to(cond.device)], 1)
+        return tokens[:, 0::2], tokens[:, 1::2] - self.motion_codes
