@@ -14,9 +14,9 @@ gpt.width              1024        128      transformer width (T2M-GPT)
 gpt.layers             18          3        causal transformer layers (T2M-GPT: 9 + 9)
 gpt.heads              16          4
 gpt.corrupt_rate       0.5         0.3      fraction of input indices replaced at random
-train.vq_steps         300000      1500     motion VQ-VAE iterations (CATMO supp. 2.1)
-train.contact_steps    300000      600      contact VQ-VAE iterations
-train.gpt_steps        100000      1500     intertwined GPT iterations
+train.vq_steps         300000      4000     motion VQ-VAE iterations (CATMO supp. 2.1)
+train.contact_steps    300000      1500     contact VQ-VAE iterations
+train.gpt_steps        100000      3000     intertwined GPT iterations
 train.batch_size       16          32       (CATMO supp. 2.1: 16 for every stage)
 train.lr               2e-4        1e-3     AdamW
 =====================  ==========  =======  ===================================================
@@ -206,10 +206,10 @@ def preset(name: str = "tiny") -> CatmoConfig:
         return CatmoConfig(
             name="tiny",
             vq=VQConfig(width=64, code_dim=64, motion_codes=128, contact_codes=64, depth=2),
-            text=TextMatchConfig(encoder="tokens", width=64, hidden=128, movement_ae_steps=300, match_steps=600),
+            text=TextMatchConfig(encoder="tokens", width=64, hidden=128, movement_ae_steps=600, match_steps=1500),
             gpt=GPTConfig(width=128, layers=3, heads=4, ff_mult=2, dropout=0.0, corrupt_rate=0.3, object_points=256,
                           object_tokens=16, object_knn=16),
-            object=ObjectHeadConfig(width=64, layers=3, steps=500),
-            train=CatmoTrainConfig(vq_steps=1500, contact_steps=600, gpt_steps=1500, batch_size=32, lr=1e-3,
+            object=ObjectHeadConfig(width=64, layers=3, steps=1500),
+            train=CatmoTrainConfig(vq_steps=4000, contact_steps=1500, gpt_steps=3000, batch_size=32, lr=1e-3,
                                    checkpoint_every=250, log_every=50))
     raise ValueError(f"unknown CATMO config {name!r}; choose 'paper' or 'tiny'")
