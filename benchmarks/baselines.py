@@ -1,9 +1,12 @@
-"""Average inference time per sample (AIT) of the diffusion baselines, 50 DDIM steps.
+"""Average inference time per sample (AIT) of the baselines.
 
-AIT as ChainHOI's Table 1 measures it: wall-clock seconds to generate one sample (text and
-object encoding, 50 DDIM steps with classifier-free guidance, i.e. two network passes per
-step, de-normalisation and decoding to joints), averaged over ``--samples`` samples after
-one warm-up sample. Weights are random (AIT does not depend on them).
+AIT as ChainHOI's Table 1 measures it: wall-clock seconds to generate one sample, averaged
+over ``--samples`` samples after one warm-up sample. Diffusion baselines (ChainHOI, EJIM):
+text and object encoding, 50 DDIM steps with classifier-free guidance (two network passes
+per step), de-normalisation and decoding to joints. CATMO: text and object encoding,
+``2 ceil(T / 4)`` autoregressive GPT passes over the growing prefix (no key/value cache),
+both VQ decoders, the object head and decoding to joints. Weights are random (AIT does not
+depend on them).
 
     python benchmarks/baselines.py                       # tiny and paper, CPU, T = 120 frames
     python benchmarks/baselines.py --device cuda --samples 20
@@ -27,8 +30,39 @@ from hoibench.baselines.text import TextConditioner
 CAPTION = "a person lifts the big box with both hands and puts it down"
 
 
+def make_catmo_sampler(size: str, device: torch.device):
+    from hoibench.baselines.catmo.config import preset
+    from hoibench.baselines.catmo.model import CATMO
+    from hoibench.representations import hoi269
+    cfg = preset(size)
+    vocab = D.build_vocab([CAPTION])
+    text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, vocab)
+    torch.manual_seed(0)
+    model = CATMO(cfg, len(vocab), text.width, with_object=True).to(device).eval()
+    verts = np.array([[0, 0, 0], [0.4, 0, 0], [0, 0.4, 0], [0, 0, 0.4]], float)
+    faces = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+    points = torch.from_numpy(D.surface_points(verts, faces, cfg.gpt.object_points, "box")[None]).to(device)
+
+    @torch.no_grad()
+    def one(length: int, seed: int, steps: int | None = None) -> None:
+        units = -(-length // cfg.vq.unit) if steps is None else 2
+        tt, pad = text([CAPTION], device)
+        feat = model.object_feature(points)
+        mi, ci = model.gpt.sample(model.condition(model.text(tt, pad), feat), units, torch.Generator().manual_seed(seed))
+        motion = model.motion_vq.decode(mi)[:, :length]
+        prob = torch.sigmoid(model.contact_vq.decode(ci)[:, :length])
+        obj = model.object_head(motion, prob, feat)
+        if device.type == "cuda":
+            torch.cuda.synchronize()
+        hoi269.decode(torch.cat([motion, obj], -1).float().cpu().numpy())
+
+    return one, sum(p.numel() for p in model.parameters())
+
+
 def make_sampler(name: str, size: str, device: torch.device):
     spec = get_spec(name)
+    if spec.kind == "tokens":
+        return make_catmo_sampler(size, device)
     cfg = spec.preset(size)
     vocab = D.build_vocab([CAPTION])
     text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, vocab)
@@ -73,7 +107,8 @@ def main() -> None:
     if args.threads:
         torch.set_num_threads(args.threads)
     dev = torch.device(args.device)
-    print(f"# AIT, 50 DDIM steps with guidance, T = {args.frames}, device {dev}, torch {torch.__version__}, "
+    print(f"# AIT (diffusion: 50 DDIM steps with guidance; CATMO: autoregressive tokens), T = {args.frames}, "
+          f"device {dev}, torch {torch.__version__}, "
           f"{torch.get_num_threads()} threads, {platform.processor() or platform.machine()}, "
           f"load {os.getloadavg()[0]:.2f}")
     print("| model | size | parameters (M) | AIT (s/sample) | samples |")

@@ -1,8 +1,8 @@
 """The baseline table of docs/baselines.md on the synthetic track, end to end through the public path.
 
 Rows: ground truth (real motion), ChainHOI tiny (paper chain mask), ChainHOI tiny with the
-released code's mask, EJIM tiny, the untrained ChainHOI tiny (0 steps), and mean pose + static
-object.
+released code's mask, EJIM tiny, CATMO tiny, the untrained ChainHOI and CATMO tiny (0 steps),
+and mean pose + static object.
 Each is written as a standard submission and scored by ``hoibench.evaluate.evaluate`` under
 the store's default protocol (synthetic-clean: 20 replications, pools of 32) with the given
 evaluator. Runs, submissions and results are reused when they already exist (training and
@@ -37,7 +37,11 @@ COLUMNS = [("fid", "FID", "down"), ("r_precision_top1", "R@1", "up"), ("r_precis
 NOTES = {"gt": "the test clips themselves: the ceiling of every metric",
          "mean-pose": "text-blind floor: mean train pose and static object (train statistics only)",
          "chainhoi": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md",
-         "ejim": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md"}
+         "ejim": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md",
+         "catmo": "hoibench's implementation from the paper (object head: hoibench's extension), tiny config (CPU), "
+                  "docs/baselines.md"}
+CATMO_UNTRAINED = {k: 0 for k in ("train.vq_steps", "train.contact_steps", "text.movement_ae_steps",
+                                  "text.match_steps", "train.gpt_steps", "object.steps")}
 
 
 def rows_spec(steps: int | None) -> list[tuple[str, str, dict | None]]:
@@ -46,7 +50,9 @@ def rows_spec(steps: int | None) -> list[tuple[str, str, dict | None]]:
             ("ChainHOI tiny", "chainhoi", tiny),
             ("ChainHOI tiny, released mask", "chainhoi", {**tiny, "model.mask": "released"}),
             ("EJIM tiny", "ejim", tiny),
+            ("CATMO tiny", "catmo", None),
             ("ChainHOI tiny, untrained", "chainhoi", {"train.steps": 0}),
+            ("CATMO tiny, untrained", "catmo", CATMO_UNTRAINED),
             ("mean pose + static object", "mean-pose", None)]
 
 
