@@ -154,6 +154,25 @@ def test_matching_loss_is_the_margin_contrastive_form():
     assert float(matching_loss(t, m, 10.0, 1)) == pytest.approx(expected)
 
 
+def test_cached_incremental_passes_equal_the_full_forward():
+    torch.manual_seed(0)
+    gpt = IntertwinedGPT(9, 4, 5, 32, 3, 4, 2, 0.0, 6).eval()
+    cond = torch.randn(2, 5)
+    tokens = torch.tensor([[3, 10, 8, 9, 0, 12, 4], [1, 11, 2, 9, 7, 10, 5]])
+    with torch.no_grad():
+        full = gpt(cond, tokens)
+        logits, cache = gpt.step(gpt.cond(cond)[:, None] + gpt.pos[:, :1], None)
+        steps = [logits]
+        for j in range(tokens.shape[1]):
+            logits, cache = gpt.step(gpt.embed(tokens[:, j:j + 1]) + gpt.pos[:, j + 1:j + 2], cache)
+            steps.append(logits)
+        # a chunk of several positions at once (causal inside the chunk) gives the same
+        half, cache = gpt.step(gpt.cond(cond)[:, None] + gpt.pos[:, :1], None)
+        rest, _ = gpt.step(gpt.embed(tokens) + gpt.pos[:, 1:tokens.shape[1] + 1], cache)
+    torch.testing.assert_close(torch.cat(steps, 1), full, atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(torch.cat([half, rest], 1), full, atol=1e-5, rtol=1e-5)
+
+
 def test_sampling_draws_only_legal_codes_and_is_seeded():
     torch.manual_seed(0)
     gpt = IntertwinedGPT(7, 3, 4, 16, 1, 2, 2, 0.0, 5).eval()

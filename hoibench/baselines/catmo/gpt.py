@@ -98,21 +98,48 @@ class IntertwinedGPT(nn.Module):
             return 0, self.motion_codes
         return self.motion_codes, self.motion_codes + self.contact_codes
 
+    def step(self, x: torch.Tensor, cache: list | None) -> tuple[torch.Tensor, list]:
+        """Incremental forward (eval mode): logits (B, n, classes) of ``n`` new positions whose
+        embeddings (with positions added) are ``x`` (B, n, width), attending to the keys and
+        values cached for the earlier positions; returns the extended cache. Equals
+        :meth:`forward` on the whole prefix (tested)."""
+        start = 0 if not cache else cache[0][0].shape[2]
+        n = x.shape[1]
+        allowed = torch.ones(n, start + n, dtype=torch.bool, device=x.device).tril(start)
+        new_cache = []
+        for i, layer in enumerate(self.blocks.layers):
+            attn = layer.self_attn
+            H = attn.num_heads
+            B, _, W = x.shape
+            q, k, v = F.linear(layer.norm1(x), attn.in_proj_weight, attn.in_proj_bias).chunk(3, -1)
+            q, k, v = (t.reshape(B, n, H, W // H).transpose(1, 2) for t in (q, k, v))
+            if cache:
+                k, v = torch.cat([cache[i][0], k], 2), torch.cat([cache[i][1], v], 2)
+            o = F.scaled_dot_product_attention(q, k, v, attn_mask=allowed)
+            x = x + attn.out_proj(o.transpose(1, 2).reshape(B, n, W))
+            x = x + layer.linear2(layer.activation(layer.linear1(layer.norm2(x))))
+            new_cache.append((k, v))
+        return self.head(self.norm(x)), new_cache
+
     @torch.no_grad()
     def sample(self, cond: torch.Tensor, units: int, generator: torch.Generator, temperature: float = 1.0
                ) -> tuple[torch.Tensor, torch.Tensor]:
         """(motion (K, units), contact (K, units)) indices drawn for (K, cond_dim) conditions:
         ``units`` motion/contact pairs, END never drawn (the length is given), each draw from
         the softmax of the legal logits / ``temperature`` with ``generator`` (a CPU
-        generator: the same draws on every device)."""
+        generator: the same draws on every device). Keys and values are cached, so each
+        draw costs one position's pass."""
         if not 1 <= units <= self.max_units:
             raise ValueError(f"catmo: {units} units to generate; this GPT holds 1..{self.max_units} "
                              f"(gpt.max_units)")
-        K = cond.shape[0]
-        tokens = torch.zeros(K, 0, dtype=torch.long, device=cond.device)
+        drawn = []
+        logits, cache = self.step(self.cond(cond)[:, None] + self.pos[:, :1], None)
         for j in range(2 * units):
             lo, hi = self.legal(j)
-            logits = self.forward(cond, tokens)[:, -1, lo:hi].float().cpu() / temperature
-            draw = torch.multinomial(F.softmax(logits, -1), 1, generator=generator) + lo
-            tokens = torch.cat([tokens, draw.to(cond.device)], 1)
+            probs = F.softmax(logits[:, -1, lo:hi].float().cpu() / temperature, -1)
+            draw = torch.multinomial(probs, 1, generator=generator) + lo
+            drawn.append(draw)
+            if j + 1 < 2 * units:
+                logits, cache = self.step(self.embed(draw.to(cond.device)) + self.pos[:, j + 1:j + 2], cache)
+        tokens = torch.cat(drawn, 1).to(cond.device)
         return tokens[:, 0::2], tokens[:, 1::2] - self.motion_codes

@@ -72,8 +72,9 @@ class CATMO(nn.Module):
 
     def stage_modules(self, stage: str) -> list[nn.Module]:
         """The modules a training stage optimises."""
+        points = [self.points] if self.with_object else []
+        if stage == "object":                  # the point encoder stays as the GPT left it
+            return [self.object_head]
         return {"motion_vq": [self.motion_vq], "contact_vq": [self.contact_vq],
                 "movement_ae": [self.movement.conv, self.movement.deconv],
-                "text_match": [self.text, self.movement.head],
-                "gpt": [self.gpt] + ([self.points] if self.with_object else []),
-                "object": [self.object_head]}[stage]      # the point encoder stays as the GPT left it
+                "text_match": [self.text, self.movement.head], "gpt": [self.gpt] + points}[stage]
