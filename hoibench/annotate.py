@@ -12,6 +12,12 @@ versioned spec folder ``annotators/`` (``$HOIBENCH_ANNOTATORS_DIR`` when set, el
 ``annotators/`` folder next to the package); this module only runs it. Editing a lexicon
 file changes the output without code changes. See docs/annotator.md.
 
+Human-only clips (RICH: static scenes, no ``object_name``) are described against the scene
+object their action is done on -- the floor, a chair, a fence -- which ``scenes.yaml`` picks
+from the action (parsed from the RICH sequence name ``<Scene>_<sub>[_<sub2>]_<action><take>``)
+and the scene; the annotation records it (``object_name`` = the scene object key,
+``scene_partner``) and the group id uses its category.
+
 Action labels come from (a) the clip name / provenance (synthetic and BEHAVE-layout names
 ``Date0X_SubYY_<object>_<action>[_<n>]``: one action for the whole clip); (b) per-second
 labels the user passes (HOI-Diff's BEHAVE ``action_label.json``); or (c) a generic label
@@ -55,6 +61,7 @@ from .parallel import map_units
 __all__ = [
     "SPEC_ENV", "SOURCE", "SpecError", "Token", "AnnotatorSpec", "ActionSpan", "ClipAnnotation",
     "default_spec_dir", "load_spec", "parse_phrase", "resolve_action", "body_part_timeline",
+    "scene_action_name", "scene_partner",
     "annotate_clip", "load_action_labels", "humanml3d_line", "parse_humanml3d_line",
     "annotate_store", "preview_table", "main_annotate",
 ]
@@ -74,6 +81,9 @@ _SENTENCE_SLOTS = frozenset({"person", "verb", "verb_ing", "relation", "relation
 _CONTACT_SLOTS = frozenset({"relation", "relation_ing", "method", "parts"})
 _REPEAT_SUFFIX = re.compile(r"_\d+$")
 _BEHAVE_NAME = re.compile(r"^(Date\d+)_(Sub\d+)_([A-Za-z0-9]+)(?:_(.*))?$")
+#: a RICH clip id: ``<Scene>_<sub>[_<sub2>]_<action><take>_<sub>_<first frame:05d>``
+_RICH_CLIP = re.compile(r"^(.+)_\d+_\d{5}$")
+_TAKE = re.compile(r"\d+$")
 
 
 class SpecError(ValueError):
@@ -170,6 +180,7 @@ class AnnotatorSpec:
     aliases: dict
     labels: dict                   # scheme -> {description: key | None}
     objects: dict                  # name -> {"category": str, "nouns": [Phrase]}
+    scenes: dict | None = None     # scenes.yaml: {"objects", "actions", "scenes", "default", "name_parts"}
 
     @property
     def annotator_version(self) -> str:
@@ -183,6 +194,11 @@ class AnnotatorSpec:
             return self.objects[name]
         word = re.sub(r"[^a-z]", "", name.lower()) or "object"
         return {"category": name, "nouns": [(Token(word, word, "NOUN"),)], "unknown": True}
+
+    def partner_entry(self, name: str, scene: bool = False) -> dict:
+        """The entry of the clip's contact partner: a scene object of ``scenes.yaml`` when
+        ``scene`` (human-only clips), else :meth:`object_entry`."""
+        return self.scenes["objects"][name] if scene else self.object_entry(name)
 
 
 def default_spec_dir() -> Path:
@@ -269,6 +285,9 @@ def load_spec(spec_dir: str | Path | None = None) -> AnnotatorSpec:
     for key in ("body_parts", "actions", "relations", "objects"):
         fname = _need(files, key, f"{w}.files", str)
         docs[key] = (fname, _read_yaml(root / fname))
+    if files.get("scenes") is not None:          # optional: only human-only clips need it
+        fname = _need(files, "scenes", f"{w}.files", str)
+        docs["scenes"] = (fname, _read_yaml(root / fname))
 
     gen = {"paraphrases": 3, "segment_texts": True, "min_frames": 5, "min_part_overlap_s": 0.25,
            "max_parts": 3, "max_actions": 4, "max_attempts": 200, "end": "."}
@@ -424,6 +443,8 @@ def load_spec(spec_dir: str | Path | None = None) -> AnnotatorSpec:
         objects[str(key)] = {"category": str(_need(e, "category", where)),
                              "nouns": _phrases(_need(e, "nouns", where), f"{where}.nouns")}
 
+    scenes = _load_scenes(docs["scenes"]) if "scenes" in docs else None
+
     sha = _sha256_files(root, [SPEC_FILE] + [f for f, _ in docs.values()])
     return AnnotatorSpec(
         root=str(root), name=str(top.get("name", "hoibench-annotator")), version=version, sha256=sha,
@@ -436,7 +457,49 @@ def load_spec(spec_dir: str | Path | None = None) -> AnnotatorSpec:
         parts=parts, combinations=combos, min_overlap=min_overlap,
         relations=relations, relations_by_kind=by_kind, relations_default=rel_default,
         actions=actions, default_action=default_action, aliases=aliases, labels=labels,
-        objects=objects)
+        objects=objects, scenes=scenes)
+
+
+def _load_scenes(doc: tuple) -> dict:
+    """Validate ``scenes.yaml``: scene objects (category, nouns, optional determiners), the
+    action -> scene object table, per-scene exceptions, the default and ``name_parts``."""
+    sname, sdoc = doc
+    objects = {}
+    for key, e in _need(sdoc, "objects", sname, dict).items():
+        where = f"{sname}.objects.{key}"
+        entry = {"category": str(_need(e, "category", where)),
+                 "nouns": _phrases(_need(e, "nouns", where), f"{where}.nouns")}
+        if e.get("determiners") is not None:
+            entry["determiners"] = _phrases(e["determiners"], f"{where}.determiners")
+        objects[str(key)] = entry
+    if not objects:
+        raise SpecError(f"{sname}.objects: expected at least one scene object")
+
+    def _table(d, where):
+        if d is None:
+            return {}
+        if not isinstance(d, dict):
+            raise SpecError(f"{where}: expected a mapping of action names to scene objects, got {d!r}")
+        out = {}
+        for k, v in d.items():
+            if v not in objects:
+                raise SpecError(f"{where}.{k}: {v!r} is not a scene object ({', '.join(sorted(objects))})")
+            out[str(k).lower()] = str(v)
+        return out
+
+    table = _table(sdoc.get("actions"), f"{sname}.actions")
+    per_scene = sdoc.get("scenes") or {}
+    if not isinstance(per_scene, dict):
+        raise SpecError(f"{sname}.scenes: expected a mapping of scene names to action tables")
+    default = sdoc.get("default", "ground")
+    if default not in objects:
+        raise SpecError(f"{sname}.default: {default!r} is not a scene object")
+    name_parts = sdoc.get("name_parts", "action_kinds")
+    if name_parts not in ("action_kinds", "all"):
+        raise SpecError(f"{sname}.name_parts: expected 'action_kinds' or 'all', got {name_parts!r}")
+    return {"file": sname, "objects": objects, "actions": table,
+            "scenes": {str(sc): _table(t, f"{sname}.scenes.{sc}") for sc, t in per_scene.items()},
+            "default": str(default), "name_parts": name_parts}
 
 
 # =========================================================================== actions
@@ -474,6 +537,46 @@ def action_from_name(clip_id: str, provenance: Mapping[str, Any] | None = None) 
         return str(provenance["action"])
     m = _BEHAVE_NAME.match(clip_id)
     return (m.group(4) or "") if m else ""
+
+
+def scene_action_name(clip_id: str, provenance: Mapping[str, Any] | None = None) -> str:
+    """The action of a human-only (RICH) clip: provenance ``action``, else the ``<action>``
+    of the RICH sequence name ``<Scene>_<sub>[_<sub2>]_<action><take>`` (provenance
+    ``sequence``, else the clip id ``<sequence>_<sub>_<frame:05d>``): the scene, the numeric
+    subject ids and the trailing take digits are dropped, so ``Gym_010_pushup1`` gives
+    ``pushup`` and ``ParkingLot1_004_005_greetingchattingeating1`` gives
+    ``greetingchattingeating``. '' when there is none."""
+    if provenance and provenance.get("action") is not None:
+        return str(provenance["action"])
+    seq = str((provenance or {}).get("sequence") or "")
+    if not seq:
+        m = _RICH_CLIP.match(clip_id)
+        seq = m.group(1) if m else clip_id
+    parts = seq.split("_")[1:]                     # drop the scene
+    while parts and parts[0].isdigit():            # subject ids
+        parts.pop(0)
+    return _TAKE.sub("", "_".join(parts)).strip("_").lower()
+
+
+def scene_partner(spec: AnnotatorSpec, action: str | None, scene: str | None = None) -> tuple[str, str]:
+    """The scene object key a human-only clip's action is done on, and the ``scenes.yaml``
+    entry that chose it (``"scenes.Gym.sit"``, ``"actions.pushup"``, ``"default"``).
+
+    Looked up by the action name, then by its action key (through the aliases), first among
+    the scene's exceptions, then in the action table; else the default."""
+    if spec.scenes is None:
+        raise ValueError("the annotator spec has no scenes file (spec.yaml files.scenes): human-only "
+                         "clips cannot be annotated")
+    sc = spec.scenes
+    raw = _REPEAT_SUFFIX.sub("", str(action or "").strip().lower())
+    key, _ = resolve_action(spec, raw) if raw else (None, False)
+    names = [n for n in dict.fromkeys((raw, key)) if n]
+    for where, table in ((f"scenes.{scene}", sc["scenes"].get(str(scene), {}) if scene else {}),
+                         ("actions", sc["actions"])):
+        for n in names:
+            if n in table:
+                return table[n], f"{where}.{n}"
+    return sc["default"], "default"
 
 
 # =========================================================================== timelines
@@ -604,14 +707,16 @@ def _unit_entry(spec: AnnotatorSpec, unit: str) -> dict:
     return spec.combinations[unit] if unit in spec.combinations else spec.parts[unit]
 
 
-def group_id(spec: AnnotatorSpec, clip_id: str, object_name: str, actions: list[_Action]) -> str:
+def group_id(spec: AnnotatorSpec, clip_id: str, object_name: str, actions: list[_Action],
+             scene: bool = False) -> str:
     """Semantic group: object category (or name) + action keys + contacting body parts;
-    a clip with no described contact forms its own group."""
+    a clip with no described contact forms its own group. ``scene``: ``object_name`` is a
+    scene object of ``scenes.yaml`` (human-only clips)."""
     g = spec.grouping
     parts = sorted({p for a in actions for p in a.parts}, key=list(spec.parts).index)
     if not parts:
         return g["no_contact"].format(clip=clip_id, object=object_name)
-    obj = spec.object_entry(object_name)["category"] if g["object"] == "category" else object_name
+    obj = spec.partner_entry(object_name, scene)["category"] if g["object"] == "category" else object_name
     keys: list[str] = []
     for a in actions:
         if spec.actions[a.key]["contact"] and (not keys or keys[-1] != a.key):
@@ -655,9 +760,10 @@ class _Sentence:
         return " ".join(t.hml() for t in self.tokens if t.pos != "PUNCT")
 
 
-def _object_np(spec: AnnotatorSpec, rng: random.Random, object_name: str) -> list[Token]:
-    noun = list(rng.choice(spec.object_entry(object_name)["nouns"]))
-    det = list(rng.choice(spec.determiners))
+def _object_np(spec: AnnotatorSpec, rng: random.Random, object_name: str, scene: bool = False) -> list[Token]:
+    entry = spec.partner_entry(object_name, scene)
+    noun = list(rng.choice(entry["nouns"]))
+    det = list(rng.choice(entry.get("determiners") or spec.determiners))
     if det and det[-1].surface == "a" and noun and noun[0].surface[:1] in "aeiou":
         det[-1] = Token("an", "an", det[-1].pos)
     return det + noun
@@ -719,9 +825,9 @@ def _templates_for(spec: AnnotatorSpec, act: _Action) -> list[tuple[str, Phrase]
 
 
 def _render(spec: AnnotatorSpec, rng: random.Random, object_name: str, actions: list[_Action],
-            template: Phrase) -> _Sentence:
+            template: Phrase, scene: bool = False) -> _Sentence:
     ch = _Choices(spec, rng, actions)
-    sent = _Sentence(_object_np(spec, rng, object_name), spec.pronoun)
+    sent = _Sentence(_object_np(spec, rng, object_name, scene), spec.pronoun)
     _fill(sent, template, ch, 0, rng.choice(spec.person))
     for i in range(1, len(actions)):
         concurrent = actions[i].start < actions[i - 1].end - 1e-6
@@ -783,9 +889,14 @@ class ClipAnnotation:
     seed: int
     contacts_source: str = "given"
     notes: list = field(default_factory=list)
+    # human-only clips: {"object", "category", "scene", "action", "rule"} of the scene object
+    # named as the contact partner (object_name is its key); absent for clips with an object
+    scene_partner: dict | None = None
 
     def to_json(self) -> dict:
         d = asdict(self)
+        if d["scene_partner"] is None:
+            del d["scene_partner"]
         d["annotator"] = "hoibench.annotate"
         return d
 
@@ -800,7 +911,8 @@ class ClipAnnotation:
 def annotate_clip(clip_id: str, contacts: np.ndarray, fps: float, object_name: str,
                   actions: str | Sequence[ActionSpan | tuple] | None = None,
                   spec: AnnotatorSpec | None = None, seed: int = 0,
-                  human_texts: Sequence[Mapping[str, Any]] = (), contacts_source: str = "given") -> ClipAnnotation:
+                  human_texts: Sequence[Mapping[str, Any]] = (), contacts_source: str = "given",
+                  scene_partner: Mapping[str, Any] | None = None) -> ClipAnnotation:
     """Annotate one clip from its per-joint contact labels and action labels.
 
     Args:
@@ -810,6 +922,10 @@ def annotate_clip(clip_id: str, contacts: np.ndarray, fps: float, object_name: s
             they are described in order of start time). None: the spec's default action.
         human_texts: texts kept before the generated ones (``caption`` or ``text``, optional
             ``tokens``, ``start``, ``end``, ``source`` -- default "human").
+        scene_partner: for a human-only clip, ``{"object": key, ...}`` of the scene object
+            (``scenes.yaml``; :func:`scene_partner`) it touches: ``object_name`` must be that
+            key; with ``name_parts: action_kinds`` only parts of the action's ``kinds`` are
+            named (the other contacts are with the rest of the scene).
 
     Returns the :class:`ClipAnnotation`: ``paraphrases`` different whole-clip texts (start =
     end = 0.0), plus for multi-action clips one text per action with its start/end seconds.
@@ -824,15 +940,25 @@ def annotate_clip(clip_id: str, contacts: np.ndarray, fps: float, object_name: s
     duration = T / fps
     segs = body_part_timeline(contacts, spec)
     acts = _normalise_actions(spec, actions, duration, fps)
+    scene = scene_partner is not None
+    if scene:
+        if spec.scenes is None or object_name not in spec.scenes["objects"]:
+            raise ValueError(f"{clip_id}: scene object {object_name!r} is not in the spec's scenes file")
     masks = [_candidate_masks(spec, a, segs, fps, T) for a in acts]
+    if scene and spec.scenes["name_parts"] == "action_kinds":
+        for a, m in zip(acts, masks):
+            kinds = spec.actions[a.key]["kinds"]
+            if kinds is not None:
+                for p in [p for p in m if spec.parts[p]["kind"] not in kinds]:
+                    del m[p]
     _resolve_concurrent(spec, acts, masks)
     for a, m in zip(acts, masks):
         _select_units(spec, a, m, fps)
-    gid = group_id(spec, clip_id, object_name, acts)
+    gid = group_id(spec, clip_id, object_name, acts, scene)
     rng = _clip_rng(seed, clip_id)
     gen = spec.generation
     notes = [f"unknown action name {a.name!r}: described as {a.key!r}" for a in acts if not a.known and a.name]
-    if spec.object_entry(object_name).get("unknown"):
+    if not scene and spec.object_entry(object_name).get("unknown"):
         notes.append(f"object {object_name!r} not in the objects lexicon: named by its name")
 
     texts: list[dict] = []
@@ -850,7 +976,7 @@ def annotate_clip(clip_id: str, contacts: np.ndarray, fps: float, object_name: s
     for k in range(n_want):
         for attempt in range(max_attempts):
             tpl = templates[order[(k + attempt // 10) % len(order)]][1]
-            sent = _render(spec, rng, object_name, acts, tpl)
+            sent = _render(spec, rng, object_name, acts, tpl, scene)
             cap = sent.caption(gen["end"])
             if cap not in seen_captions:
                 seen_captions.add(cap)
@@ -863,7 +989,7 @@ def annotate_clip(clip_id: str, contacts: np.ndarray, fps: float, object_name: s
     if gen.get("segment_texts", True) and len(acts) > 1:
         for a in acts:
             tid, tpl = rng.choice(_templates_for(spec, a))
-            sent = _render(spec, rng, object_name, [a], tpl)
+            sent = _render(spec, rng, object_name, [a], tpl, scene)
             texts.append({"caption": sent.caption(gen["end"]), "tokens": sent.token_string(),
                           "start": round(a.start, 3), "end": round(a.end, 3), "source": SOURCE})
     timeline = [{"part": s.part, "start": s.start, "end": s.end, "start_s": round(s.start / fps, 4),
@@ -871,7 +997,8 @@ def annotate_clip(clip_id: str, contacts: np.ndarray, fps: float, object_name: s
     return ClipAnnotation(clip=clip_id, object_name=object_name, fps=fps, num_frames=T, group_id=gid,
                           texts=texts, timeline=timeline, actions=[a.to_dict(spec) for a in acts],
                           annotator_version=spec.version, spec_sha256=spec.sha256, seed=int(seed),
-                          contacts_source=contacts_source, notes=notes)
+                          contacts_source=contacts_source, notes=notes,
+                          scene_partner=dict(scene_partner) if scene else None)
 
 
 # =========================================================================== action label files
@@ -1015,15 +1142,24 @@ def _annotate_unit(job: tuple) -> dict:
         from .store import Store
         store = Store(root)
         clip = store.load(clip_id)
-        if "object_name" not in clip:
-            raise ValueError(f"{clip_id}: no object in the clip (object_name missing)")
-        object_name = str(clip["object_name"])
         prov = json.loads(str(clip["provenance"])) if "provenance" in clip else {}
+        partner = None
+        if "object_name" in clip and str(clip["object_name"]):
+            object_name = str(clip["object_name"])
+        else:       # human-only (RICH: static scene): the scene object its action is done on
+            action = scene_action_name(clip_id, prov)
+            scene = prov.get("scene")
+            object_name, rule = scene_partner(spec, action, scene)
+            partner = {"object": object_name, "category": spec.scenes["objects"][object_name]["category"],
+                       "scene": scene, "action": action, "rule": f"{spec.scenes['file']}: {rule}"}
         fps = float(clip["fps"])
         if "contacts" in clip:
             contacts, csrc = clip["contacts"].astype(bool), "store"
         else:
             contacts = _compute_contacts(store, clip)
+            if contacts is None and partner is not None:
+                raise ValueError(f"{clip_id}: no contact labels ('contacts') in the human-only clip (no "
+                                 "object to compute them from)")
             if contacts is None:
                 raise ValueError(f"{clip_id}: no contact labels ('contacts') in the clip, and "
                                  "hoibench.contact.joint_contact_labels is not available to compute them")
@@ -1042,9 +1178,13 @@ def _annotate_unit(job: tuple) -> dict:
                 actions = spans
                 notes.append(f"actions from {lab['scheme']} labels (time origin: {how}, {origin:.3f} s)")
         if actions is None:
-            actions = action_from_name(clip_id, prov)
+            actions = action_from_name(clip_id, prov) if partner is None else partner["action"]
         ann = annotate_clip(clip_id, contacts, fps, object_name, actions, spec, seed,
-                            human_texts=_human_texts(root, clip_id, clip), contacts_source=csrc)
+                            human_texts=_human_texts(root, clip_id, clip), contacts_source=csrc,
+                            scene_partner=partner)
+        if partner is not None and partner["rule"].endswith(": default"):
+            ann.notes.append(f"no scene object listed for action {partner['action']!r} (scene "
+                             f"{partner['scene']!r}): named the default, {object_name!r}")
         if lab is not None and all(a["source"] in ("name", "default") for a in ann.actions):
             notes.append(f"{lab['scheme']} labels gave no action: used the clip name")
         ann.notes = notes + ann.notes

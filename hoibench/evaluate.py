@@ -19,7 +19,10 @@ Steps (docs/protocol.md):
    R-precision top-1/2/3 and MM-Dist over the protocol's pools, FID against the ground-truth
    embeddings, Diversity, MultiModality (only when K >= the protocol's samples);
 6. every value is checked finite: an infinite value stops the run naming the metric; a 0/0
-   (e.g. no clip has ground-contact frames) is reported as undefined, never as NaN. Mean and
+   (e.g. no clip has ground-contact frames) is reported as undefined, never as NaN; on a
+   human-only store (no test clip has an object: RICH) the object metrics (CD, OCD, PS,
+   penetration, contact IoU, hand contact, object floating) are undefined as "not
+   applicable", while the embedding metrics, FSR and jitter are scored. Mean and
    95% CI over replications are written as strict JSON with the protocol, evaluator,
    representation and toolkit versions, sample counts, missing ids, flags and timings.
 """
@@ -242,6 +245,12 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
                     if isinstance(v, (int, float)) and not isinstance(v, bool)})
         per_rep.append(row)
     per_rep, undefined = _finite_rows(per_rep)
+    if not any(rows[cid].get("object") for cid in ids):       # human-only: no object to measure against
+        from .metrics.physical import OBJECT_OUTPUTS
+        for name in OBJECT_OUTPUTS:
+            if name in undefined:
+                undefined[name] = ("not applicable: the scored clips have no object (human-only store, e.g. "
+                                   "RICH's static scenes); object metrics need an object mesh and pose")
     notes += [f"{name}: {why}" for name, why in sorted(undefined.items())]
     timings["replications_s"] = time.perf_counter() - t4
     timings["total_s"] = time.perf_counter() - t0

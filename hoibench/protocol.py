@@ -240,9 +240,17 @@ def get_protocol(name: str | Path | Protocol) -> Protocol:
 
 
 def default_protocol_id(manifest: dict) -> str:
-    """The protocol a store is scored under by default: ``<dataset>-<legacy|clean>``."""
-    mode = str(manifest.get("config", {}).get("mode", "clean"))
-    return f"{manifest.get('dataset', '?')}-{'legacy' if mode.startswith('legacy') else 'clean'}"
+    """The protocol a store is scored under by default: ``<dataset>-<legacy|clean>`` when one
+    ships under that id, else the one shipped protocol for the store's dataset and mode
+    (a ``rich`` store: ``rich-cat-clean``), else ``<dataset>-<legacy|clean>`` (not shipped)."""
+    mode = "legacy" if str(manifest.get("config", {}).get("mode", "clean")).startswith("legacy") else "clean"
+    dataset = manifest.get("dataset", "?")
+    pid = f"{dataset}-{mode}"
+    shipped = list_protocols()
+    if any(p.id == pid for p in shipped):
+        return pid
+    ids = sorted({p.id for p in shipped if p.dataset == dataset and p.mode == mode})
+    return ids[0] if len(ids) == 1 else pid
 
 
 def default_protocol(manifest: dict) -> Protocol | None:

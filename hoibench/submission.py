@@ -10,6 +10,9 @@ A submission is a directory, or a ``.zip`` of one (read in place, never extracte
                                obj_trans (K, T, 3)     object pose v = R v_template + t
                                hml263    (K, T-1 or T, 263)  optional
 
+The object arrays are required for test clips that have an object; a human-only store's
+clips (RICH: static scenes) need ``joints`` only (object arrays there draw a warning).
+
 K samples per prompt (1 is enough for every metric but MultiModality, which needs the
 protocol's 30), T frames at the submission's ``fps`` (must equal the store's).
 
@@ -661,6 +664,11 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Probl
             probs.append(Problem(sid, "obj_rot", "missing: give obj_rot (K, T, 3, 3) or obj_rotvec (K, T, 3)"))
         if "obj_rot" in headers and "obj_rotvec" in headers:
             probs.append(Problem(sid, "obj_rot", "both obj_rot and obj_rotvec given: give exactly one"))
+    else:       # human-only clip (RICH): joints only; object arrays are checked but measure nothing
+        for k in ("obj_rot", "obj_rotvec", "obj_trans"):
+            if k in headers:
+                probs.append(Problem(sid, k, "the ground-truth clip has no object (human-only store): this "
+                                             "array is not used by any metric", "warning"))
     shape_probs = (_expect_shape(headers.get("joints"), (22, 3), "joints", sid, dtype="float32")
                    + _expect_shape(headers.get("obj_rot"), (3, 3), "obj_rot", sid)
                    + _expect_shape(headers.get("obj_rotvec"), (3,), "obj_rotvec", sid)

@@ -43,8 +43,9 @@ RICH layout (:func:`write_rich_layout`)::
     OUT/hoibench_synthetic.json
 
 A RICH sequence ``<Scene>_<sub:03d>_<action><k>`` is one generated clip, or (every third
-one) two clips of the same subject with a gap of 2-4 frame ids between them (the gap hides
-the change of take; the loader must split there). Frame ids start at 3-18. The scene is
+one) two takes of its action by the same subject (two clips generated from their own seeds)
+with a gap of 2-4 frame ids between them (the gap hides the change of take; the loader must
+split there). Frame ids start at 3-18. The scene is
 static, so the object is dropped; contact labels mark every third SMPL-topology vertex of
 each joint in contact -- the generator's contact joints plus the planted feet (ankle and
 foot joints) -- so the per-joint ground truth is exactly those joints. The camera-frame
@@ -300,7 +301,9 @@ def write_rich_layout(out_dir: str | Path, n_clips: int, seed: int = 0, body_mod
         split = _rich_split(i)
         clips = [generate_clip(spec, (int(seed), i))]
         if i % 3 == 1:
-            partner = dataclasses.replace(specs[(i + 1) % len(specs)], subject=spec.subject, index=1)
+            # a second take of the same action (a RICH sequence is one action; the annotator
+            # reads it from the sequence name), generated from its own seed
+            partner = dataclasses.replace(spec, index=spec.index + 1)
             clips.append(generate_clip(partner, (int(seed), i, 1)))
         rng = np.random.default_rng([int(seed), 9173, i])
         start = 3 + 5 * (i % 4)

@@ -47,6 +47,10 @@ def load_items(store: Store | str | Path, split: str, variant: str = "human", mi
     """Items of ``split``; captions from ``DATA/texts/<id>.txt``."""
     store = store if isinstance(store, Store) else Store(store)
     key = feature_key(variant)
+    clips = store.manifest.get("clips") or []
+    if variant == "hoi" and clips and not any(c.get("object") for c in clips):
+        raise ValueError(f"{store.root}: the 'hoi' evaluator encodes the object's motion, and this store is "
+                         f"human-only (no clip has an object, e.g. RICH): use the 'human' variant (--variant human)")
     items, with_items, missing, skipped = [], [], [], 0
     for cid in store.clip_ids(split):
         caps = read_captions(store.root, cid)

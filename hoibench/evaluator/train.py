@@ -157,12 +157,12 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
 
 
 def store_protocol(store):
-    """The protocol ``hoibench evaluate`` uses by default for this store (``<dataset>-<mode>``),
-    or None when none is shipped: GT scores then use the trainer's own pools."""
-    from ..protocol import get_protocol
-    mode = store.manifest.get("config", {}).get("mode", "clean")
+    """The protocol ``hoibench evaluate`` uses by default for this store
+    (:func:`hoibench.protocol.default_protocol_id`: ``<dataset>-<mode>``, ``rich-cat-clean``
+    for a ``rich`` store), or None when none is shipped: GT scores then use the trainer's own pools."""
+    from ..protocol import default_protocol_id, get_protocol
     try:
-        return get_protocol(f"{store.manifest.get('dataset')}-{'legacy' if mode.startswith('legacy') else 'clean'}")
+        return get_protocol(default_protocol_id(store.manifest))
     except KeyError:
         return None
 

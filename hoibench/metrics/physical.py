@@ -56,6 +56,11 @@ MODES: tuple[str, ...] = ("legacy", "clean")
 
 #: names of the physical metrics (metadata: :data:`hoibench.metrics.METRICS`)
 PHYSICAL_OUTPUTS: tuple[str, ...] = tuple(n for n, i in METRICS.items() if i.kind == "physical")
+#: the physical metrics that need the object (its mesh and pose): undefined -- not
+#: applicable -- for clips without one (human-only stores such as RICH); FSR, FSR (GMD) and
+#: jitter read the joints only
+OBJECT_OUTPUTS: tuple[str, ...] = ("cd", "ocd", "ps", "penetration_depth_max_m", "penetration_depth_mean_m",
+                                   "contact_iou", "hand_contact_ratio", "object_floating_ratio")
 
 
 @dataclass(frozen=True)
@@ -385,5 +390,5 @@ def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: 
     return [make(cid, motions[cid], sample) for cid in sorted(motions)]
 
 
-__all__ = ["PHYSICAL_OUTPUTS", "PhysicalConfig", "ClipInput", "clip_physical_stats", "PhysicalMetrics",
+__all__ = ["PHYSICAL_OUTPUTS", "OBJECT_OUTPUTS", "PhysicalConfig", "ClipInput", "clip_physical_stats", "PhysicalMetrics",
            "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs", "clip_input_factory"]
