@@ -4,7 +4,7 @@ AIT as ChainHOI's Table 1 measures it: wall-clock seconds to generate one sample
 over ``--samples`` samples after one warm-up sample. Diffusion baselines (ChainHOI, EJIM):
 text and object encoding, 50 DDIM steps with classifier-free guidance (two network passes
 per step), de-normalisation and decoding to joints. CATMO: text and object encoding,
-``2 ceil(T / 4)`` autoregressive GPT passes over the growing prefix (no key/value cache),
+``2 ceil(T / 4)`` autoregressive GPT passes (one position each, keys and values cached),
 both VQ decoders, the object head and decoding to joints. Weights are random (AIT does not
 depend on them).
 
