@@ -199,3 +199,27 @@ def test_human_only_submission_missing_joints_is_refused_naming_id_and_field(sco
     assert main_validate(sub, base / "data") == 1
     out = capsys.readouterr().out
     assert f"error: {victim.stem}: joints: missing" in out
+
+
+def test_catmo_trains_and_samples_a_human_only_store_into_a_joints_only_submission(rich_store, tmp_path):
+    """CATMO's home track: no object head, no object condition, joints-only submissions."""
+    from hoibench.baselines.catmo.config import preset
+    from hoibench.baselines.catmo.trainer import train
+    from hoibench.baselines.sampler import sample
+    from hoibench.submission import validation_report
+
+    _, data = rich_store
+    cfg = preset("tiny").replace(**{"train.vq_steps": 2, "train.contact_steps": 2, "text.movement_ae_steps": 1,
+                                   "text.match_steps": 1, "train.gpt_steps": 2, "object.steps": 5,
+                                   "train.batch_size": 4, "vq.window": 16})
+    res = train(data, tmp_path / "run", cfg, log=None)
+    assert res.card["dataset"]["with_object"] is False and "object" not in res.card["curves"]
+    from safetensors.torch import load_file
+    keys = load_file(tmp_path / "run" / "weights.safetensors").keys()
+    assert any(k.startswith("model.gpt.") for k in keys)
+    assert not any(k.startswith(("model.object_head.", "model.points.", "stats.object")) for k in keys)
+    sub = sample(tmp_path / "run", data, tmp_path / "sub", samples=2, log=None)
+    with np.load(next((sub / "samples").iterdir())) as z:
+        assert sorted(z.files) == ["joints"] and z["joints"].shape[0] == 2
+    rep = validation_report(sub, data)
+    assert rep.complete and not rep.problems, rep.problems[:3]
