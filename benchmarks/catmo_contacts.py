@@ -6,7 +6,8 @@ generates ``K`` samples from the clip's first caption and the contact VQ-VAE's d
 contacts (probability > 0.5) are turned into body parts ``G_ik`` the way the annotator turns
 contact labels into parts (:func:`hoibench.annotate.body_part_timeline`, same minimum
 segment length). Scores per clip: Jaccard ``|G n P| / |G u P|`` (1 when both are empty) and
-recall ``|G n P| / |P|``, averaged over the K samples.
+recall ``|G n P| / |P|``, averaged over the K samples. Also printed: the per joint-frame
+accuracy and F1 of the generated contacts against the clip's ground-truth contact labels.
 
 Chance is the same score against the other clips' texts (``P_j``, j != i, averaged), so a
 generator that ignores the text scores the same matched and mismatched. The table gives
@@ -69,7 +70,7 @@ def main() -> None:
     store = Store(args.data)
     run.check_store(store)
     ids = store.clip_ids("test")
-    gen_parts, gt_parts, text_parts = [], [], []
+    gen_parts, gt_parts, text_parts, acc, f1 = [], [], [], [], []
     for cid in ids:
         ann = json.loads((store.root / "annotations" / f"{cid}.json").read_text())
         text_parts.append({p for a in ann["actions"] for p in a.get("parts", [])})
@@ -83,8 +84,15 @@ def main() -> None:
         caption = read_captions(store.root, cid)[0].text
         out = run.generate(caption, points, T, args.samples, (args.seed, "sample", cid))
         gen_parts.append([parts_of(c, spec) for c in out["contacts"]])
+        g, t = out["contacts"], np.asarray(clip["contacts"], bool)[None]
+        acc.append(float((g == t).mean()))
+        tp, fp, fn = (g & t).sum(), (g & ~t).sum(), (~g & t).sum()
+        f1.append(float(2 * tp / max(2 * tp + fp + fn, 1)))
     res = {"run": run.id[:12], "clips": len(ids), "samples": args.samples,
            "catmo": scores(gen_parts, text_parts), "ground_truth": scores(gt_parts, text_parts),
+           "joint_frames_vs_gt": {"accuracy": float(np.mean(acc)), "f1": float(np.mean(f1)),
+                                  "gt_positive_rate": float(np.mean([np.asarray(store.load(c)["contacts"]).mean()
+                                                                     for c in ids]))},
            "mean_parts": {"text": float(np.mean([len(p) for p in text_parts])),
                           "generated": float(np.mean([len(g) for gs in gen_parts for g in gs]))}}
     print(f"Contact agreement with the text's body parts, run {res['run']}, {len(ids)} test clips, "
@@ -95,6 +103,9 @@ def main() -> None:
         j, r = res[key]["jaccard"], res[key]["recall"]
         print(f"| {row} | {j['matched']:.3f} | {j['chance']:.3f} | {j['difference']:+.3f} ± {j['ci95']:.3f} | "
               f"{r['matched']:.3f} | {r['chance']:.3f} |")
+    jf = res["joint_frames_vs_gt"]
+    print(f"per joint-frame against the clip's ground-truth contacts: accuracy {jf['accuracy']:.3f}, F1 {jf['f1']:.3f} "
+          f"(ground-truth positive rate {jf['gt_positive_rate']:.3f})")
     if args.out:
         args.out.write_text(json.dumps(res, indent=1) + "\n")
 

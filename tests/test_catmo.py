@@ -91,6 +91,33 @@ def test_codebook_initialises_from_the_first_batch_and_the_vqvae_learns():
     assert m.encode(x).shape == (8, 4) and m.decode(m.encode(x)).shape == x.shape
 
 
+def test_padded_latents_reach_neither_the_decoder_nor_the_gradient():
+    """Short clips are zero-padded to the window: their padded latents must not drift (they
+    did, without bound, before they were masked) nor feed the decoder."""
+    torch.manual_seed(0)
+    m = VQVAE(5, 8, 16, 8, 2, 1, 3, 0.9)
+    x = torch.randn(2, 16, 5)
+    valid = torch.ones(2, 4, dtype=torch.bool)
+    valid[0, 2:] = False                                    # clip 0: 8 valid rows of 16
+    seen = {}
+
+    def keep(mod, inp, out) -> None:
+        out.retain_grad()
+        seen["z"] = out
+    hook = m.encoder.register_forward_hook(keep)
+    out = m(x, valid, torch.Generator().manual_seed(0))["out"]
+    out[0, :8].sum().backward()
+    hook.remove()
+    g = seen["z"].grad
+    assert g[0, 2:].abs().max() == 0 and g[0, :2].abs().max() > 0
+    m.eval()
+    with torch.no_grad():
+        zq = m.quantizer.lookup(m.encode(x))
+        assert zq[0, 2:].abs().sum() > 0
+        zq[0, 2:] = 0
+        torch.testing.assert_close(m(x, valid)["out"], m.decoder(zq))
+
+
 # ------------------------------------------------------------------ intertwined GPT
 def test_interleaving_order_end_and_padding():
     m = torch.tensor([[1, 2, 3], [4, 5, 6]])

@@ -152,6 +152,10 @@ class VQVAE(nn.Module):
                 generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
         z = self.encoder(x)
         zq, idx, commit, perplexity = self.quantizer(z, valid_units, generator)
+        if valid_units is not None:
+            # padded latents carry nothing to the decoder and get no gradient (unconstrained by
+            # the commitment loss, they would drift without bound through the straight-through path)
+            zq = zq * valid_units[..., None].to(zq.dtype)
         return {"out": self.decoder(zq), "indices": idx, "commit": commit, "perplexity": perplexity}
 
     @torch.no_grad()
