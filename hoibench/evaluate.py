@@ -223,11 +223,13 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     where = {cid: i for i, cid in enumerate(ids)}
     pools_for = lambda r: [[where[c] for c in p] for p in proto.pools(ids, r)]  # noqa: E731
     retrieval, fid_by_sample = {}, {}
+    real_stats = em.activation_statistics(real)               # once, for every sample index
+    fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
     for k in ks_physical:
         retrieval[k] = em.retrieval_replications(text_sets, gen[k], pools_for,
                                                  lambda r: proto.seed_for("caption", r),
                                                  proto.replications, proto.r_precision_top_k)
-        fid_by_sample[k] = em.fid(real, gen[k])
+        fid_by_sample[k] = em.fid(real_stats, gen[k], method=fid_method)
     for r in range(proto.replications):
         k = proto.sample_index(r, K)
         tops, mm = retrieval[k]
@@ -269,6 +271,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
         "counts": {"test_ids": len(report.test_ids), "scored_ids": len(ids), "samples_per_prompt": K,
                    "missing_ids": report.missing_ids, "errors": len(report.errors), "warnings": len(report.warnings)},
         "body_surface": proto.physical_config().body_label,
+        "numerics": {"fid": fid_method},
         "metrics": summarize_replications(per_rep, proto.replications),
         "undefined_metrics": undefined,
         "per_replication": per_rep, "notes": notes,

@@ -33,6 +33,9 @@ def ref():
 
 # ====================================================================== reference equivalence
 def test_fid_equals_reference(ref):
+    assert E.fid(ref["fid_real"], ref["fid_gen"], method="sqrtm") == pytest.approx(float(ref["fid_expected"]),
+                                                                                  rel=1e-10)
+    # the fast exact form (default) agrees with the reference's numbers
     assert E.fid(ref["fid_real"], ref["fid_gen"]) == pytest.approx(float(ref["fid_expected"]), rel=1e-10)
     mu, sigma = E.activation_statistics(ref["fid_real"])
     np.testing.assert_allclose(mu, ref["fid_real_mu"], rtol=1e-14)
@@ -41,8 +44,27 @@ def test_fid_equals_reference(ref):
 
 def test_fid_with_rank_deficient_covariances_equals_reference(ref):
     # fewer samples than dimensions: sqrtm returns a complex matrix, its imaginary part is dropped
-    got = E.fid(ref["fid_small_real"], ref["fid_small_gen"])
+    got = E.fid(ref["fid_small_real"], ref["fid_small_gen"], method="sqrtm")
     assert got == pytest.approx(float(ref["fid_small_expected"]), rel=1e-8)
+    # the eigendecomposition form needs no complex detour and agrees to 1e-6 relative
+    assert E.fid(ref["fid_small_real"], ref["fid_small_gen"]) == pytest.approx(float(ref["fid_small_expected"]),
+                                                                              rel=1e-6)
+
+
+@pytest.mark.parametrize("n, d, seed", [(40, 64, 0), (300, 64, 1), (20, 128, 2), (2000, 32, 3)])
+def test_trace_of_the_product_square_root_equals_sqrtm(n, d, seed):
+    from scipy import linalg
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, d)) @ rng.normal(size=(d, d)) * 0.3
+    b = rng.normal(size=(n, d)) * 1.2 + 0.1
+    s1, s2 = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
+    want = np.trace(linalg.sqrtm(s1 @ s2)).real
+    assert E.trace_sqrt_product(s1, s2) == pytest.approx(want, rel=1e-6)
+    mu1, mu2 = a.mean(0), b.mean(0)
+    assert E.frechet_distance(mu1, s1, mu2, s2) == pytest.approx(
+        E.frechet_distance(mu1, s1, mu2, s2, method="sqrtm"), rel=1e-6)
+    with pytest.raises(ValueError, match="method"):
+        E.frechet_distance(mu1, s1, mu2, s2, method="svd")
 
 
 def test_r_precision_and_mm_dist_equal_reference_pooled_as_final_evaluations(ref):
@@ -87,7 +109,7 @@ def test_fid_retries_with_eps_on_the_diagonal_when_sqrtm_is_not_finite(ref, monk
     monkeypatch.setattr(E, "_sqrtm", flaky)
     mu1, s1 = E.activation_statistics(ref["fid_real"])
     mu2, s2 = E.activation_statistics(ref["fid_gen"])
-    got = E.frechet_distance(mu1, s1, mu2, s2)
+    got = E.frechet_distance(mu1, s1, mu2, s2, method="sqrtm")
     off = np.eye(len(mu1)) * 1e-6
     np.testing.assert_allclose(calls[1], (s1 + off) @ (s2 + off))
     covmean = linalg.sqrtm((s1 + off) @ (s2 + off)).real
@@ -98,7 +120,7 @@ def test_fid_retries_with_eps_on_the_diagonal_when_sqrtm_is_not_finite(ref, monk
 def test_fid_raises_on_a_large_imaginary_component(monkeypatch):
     monkeypatch.setattr(E, "_sqrtm", lambda m: np.eye(len(m)) * (1 + 0.1j))
     with pytest.raises(ValueError, match="imaginary"):
-        E.frechet_distance(np.zeros(2), np.eye(2), np.zeros(2), np.eye(2))
+        E.frechet_distance(np.zeros(2), np.eye(2), np.zeros(2), np.eye(2), method="sqrtm")
 
 
 def test_fid_of_identical_sets_is_zero_and_grows_with_a_mean_shift():
