@@ -19,10 +19,15 @@ check-system:
 	  echo "Install it with:  sudo apt-get install libusb-1.0-0   (Debian/Ubuntu)"; exit 1; }
 
 $(VENV)/.installed: setup.cfg pyproject.toml | check-system
+	@echo "[install 1/4] virtual environment in $(VENV)"
 	$(PYTHON) -m venv $(VENV)
-	$(PIP) install --upgrade pip
-	$(PIP) install "$(TORCH_SPEC)"
-	$(PIP) install -e ".[$(EXTRAS)]"
+	@echo "[install 2/4] pip"
+	$(PIP) install -q --upgrade pip
+	@echo "[install 3/4] $(TORCH_SPEC), CPU build (~0.8 GB; the longest step)"
+	$(PIP) install -q "$(TORCH_SPEC)"
+	@echo "[install 4/4] hoibench and its dependencies [$(EXTRAS)] (open3d-cpu, pyvista/VTK, pymeshlab, transformers)"
+	$(PIP) install -q -e ".[$(EXTRAS)]"
+	@du -sh $(VENV) 2>/dev/null | sed 's/^/[install] done: environment size /' || true
 	touch $@
 
 install: $(VENV)/.installed
