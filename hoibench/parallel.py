@@ -157,19 +157,25 @@ def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | Ex
     (then ``units`` may be a generator that is read lazily: streaming keeps memory bounded).
     If the caller stops early (``break``, ``close()``) or an exception or interrupt ends the
     loop, pending units are cancelled and workers terminated (:func:`_abandon`).
-    ``progress`` names a progress bar (tqdm, when installed and stderr is a terminal or
-    ``HOIBENCH_PROGRESS=1``).
+    ``progress`` names a progress bar: tqdm when stderr is a terminal (or
+    ``HOIBENCH_PROGRESS=1``), else a line every 10 s and one at the end (:class:`LineProgress`);
+    ``HOIBENCH_PROGRESS=0`` silences it.
     """
     spec = parse_executor(executor) if isinstance(executor, str) else executor
     bar = _progress_bar(progress, len(units) if hasattr(units, "__len__") else None)
+    finished = False
     try:
         if spec.kind == "serial":
             for unit in units:
                 yield _tick(bar, fn(unit))
         else:
             yield from _map_pool(fn, units, spec, bar, window)
+        finished = True
     finally:
-        if bar is not None:
+        if isinstance(bar, LineProgress):
+            if finished:                  # an error or interrupt keeps stderr to its one line
+                bar.close()
+        elif bar is not None:
             bar.close()
 
 
@@ -241,14 +247,49 @@ def _terminate(procs: Sequence[Any], grace_s: float) -> None:
             pass
 
 
+class LineProgress:
+    """Progress for logs and pipes (no terminal): one line on stderr at most every
+    ``every_s`` seconds, and a last line with the count and the elapsed time, e.g.
+    ``[annotate] 40/120 units, 12.3 s`` ... ``[annotate] done: 120 units in 31.0 s``."""
+
+    def __init__(self, desc: str, total: int | None, every_s: float = 10.0, stream=None):
+        import sys
+        self.desc, self.total, self.every_s = desc, total, every_s
+        self.stream = stream if stream is not None else sys.stderr
+        self.n = 0
+        self.t0 = self.last = time.monotonic()
+
+    def _write(self, text: str) -> None:
+        try:
+            print(text, file=self.stream, flush=True)
+        except (OSError, ValueError):          # a closed pipe never stops the work
+            pass
+
+    def update(self, n: int = 1) -> None:
+        self.n += n
+        now = time.monotonic()
+        if now - self.last >= self.every_s:
+            self.last = now
+            of = f"/{self.total}" if self.total is not None else ""
+            self._write(f"[{self.desc}] {self.n}{of} units, {now - self.t0:.1f} s")
+
+    def close(self) -> None:
+        self._write(f"[{self.desc}] done: {self.n} units in {time.monotonic() - self.t0:.1f} s")
+
+
 def _progress_bar(desc: str | None, total: int):
+    """A tqdm bar on a terminal, :class:`LineProgress` otherwise (``HOIBENCH_PROGRESS=1``
+    forces the bar, ``0`` silences both)."""
     if desc is None:
         return None
     import sys
-    if not (sys.stderr.isatty() or os.environ.get("HOIBENCH_PROGRESS") == "1"):
+    setting = os.environ.get("HOIBENCH_PROGRESS")
+    if setting == "0":
         return None
+    if not (sys.stderr.isatty() or setting == "1"):
+        return LineProgress(desc, total)
     try:
         from tqdm import tqdm
     except ImportError:
-        return None
+        return LineProgress(desc, total)
     return tqdm(total=total, desc=desc, unit="unit")
