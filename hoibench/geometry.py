@@ -33,8 +33,13 @@ from __future__ import annotations
 from types import SimpleNamespace
 from typing import Any, TypeVar
 
+import sys
+from typing import TYPE_CHECKING
+
 import numpy as np
-import torch
+
+if TYPE_CHECKING:                 # torch is imported only when a tensor is passed (numpy callers never pay for it)
+    import torch
 
 __all__ = [
     "axis_angle_to_matrix",
@@ -60,7 +65,7 @@ __all__ = [
     "invert_rigid",
 ]
 
-Array = TypeVar("Array", np.ndarray, torch.Tensor)
+Array = TypeVar("Array", np.ndarray, "torch.Tensor")
 
 # --------------------------------------------------------------------------- backend shim
 _NP = SimpleNamespace(
@@ -74,23 +79,37 @@ _NP = SimpleNamespace(
     eye=lambda x: np.eye(3, dtype=x.dtype),
     eps=lambda x: float(np.finfo(x.dtype).eps),
 )
-_TORCH = SimpleNamespace(
-    sqrt=torch.sqrt, sin=torch.sin, cos=torch.cos, atan2=torch.atan2, where=torch.where,
-    zeros_like=torch.zeros_like, det=torch.linalg.det, out=lambda x: x,
-    stack=lambda xs, axis=-1: torch.stack(xs, dim=axis),
-    cat=lambda xs: torch.cat(xs, dim=-1),
-    cross=lambda a, b: torch.linalg.cross(*torch.broadcast_tensors(a, b)),
-    clamp_min=lambda x, m: torch.clamp(x, min=m),
-    take_along=lambda x, i, axis: torch.take_along_dim(x, i, dim=axis),
-    eye=lambda x: torch.eye(3, dtype=x.dtype, device=x.device),
-    eps=lambda x: float(torch.finfo(x.dtype).eps),
-)
+_TORCH: SimpleNamespace | None = None
+
+
+def _torch_backend() -> SimpleNamespace:
+    global _TORCH
+    if _TORCH is None:
+        import torch
+        _TORCH = SimpleNamespace(
+            sqrt=torch.sqrt, sin=torch.sin, cos=torch.cos, atan2=torch.atan2, where=torch.where,
+            zeros_like=torch.zeros_like, det=torch.linalg.det, out=lambda x: x,
+            stack=lambda xs, axis=-1: torch.stack(xs, dim=axis),
+            cat=lambda xs: torch.cat(xs, dim=-1),
+            cross=lambda a, b: torch.linalg.cross(*torch.broadcast_tensors(a, b)),
+            clamp_min=lambda x, m: torch.clamp(x, min=m),
+            take_along=lambda x, i, axis: torch.take_along_dim(x, i, dim=axis),
+            eye=lambda x: torch.eye(3, dtype=x.dtype, device=x.device),
+            eps=lambda x: float(torch.finfo(x.dtype).eps),
+        )
+    return _TORCH
+
+
+def _is_tensor(x: Any) -> bool:
+    """A torch tensor (torch must already be imported for ``x`` to be one)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(x, torch.Tensor)
 
 
 def _prep(x: Any, name: str, tail: tuple = ()) -> tuple[Any, SimpleNamespace]:
     """Validate dtype (floating) and trailing shape (``None`` = any size); pick the backend."""
-    if isinstance(x, torch.Tensor):
-        B, floating = _TORCH, x.is_floating_point()
+    if _is_tensor(x):
+        B, floating = _torch_backend(), x.is_floating_point()
     else:
         x = x if isinstance(x, np.ndarray) else np.asarray(x)
         B, floating = _NP, np.issubdtype(x.dtype, np.floating)
