@@ -37,7 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..metrics.embedding import pool_hits
+from ..metrics.embedding import frechet_distance, pool_hits  # noqa: F401  (frechet_distance: eigh form)
 
 FID_SEED_TAG = 4242
 NOISE_SEED_TAG = 4243
@@ -89,22 +89,6 @@ def retrieval_scores(motion: np.ndarray, text_sets: list[np.ndarray], pool_size:
     out.update(pool_size=size, requested_pool_size=pool_size, pools_per_replication=per,
                replications=replications, items=n, chance_top1=1.0 / size, pool_rule=rule, seed=int(seed))
     return out
-
-
-def _sqrt_psd(m: np.ndarray) -> np.ndarray:
-    w, v = np.linalg.eigh((m + m.T) / 2.0)
-    return (v * np.sqrt(np.clip(w, 0.0, None))) @ v.T
-
-
-def frechet_distance(mu1, sigma1, mu2, sigma2) -> float:
-    """Frechet distance between N(mu1, sigma1) and N(mu2, sigma2) (eigenvalue form)."""
-    diff = np.asarray(mu1, np.float64) - np.asarray(mu2, np.float64)
-    s1 = np.atleast_2d(np.asarray(sigma1, np.float64))
-    s2 = np.atleast_2d(np.asarray(sigma2, np.float64))
-    r1 = _sqrt_psd(s1)
-    w = np.linalg.eigvalsh(r1 @ s2 @ r1)
-    tr_covmean = float(np.sqrt(np.clip(w, 0.0, None)).sum())
-    return float(diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * tr_covmean)
 
 
 def span_coordinates(x: np.ndarray) -> np.ndarray:

@@ -109,7 +109,7 @@ def trace_sqrt_product(sigma1: np.ndarray, sigma2: np.ndarray) -> float:
     symmetric PSD ``M = A sigma2 A``, so the trace is ``sum_i sqrt(lambda_i(M))``. Rounding
     below zero (``w``, ``lambda``) is clipped to 0, so a rank-deficient covariance (fewer
     samples than dimensions) needs no retry."""
-    w, V = np.linalg.eigh(sigma1)
+    w, V = np.linalg.eigh(0.5 * (sigma1 + sigma1.T))
     A = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
     M = A @ sigma2 @ A
     lam = np.linalg.eigvalsh(0.5 * (M + M.T))
