@@ -281,7 +281,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
 
 
 def _real_features(store: Store, cid: str) -> np.ndarray:
-    clip = store.load(cid)
+    clip = store.load(cid, keys=("hoi269", "hml263"))
     return clip["hoi269"] if "hoi269" in clip else clip["hml263"]
 
 

@@ -138,12 +138,13 @@ class Store:
     def clip_ids(self, split: str | None = None) -> list[str]:
         return [c["id"] for c in self.manifest["clips"] if split is None or c["split"] == split]
 
-    def load(self, clip_id: str) -> dict[str, np.ndarray]:
+    def load(self, clip_id: str, keys: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+        """The clip's arrays (``keys``: only those of them the file holds; None: all)."""
         check_id(clip_id, "clip id", self.root / MANIFEST)
         path = self.root / "clips" / f"{clip_id}.npz"
         try:
             with np.load(path, allow_pickle=False) as z:
-                return {k: z[k] for k in z.files}
+                return {k: z[k] for k in z.files if keys is None or k in keys}
         except FileNotFoundError:
             raise FileNotFoundError(f"{path}: missing: clip {clip_id} is in the manifest but its file is not "
                                     f"(incomplete copy? rerun `hoibench prepare`)") from None
