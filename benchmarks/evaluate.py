@@ -2,6 +2,7 @@
 
     python benchmarks/evaluate.py [--samples 1000] [--frames 196] [--physical-samples N]
                                   [--executor processes:2] [--trimesh-samples 2]
+    python benchmarks/evaluate.py --cli [--prompts 1000]   # the CLI end to end: benchmarks/evaluate_cli.py
 
 Builds clips from a synthetic store (each test clip looped in time to ``--frames``), then
 times the parts of ``hoibench evaluate`` separately: embedding all samples with a tiny
@@ -36,6 +37,11 @@ def _peak_mib() -> float:
 
 
 def main(argv=None) -> None:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if "--cli" in argv:                     # `hoibench evaluate` as a user runs it
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from evaluate_cli import main as cli_main
+        return cli_main([a for a in argv if a != "--cli"])
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--samples", type=int, default=1000)
     ap.add_argument("--frames", type=int, default=196)
