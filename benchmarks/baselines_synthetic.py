@@ -123,8 +123,11 @@ def main() -> None:
         results[label] = result
         if args.entries is not None:
             meta = json.loads((sub / "submission.json").read_text())
-            write_entry(entry_from_result(result, method=label, track=args.track, submission_meta=meta,
-                                          notes=NOTES.get(kind, "")), args.entries)
+            entry = entry_from_result(result, method=label, track=args.track, submission_meta=meta,
+                                      notes=NOTES.get(kind, ""))
+            entry["role"] = ("ground-truth" if kind == "gt" else
+                             "reference" if (kind == "mean-pose" or "untrained" in label) else "baseline")
+            write_entry(entry, args.entries)
         print(f"[{label}] scored: FID {fmt(result['metrics'].get('fid'))}, "
               f"R@1 {fmt(result['metrics'].get('r_precision_top1'))}", flush=True)
     any_res = next(iter(results.values()))

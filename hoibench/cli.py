@@ -200,6 +200,32 @@ def _cmd_baseline(args) -> int:
     return commands.main_show(args.run)
 
 
+def _cmd_leaderboard(args) -> int:
+    from . import leaderboard as lb
+    root = Path(args.root)
+    if args.action == "add":
+        path = lb.add_result(args.result, root / args.track, method=args.method, role=args.role,
+                             allow_incomplete=args.allow_incomplete, replace=args.replace, notes=args.notes)
+        print(f"added {path}")
+        return 0
+    if args.action == "ls":
+        if not root.is_dir():
+            raise FileNotFoundError(f"{root}: no leaderboards folder")
+        for track in sorted(p for p in root.iterdir() if (p / "entries").is_dir()):
+            entries = lb.load_track(track)
+            print(f"{track.name:12s} {len(entries):3d} entries  ({', '.join(e['method'] for e in lb.order(entries)[:4])}"
+                  f"{', ...' if len(entries) > 4 else ''})")
+        return 0
+    from .leaderboard_render import build
+    tracks = [root / args.track] if args.track else sorted(p for p in root.iterdir() if (p / "entries").is_dir())
+    if not tracks:
+        raise FileNotFoundError(f"{root}: no track folders with entries/")
+    for track in tracks:
+        paths = build(track)
+        print(f"[{track.name}] wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed)
@@ -390,6 +416,30 @@ def build_parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("show", help="show (and verify) a baseline run folder")
     b.add_argument("run", type=Path)
     b.set_defaults(func=_cmd_baseline)
+
+    s = sub.add_parser("leaderboard", help="add results to a track and build its README, CSV and HTML page",
+                       epilog="examples:\n  hoibench leaderboard add result.json --track synthetic --method 'My method'\n"
+                              "  hoibench leaderboard build            # every track under leaderboards/\n"
+                              "  hoibench leaderboard ls",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    lsub = s.add_subparsers(dest="action", required=True)
+    b = lsub.add_parser("add", help="add a result of `hoibench evaluate` to a track")
+    b.add_argument("result", type=Path)
+    b.add_argument("--track", required=True)
+    b.add_argument("--method", required=True, help="the row's name (its entry file is the name's slug)")
+    b.add_argument("--role", default="method", choices=["ground-truth", "reference", "baseline", "method"])
+    b.add_argument("--notes", default="")
+    b.add_argument("--allow-incomplete", action="store_true", help="add an incomplete result, marked as such")
+    b.add_argument("--replace", action="store_true", help="replace an entry of the same name")
+    b.add_argument("--root", type=Path, default=Path("leaderboards"))
+    b.set_defaults(func=_cmd_leaderboard)
+    b = lsub.add_parser("build", help="render README.md, leaderboard.csv, index.html and plots of tracks")
+    b.add_argument("--track", default=None, help="one track (default: every track under --root)")
+    b.add_argument("--root", type=Path, default=Path("leaderboards"))
+    b.set_defaults(func=_cmd_leaderboard)
+    b = lsub.add_parser("ls", help="list tracks and their entries")
+    b.add_argument("--root", type=Path, default=Path("leaderboards"))
+    b.set_defaults(func=_cmd_leaderboard)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")
