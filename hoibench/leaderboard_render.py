@@ -201,8 +201,9 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
 <html lang="en"><head><meta charset="utf-8"><title>{e_(track)} leaderboard - hoibench</title>
 <style>
 body {{ font-family: system-ui, sans-serif; margin: 2em; color: #1a202c; }}
-table {{ border-collapse: collapse; font-size: 14px; }}
-th, td {{ padding: 4px 10px; border-bottom: 1px solid #e2e8f0; text-align: right; white-space: nowrap; }}
+table {{ border-collapse: collapse; font-size: 13px; }}
+.wrap {{ overflow-x: auto; }}
+th, td {{ padding: 3px 7px; border-bottom: 1px solid #e2e8f0; text-align: right; white-space: nowrap; }}
 th {{ cursor: pointer; background: #edf2f7; }}
 td:nth-child(2), th:nth-child(2) {{ text-align: left; }}
 tr.gt {{ font-weight: 600; background: #ebf8ff; }}
@@ -217,10 +218,10 @@ img {{ max-width: 100%; }}
 <h1>{e_(track)} leaderboard</h1>
 <p>{e_(_context(entries))}. Cells: mean ± 95% CI over the protocol's replications. ↑ higher is better,
 ↓ lower is better, ≈GT closest to the ground truth. Click a column to sort. Units: {units}.</p>
-<table><thead><tr><th data-col="0">#</th><th data-col="1">method</th>{head}<th data-col="{len(cols) + 2}">flags</th></tr></thead>
+<div class="wrap"><table><thead><tr><th data-col="0">#</th><th data-col="1">method</th>{head}<th data-col="{len(cols) + 2}">flags</th></tr></thead>
 <tbody>
 {chr(10).join(rows)}
-</tbody></table>
+</tbody></table></div>
 {imgs}
 <script>{_SORT_JS}</script>
 </body></html>
