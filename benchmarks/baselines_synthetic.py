@@ -2,7 +2,8 @@
 
 Rows: ground truth (real motion), ChainHOI tiny (paper chain mask), ChainHOI tiny with the
 released code's mask, EJIM tiny, CATMO tiny, the untrained ChainHOI and CATMO tiny (0 steps),
-and mean pose + static object.
+mean pose + static object, and the reference rows of :mod:`hoibench.reference_rows` (GT + 1
+and 3 cm noise, static first pose, mismatched texts).
 Each is written as a standard submission and scored by ``hoibench.evaluate.evaluate`` under
 the store's default protocol (synthetic-clean: 20 replications, pools of 32) with the given
 evaluator. Runs, submissions and results are reused when they already exist (training and
@@ -41,6 +42,10 @@ COLUMNS = [("fid", "FID", "down"), ("r_precision_top1", "R@1", "up"), ("r_precis
 
 NOTES = {"gt": "the test clips themselves: the ceiling of every metric",
          "mean-pose": "text-blind floor: mean train pose and static object (train statistics only)",
+         "ref:gt-noise": "reference row: the ground truth with i.i.d. Gaussian noise on joints and object translation",
+         "ref:static-first-pose": "reference row: each clip's first frame held still (body and object)",
+         "ref:mismatched-texts": "reference row: the ground-truth motions reassigned to other clips' texts "
+                                 "(a seeded derangement)",
          "chainhoi": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md",
          "ejim": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md",
          "catmo": "hoibench's implementation from the paper (object head: hoibench's extension), tiny config (CPU), "
@@ -58,7 +63,11 @@ def rows_spec(steps: int | None, human_only: bool = False) -> list[tuple[str, st
             ("CATMO tiny", "catmo", None),
             ("ChainHOI tiny, untrained", "chainhoi", {"train.steps": 0}),
             ("CATMO tiny, untrained", "catmo", CATMO_UNTRAINED),
-            ("mean pose + static object", "mean-pose", None)]
+            ("mean pose + static object", "mean-pose", None),
+            ("GT + 1 cm noise", "ref:gt-noise", {"sigma": 0.01}),
+            ("GT + 3 cm noise", "ref:gt-noise", {"sigma": 0.03}),
+            ("static first pose", "ref:static-first-pose", None),
+            ("mismatched texts", "ref:mismatched-texts", None)]
     if human_only:
         rows = [(("mean pose" if k == "mean-pose" else label), k, o) for label, k, o in rows
                 if k not in ("chainhoi", "ejim")]
@@ -102,6 +111,9 @@ def main() -> None:
             t0 = time.perf_counter()
             if kind == "gt":
                 from_store(args.data, sub)
+            elif kind.startswith("ref:"):
+                from hoibench.reference_rows import write_reference
+                write_reference(kind[4:], args.data, sub, **(over or {}))
             elif kind == "mean-pose":
                 write_mean_pose_submission(args.data, sub)
             else:
@@ -126,7 +138,8 @@ def main() -> None:
             entry = entry_from_result(result, method=label, track=args.track, submission_meta=meta,
                                       notes=NOTES.get(kind, ""))
             entry["role"] = ("ground-truth" if kind == "gt" else
-                             "reference" if (kind == "mean-pose" or "untrained" in label) else "baseline")
+                             "reference" if (kind == "mean-pose" or kind.startswith("ref:") or "untrained" in label)
+                             else "baseline")
             write_entry(entry, args.entries)
         print(f"[{label}] scored: FID {fmt(result['metrics'].get('fid'))}, "
               f"R@1 {fmt(result['metrics'].get('r_precision_top1'))}", flush=True)

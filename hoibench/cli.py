@@ -164,6 +164,14 @@ def _cmd_validate(args) -> int:
 
 
 def _cmd_submission(args) -> int:
+    if args.action == "reference":
+        if args.kind is None:
+            raise ValueError("submission reference: --kind is required (gt, gt-noise, static-first-pose, mean-pose, "
+                             "mismatched-texts)")
+        from .reference_rows import write_reference
+        path = write_reference(args.kind, args.data, args.out, sigma=args.sigma, seed=args.seed, as_zip=args.zip)
+        print(f"wrote {path} ({args.kind})")
+        return 0
     from .submission import main_submission_from_store
     return main_submission_from_store(args.data, args.out, as_zip=args.zip)
 
@@ -331,11 +339,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--protocol", default=None)
     s.set_defaults(func=_cmd_validate)
 
-    s = sub.add_parser("submission", help="make submissions (from-store: the ground-truth 'real motion' row)",
-                       epilog="example: hoibench submission from-store data/behave --out gt_submission")
-    s.add_argument("action", choices=["from-store"])
+    s = sub.add_parser("submission", help="make submissions (from-store: the ground-truth 'real motion' row; "
+                                          "reference: the rows that bracket every metric)",
+                       epilog="examples:\n  hoibench submission from-store data --out gt_submission\n"
+                              "  hoibench submission reference data --kind gt-noise --sigma 0.03 --out gt3cm\n"
+                              "  hoibench submission reference data --kind mismatched-texts --out mismatched",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("action", choices=["from-store", "reference"])
     s.add_argument("data", type=Path)
     s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--kind", default=None,
+                   choices=["gt", "gt-noise", "static-first-pose", "mean-pose", "mismatched-texts"],
+                   help="reference: which row (docs/leaderboards.md)")
+    s.add_argument("--sigma", type=float, default=0.01, help="gt-noise: noise std in metres (default 0.01)")
+    s.add_argument("--seed", type=int, default=0)
     s.add_argument("--zip", action="store_true")
     s.set_defaults(func=_cmd_submission)
 
