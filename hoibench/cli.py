@@ -164,6 +164,16 @@ def _cmd_validate(args) -> int:
 
 
 def _cmd_submission(args) -> int:
+    if args.action == "prompts":
+        from .prompts import write_prompts
+        text = write_prompts(args.data, args.out)
+        if args.out is None:
+            print(text, end="")
+        else:
+            print(f"wrote {args.out}: {text.count(chr(10))} prompts")
+        return 0
+    if args.out is None:
+        raise ValueError(f"submission {args.action}: --out is required")
     if args.action == "reference":
         if args.kind is None:
             raise ValueError("submission reference: --kind is required (gt, gt-noise, static-first-pose, mean-pose, "
@@ -343,11 +353,12 @@ def build_parser() -> argparse.ArgumentParser:
                                           "reference: the rows that bracket every metric)",
                        epilog="examples:\n  hoibench submission from-store data --out gt_submission\n"
                               "  hoibench submission reference data --kind gt-noise --sigma 0.03 --out gt3cm\n"
-                              "  hoibench submission reference data --kind mismatched-texts --out mismatched",
+                              "  hoibench submission reference data --kind mismatched-texts --out mismatched\n"
+                              "  hoibench submission prompts data --out prompts.jsonl   # what a generator needs",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("action", choices=["from-store", "reference"])
+    s.add_argument("action", choices=["from-store", "reference", "prompts"])
     s.add_argument("data", type=Path)
-    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--out", type=Path, default=None, help="prompts: a .jsonl file (default: print)")
     s.add_argument("--kind", default=None,
                    choices=["gt", "gt-noise", "static-first-pose", "mean-pose", "mismatched-texts"],
                    help="reference: which row (docs/leaderboards.md)")
