@@ -285,19 +285,58 @@ def _real_features(store: Store, cid: str) -> np.ndarray:
     return clip["hoi269"] if "hoi269" in clip else clip["hml263"]
 
 
+#: printed groups: the papers' semantic columns, their physical columns, hoibench's extras
+GROUPS = (("semantic", ("r_precision_top1", "r_precision_top2", "r_precision_top3", "fid", "mm_dist", "diversity",
+                        "multimodality")),
+          ("physical", ("cd", "ocd", "ps", "fsr")),
+          ("extras", ("penetration_depth_max_m", "penetration_depth_mean_m", "fsr_gmd", "contact_iou",
+                      "hand_contact_ratio", "object_floating_ratio", "jitter_mps3")))
+COUNTS = ("clips", "clips_with_contact")
+
+
 def format_result(result: dict) -> str:
+    """The result as a reader wants it: metrics grouped (semantic / physical / extras) with
+    the direction (↑ higher is better, ↓ lower, ≈GT closest to the ground truth) and units,
+    counts apart, undefined metrics named; a tiny negative FID from the reference numerics
+    shows as 0 (the JSON keeps the raw value)."""
+    from .metrics import METRICS
     state = "complete" if result["complete"] else "INCOMPLETE"
+    c = result["counts"]
     lines = [f"{result['protocol']}@{result['protocol_version']}  evaluator {str(result['evaluator_id'])[:12]}  "
-             f"{state}  ({result['counts']['scored_ids']}/{result['counts']['test_ids']} ids, "
-             f"K={result['counts']['samples_per_prompt']})",
-             f"{'metric':28s} {'mean':>12s} {'95% CI':>10s}"]
-    for name, s in result["metrics"].items():
-        mean, ci = s["mean"], s["ci95"]
-        if isinstance(mean, list):
-            mean, ci = mean[0], ci[0]
-        lines.append(f"{name:28s} {mean:12.5g} {ci:10.3g}")
+             f"{state}  ({c['scored_ids']}/{c['test_ids']} ids, K={c['samples_per_prompt']})"]
+    metrics = result["metrics"]
+    shown = set()
+    for group, names in GROUPS:
+        rows = [n for n in names if n in metrics]
+        if not rows:
+            continue
+        lines.append(f"{group}:")
+        for name in rows:
+            mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
+            if isinstance(mean, list):
+                mean, ci = mean[0], ci[0]
+            if name == "fid" and -1e-6 < mean < 0:
+                mean = 0.0
+            info = METRICS.get(name)
+            arrow = {True: "↑", False: "↓", None: "≈GT"}[info.higher_is_better] if info else ""
+            units = info.units if info else ""
+            lines.append(f"  {name:26s} {arrow:>3s} {mean:12.5g} ± {ci:<10.3g} {units}")
+            shown.add(name)
+    rest = [n for n in metrics if n not in shown and n not in COUNTS]
+    for name in rest:
+        mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
+        mean, ci = (mean[0], ci[0]) if isinstance(mean, list) else (mean, ci)
+        lines.append(f"  {name:26s}     {mean:12.5g} ± {ci:<10.3g}")
+    counts = ", ".join(f"{n} {metrics[n]['mean']:g}" for n in COUNTS if n in metrics)
+    if counts:
+        lines.append(f"counts: {counts}")
+    by_reason: dict[str, list[str]] = {}
+    for n, why in sorted(result.get("undefined_metrics", {}).items()):
+        by_reason.setdefault(str(why), []).append(n)
+    lines += [f"undefined: {', '.join(names)}: {why}" for why, names in by_reason.items()]
     lines += [f"override: {o['override']}: {'; '.join(o['reasons'])}" for o in result.get("overrides", [])]
-    lines += [f"note: {n}" for n in result["notes"]]
+    lines += [f"note: {n}" for n in result["notes"] if not any(n.startswith(u + ":") for u in
+                                                              result.get("undefined_metrics", {}))]
     return "\n".join(lines)
 
 

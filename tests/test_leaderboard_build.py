@@ -113,3 +113,18 @@ def test_cli_add_build_and_one_line_errors(track, tmp_path):
     r = subprocess.run(exe + ["add", str(p), "--track", "synthetic", "--method", "Model G", "--root", str(root)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "dddddddddddd" in r.stderr
+
+
+def test_evaluate_prints_groups_arrows_units_and_zero_for_tiny_negative_fid():
+    from hoibench.evaluate import format_result
+    res = result(-3e-7, 0.5)
+    res.update({"protocol": "synthetic-clean", "protocol_version": "1.1", "notes": ["x"],
+                "undefined_metrics": {"ocd": "no group", "ps": "no group"}})
+    res["metrics"]["clips"] = {"mean": 34.0, "ci95": 0.0}
+    text = format_result(res)
+    lines = text.splitlines()
+    assert lines[1] == "semantic:" and "physical:" in lines
+    fid = next(line for line in lines if line.strip().startswith("fid"))
+    assert "↓" in fid and " 0 ± " in fid and "squared embedding distance" in fid
+    assert any(line.strip().startswith("r_precision_top1") and "↑" in line for line in lines)
+    assert "counts: clips 34" in text and "undefined: ocd, ps: no group" in text
