@@ -218,6 +218,18 @@ def _cmd_baseline(args) -> int:
     return commands.main_show(args.run)
 
 
+def _cmd_compare(args) -> int:
+    from .compare import compare, plot
+    names = [n.strip() for n in args.names.split(",")] if args.names else None
+    if names is not None and len(names) != len(args.results):
+        raise ValueError(f"--names: {len(names)} names for {len(args.results)} results")
+    print(compare(args.results, names))
+    if args.plot:
+        plot(args.results, args.plot, names)
+        print(f"wrote {args.plot}")
+    return 0
+
+
 def _cmd_leaderboard(args) -> int:
     from . import leaderboard as lb
     root = Path(args.root)
@@ -444,6 +456,13 @@ def build_parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("show", help="show (and verify) a baseline run folder")
     b.add_argument("run", type=Path)
     b.set_defaults(func=_cmd_baseline)
+
+    s = sub.add_parser("compare", help="results side by side, with which differences are outside the CIs",
+                       epilog="example: hoibench compare gt.json mine.json baseline.json --plot compare.png")
+    s.add_argument("results", type=Path, nargs="+")
+    s.add_argument("--names", default=None, help="comma-separated row names (default: the submissions' methods)")
+    s.add_argument("--plot", type=Path, default=None, help="also draw bars with CI error bars to this PNG")
+    s.set_defaults(func=_cmd_compare)
 
     s = sub.add_parser("leaderboard", help="add results to a track and build its README, CSV and HTML page",
                        epilog="examples:\n  hoibench leaderboard add result.json --track synthetic --method 'My method'\n"
