@@ -218,6 +218,24 @@ def _cmd_baseline(args) -> int:
     return commands.main_show(args.run)
 
 
+def _cmd_import(args) -> int:
+    from .importers import import_results
+    path, rep = import_results(args.format, args.results, args.data, args.out, match=args.match, mapping=args.map,
+                               trust_pickle=args.trust_pickle, fps=args.fps, up=args.up, normalized=args.normalized,
+                               method=args.method, as_zip=args.zip)
+    conv = rep["conversions"]
+    print(f"wrote {path}: {rep['matched']}/{rep['test_ids']} test ids, K = {rep['samples_per_prompt'][0]} "
+          f"(matched by {conv['match']}; {conv['source_fps']:g} -> {conv['store_fps']:g} fps; up {conv['up_axis']})")
+    if rep["missing_ids"]:
+        print(f"  missing: {len(rep['missing_ids'])} test ids without samples (e.g. {rep['missing_ids'][0]}): the "
+              f"submission is incomplete")
+    if rep["unmatched_entries"]:
+        print(f"  unmatched: {len(rep['unmatched_entries'])} entries (e.g. {rep['unmatched_entries'][0]!r})")
+    if rep["ambiguous_texts"]:
+        print(f"  ambiguous: {len(rep['ambiguous_texts'])} texts shared by several clips (assigned in id order)")
+    return 0
+
+
 def _cmd_compare(args) -> int:
     from .compare import compare, plot
     names = [n.strip() for n in args.names.split(",")] if args.names else None
@@ -456,6 +474,28 @@ def build_parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("show", help="show (and verify) a baseline run folder")
     b.add_argument("run", type=Path)
     b.set_defaults(func=_cmd_baseline)
+
+    s = sub.add_parser("import", help="turn existing generators' outputs (MDM, HOI-Diff, T2M-GPT/MoMask joints, "
+                                      "CHOIS, feature folders) into a submission",
+                       epilog="examples:\n  hoibench import mdm results.npy --data data --out sub --trust-pickle\n"
+                              "  hoibench import joints t2mgpt_joints/ --data data --out sub --fps 20\n"
+                              "  hoibench import features feats/ --data data --out sub --normalized",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("format", choices=["mdm", "hoidiff", "joints", "chois", "features"])
+    s.add_argument("results", type=Path, help="results.npy (mdm, hoidiff) or a folder of files")
+    s.add_argument("--data", type=Path, required=True)
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--match", choices=["id", "text"], default=None,
+                   help="map entries to test ids by file name (id) or caption (text); default: text for mdm/hoidiff")
+    s.add_argument("--map", type=Path, default=None, help="JSON {entry index or file stem: test id}")
+    s.add_argument("--trust-pickle", action="store_true",
+                   help="read MDM/HOI-Diff results.npy, a pickle: only for files you produced yourself")
+    s.add_argument("--fps", type=float, default=None, help="the source frame rate (default: the format's, or the store's)")
+    s.add_argument("--up", choices=["y", "z"], default="y", help="joints: the source's up axis")
+    s.add_argument("--normalized", action="store_true", help="features: de-normalise with the store's statistics")
+    s.add_argument("--method", default=None)
+    s.add_argument("--zip", action="store_true")
+    s.set_defaults(func=_cmd_import)
 
     s = sub.add_parser("compare", help="results side by side, with which differences are outside the CIs",
                        epilog="example: hoibench compare gt.json mine.json baseline.json --plot compare.png")
