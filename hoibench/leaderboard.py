@@ -119,14 +119,16 @@ def _mean(e: dict, name: str) -> float | None:
 
 
 def order(entries: list[dict], key: str = "fid") -> list[dict]:
-    """Display order: the ground truth first, then reproduced rows by ``key`` (best first,
-    rows without it last), then reported rows (not comparable) by ``key``."""
+    """Display order: hoibench's ground truth first, then reproduced rows by ``key`` (best
+    first, rows without it last), then reported rows (not comparable): a paper's own
+    ground-truth row first, then the others by ``key``."""
     from .metrics import METRICS
     higher = METRICS[key].higher_is_better if key in METRICS else False
 
     def k(e):
         v = _mean(e, key)
-        rank = {"ground-truth": 0}.get(e["role"], 1 if e["source"] == "reproduced" else 2)
+        reported = e["source"] == "reported"
+        rank = (2 if reported else 1) if e["role"] != "ground-truth" else (1.5 if reported else 0)
         return (rank, v is None, (-v if higher else v) if v is not None else 0.0, e["method"])
     return sorted(entries, key=k)
 
