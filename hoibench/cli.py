@@ -115,6 +115,13 @@ def _cmd_prepare(args) -> int:
 
 
 def _cmd_render(args) -> int:
+    if args.id is not None:                       # a submission's sample beside its ground truth
+        if args.data is None:
+            raise ValueError("render SUB --id ID: --data DATA (the store the submission is for) is required")
+        from .render import render_comparison
+        path = render_comparison(args.clip, args.data, args.id, args.out, sample=args.sample)
+        print(f"wrote {path}")
+        return 0
     from .render import render_clip
     clip = Path(args.clip)
     if clip.suffix == ".npz":
@@ -331,9 +338,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_cmd_prepare)
 
     s = sub.add_parser("render", help="render a processed clip to PNG, GIF or MP4 (off-screen)",
-                       epilog="example: hoibench render data/clips/Date01_Sub01_boxsmall_lift.npz --out clip.gif")
-    s.add_argument("clip", help="DATA/clips/<id>.npz, or a clip id together with --data")
+                       epilog="examples:\n  hoibench render data/clips/Date01_Sub01_boxsmall_lift.npz --out clip.gif\n"
+                              "  hoibench render sub.zip --id Date03_Sub01_backpack_hold --data data --out cmp.gif",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("clip", help="DATA/clips/<id>.npz, or a clip id together with --data, or a submission with --id")
     s.add_argument("--data", type=Path, default=None)
+    s.add_argument("--id", default=None, help="with a submission: draw its sample for this id beside the ground truth")
+    s.add_argument("--sample", type=int, default=0, help="with --id: which of the K samples (default 0)")
     s.add_argument("--out", type=Path, required=True, help=".png (middle frame), .gif or .mp4")
     s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy")
     s.set_defaults(func=_cmd_render)

@@ -190,6 +190,14 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
                 raise RuntimeError(f"{sub}: the {label} submission did not validate: {rep.problems[:2]}")
             _score(label, "baseline", sub, data, ev_dir, track, executor)
         times["sample_and_score_baselines_s"] = round(time.perf_counter() - t2, 1)
+        try:
+            from .render import render_comparison
+            from .store import Store
+            cid = Store(data).clip_ids("test")[0]
+            gif = render_comparison(out / "submissions" / "catmo-tiny", data, cid, out / f"compare_{cid}.gif")
+            print(f"  CATMO tiny beside the ground truth: {gif}")
+        except ImportError as exc:
+            print(f"  (comparison render skipped: {exc})")
     t3 = time.perf_counter()
     paths = build(track)
     times["leaderboard_build_s"] = round(time.perf_counter() - t3, 1)

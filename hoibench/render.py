@@ -564,3 +564,74 @@ class _ProxySurface:
 
     def __call__(self, sel: np.ndarray) -> np.ndarray:
         return self._forward(np.asarray(sel, np.int64))[0]
+
+
+def render_comparison(submission, store_root, clip_id: str, out_path, *, sample: int = 0, frames=None,
+                      size: tuple[int, int] = (420, 340), fps: float | None = None) -> Path:
+    """A generated sample drawn beside its ground truth: ``out_path`` (.png / .gif) holds two
+    panels per frame, the ground truth (left, with the clip's caption) and sample ``sample``
+    of ``submission`` for the same id (right, with the submission's method), as skeletons
+    with the object. Red spheres mark the joints in contact: stored labels on the left,
+    labels computed from the generated joints and object pose (the annotator's signed
+    distance thresholds, :func:`hoibench.contact.joint_contact_labels`) on the right. Frames
+    beyond the shorter of the two are not drawn."""
+    import tempfile
+
+    from .evaluator.text import read_captions
+    from .store import Store
+    from .submission import Submission
+    suffix = Path(out_path).suffix.lower()
+    if suffix not in (".png", ".gif"):
+        raise ValueError(f"{out_path}: a comparison is written as .png or .gif, got {suffix!r}")
+    store = store_root if isinstance(store_root, Store) else Store(store_root)
+    gt = store.load(clip_id)
+    with Submission(submission) as sub:
+        if clip_id not in sub.ids:
+            raise ValueError(f"{submission}: no sample for id {clip_id!r}")
+        arrays = sub.load(clip_id)
+        method = str((sub.meta or {}).get("method", "submission"))
+    joints = np.asarray(arrays["joints"], np.float64)
+    if not 0 <= sample < len(joints):
+        raise ValueError(f"--sample: {sample} out of range: {submission} has {len(joints)} sample(s) for {clip_id}")
+    gen = joints[sample]
+    T = min(len(gen), len(gt["joints"]))
+    clip_fps = float(gt["fps"]) if "fps" in gt else 20.0
+    caps = read_captions(store.root, clip_id) or []
+    caption = caps[0].text if caps else ""
+    caption = caption if len(caption) <= 58 else caption[:55] + "..."
+    obj_gt = obj_gen = faces = None
+    gen_contacts = None
+    if "obj_rot" in gt and str(gt.get("object_name", "")):
+        tmpl, faces = store.object_template(str(gt["object_name"]))
+        obj_gt = (tmpl, gt["obj_rot"][:T], gt["obj_trans"][:T])
+        if "obj_trans" in arrays:
+            rot = arrays.get("obj_rot")
+            if rot is None:
+                from .geometry import axis_angle_to_matrix
+                rot = axis_angle_to_matrix(np.asarray(arrays["obj_rotvec"], np.float64))
+            rot, trans = np.asarray(rot, np.float64)[sample][:T], np.asarray(arrays["obj_trans"], np.float64)[sample][:T]
+            obj_gen = (tmpl, rot, trans)
+            from .contact import joint_contact_labels
+            gen_contacts = joint_contact_labels(gen[:T], tmpl, faces, rot, trans, str(gt["object_name"]))[0]
+    legend = "red: joints in contact"
+    with tempfile.TemporaryDirectory() as tmp:
+        left = render_sequence(gt["joints"][:T], obj_gt, faces, gt.get("contacts", None) if "contacts" in gt else None,
+                               Path(tmp) / f"gt{suffix}", frames=frames, size=size, fps=fps, clip_fps=clip_fps,
+                               title=f"GT: {caption}")
+        right = render_sequence(gen[:T], obj_gen, faces, gen_contacts, Path(tmp) / f"gen{suffix}", frames=frames,
+                                size=size, fps=fps, clip_fps=clip_fps, title=f"{method[:40]} ({legend})")
+        iio = _import_imageio()
+        a, b = iio.mimread(left) if suffix == ".gif" else [iio.imread(left)], \
+            iio.mimread(right) if suffix == ".gif" else [iio.imread(right)]
+        both = [np.concatenate([x[..., :3], y[..., :3]], 1) for x, y in zip(a, b)]
+        out = Path(out_path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp_out = Path(tmp) / f"both{suffix}"
+        if suffix == ".gif":
+            n = len(both)
+            duration = 1.0 / (fps or clip_fps * n / max(T, 1))
+            iio.mimsave(tmp_out, both, duration=duration, loop=0)
+        else:
+            iio.imwrite(tmp_out, both[0])
+        from .io import atomic_write_bytes
+        return atomic_write_bytes(out, tmp_out.read_bytes())
