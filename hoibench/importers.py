@@ -290,6 +290,9 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
         entries = read_joint_files(results, ids, "z" if fmt == "chois" else up, fmt == "chois")
     else:
         entries = read_features(results, ids, store, normalized)
+    if not entries:
+        raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt == 'chois' else '.npy'} sample files "
+                            f"or entries found)")
     src_fps = float(fps) if fps is not None else SOURCE_FPS.get(fmt, store_fps)
     if not (np.isfinite(src_fps) and 1 <= src_fps <= 1000):
         raise ImportProblem(f"--fps: expected 1..1000 frames per second, got {fps!r}")
