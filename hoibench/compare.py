@@ -12,18 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .evaluate import GROUPS
-from .io import load_json_bytes, read_regular_file
-
-
-def load_result(path: str | Path) -> dict:
-    path = Path(path)
-    try:
-        r = load_json_bytes(read_regular_file(path, 64 << 20, "result"), path)
-    except ValueError as exc:
-        raise ValueError(str(exc)) from None
-    if not isinstance(r, dict) or not isinstance(r.get("metrics"), dict):
-        raise ValueError(f"{path}: field metrics: not a result of `hoibench evaluate`")
-    return r
+from .leaderboard import read_result as load_result
 
 
 def _mc(r: dict, name: str) -> tuple[float, float] | None:

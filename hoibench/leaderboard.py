@@ -133,22 +133,32 @@ def order(entries: list[dict], key: str = "fid") -> list[dict]:
     return sorted(entries, key=k)
 
 
+def read_result(path: str | Path) -> dict:
+    """A result of ``hoibench evaluate`` (strict JSON with a ``metrics`` object), or
+    :class:`LeaderboardError` naming the file and field."""
+    from .io import load_json_bytes, read_regular_file
+    path = Path(path)
+    try:
+        result = load_json_bytes(read_regular_file(path, 64 << 20, "result"), path)
+    except ValueError as exc:
+        raise LeaderboardError(str(exc)) from None
+    if not isinstance(result, dict) or not isinstance(result.get("metrics"), dict):
+        raise LeaderboardError(f"{path}: field metrics: not a result of `hoibench evaluate`")
+    return result
+
+
 def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, role: str = "method",
                allow_incomplete: bool = False, replace: bool = False, notes: str = "",
                submission_meta: dict | None = None) -> Path:
     """Add a ``hoibench evaluate`` result to a track as a reproduced entry. Refused: another
     evaluator id or protocol than the track's reproduced rows, an existing entry of the same
     name (unless ``replace``), an incomplete result (unless ``allow_incomplete``: marked)."""
-    from .io import load_json_bytes, read_regular_file
     if role not in ROLES:
         raise LeaderboardError(f"--role: expected one of {ROLES}, got {role!r}")
     result_path, track_dir = Path(result_path), Path(track_dir)
-    try:
-        result = load_json_bytes(read_regular_file(result_path, 64 << 20, "result"), result_path)
-    except ValueError as exc:
-        raise LeaderboardError(str(exc)) from None
-    if not isinstance(result, dict) or not isinstance(result.get("metrics"), dict) or "evaluator_id" not in result:
-        raise LeaderboardError(f"{result_path}: not a result of `hoibench evaluate` (fields metrics, evaluator_id)")
+    result = read_result(result_path)
+    if "evaluator_id" not in result:
+        raise LeaderboardError(f"{result_path}: field evaluator_id: missing: not a result of `hoibench evaluate`")
     track = track_dir.name
     existing = load_track(track_dir) if (track_dir / "entries").is_dir() else []
     ours = [e for e in existing if e["source"] == "reproduced"]

@@ -152,19 +152,25 @@ def clip_item(store: Store, cid: str, captions: list[str]) -> ClipItem:
     return ClipItem(cid, rows, contacts, str(clip["object_name"]), captions)
 
 
-def read_split(data: str | Path, split: str) -> tuple[Store, list[ClipItem], list[str]]:
-    """(store, items with captions, ids without captions) of a split."""
+def captioned_ids(store: Store, split: str) -> tuple[list[tuple[str, list[str]]], list[str]]:
+    """([(clip id, its captions)] for the clips of ``split`` with captions, ids without)."""
     from ..evaluator.text import read_captions
-    store = data if isinstance(data, Store) else Store(data)
-    items, missing = [], []
+    found, missing = [], []
     for cid in store.clip_ids(split):
         caps = read_captions(store.root, cid)
         texts = [c.text for c in caps] if caps else []
-        if not texts:
+        if texts:
+            found.append((cid, texts))
+        else:
             missing.append(cid)
-            continue
-        items.append(clip_item(store, cid, texts))
-    return store, items, missing
+    return found, missing
+
+
+def read_split(data: str | Path, split: str) -> tuple[Store, list[ClipItem], list[str]]:
+    """(store, items with captions, ids without captions) of a split."""
+    store = data if isinstance(data, Store) else Store(data)
+    found, missing = captioned_ids(store, split)
+    return store, [clip_item(store, cid, texts) for cid, texts in found], missing
 
 
 def object_points(store: Store, names: set[str], n: int) -> dict[str, np.ndarray]:

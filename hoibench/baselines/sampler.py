@@ -40,6 +40,30 @@ class StoreMismatch(ckpt.RunFolderError):
     """The store to sample for is not the one the run was trained on (statistics, representation)."""
 
 
+def run_text_conditioner(card: dict, encoder: str, max_tokens: int, folder: Path
+                         ) -> tuple[TextConditioner, list[str] | None]:
+    """(text conditioner, vocabulary or None) of a run card; :class:`RunFolderError` when the
+    local sentence encoder is not the one the run was trained with."""
+    info = card.get("text", {})
+    vocab = info.get("vocab") if info.get("encoder") == "tokens" else None
+    text = TextConditioner(encoder, max_tokens, vocab)
+    if info.get("encoder") == "minilm" and info.get("weights_sha256") != text.weights_sha256:
+        raise ckpt.RunFolderError(f"{folder / ckpt.CARD}: field text.weights_sha256: the local sentence encoder "
+                                  f"differs from the one this run was trained with")
+    return text, vocab
+
+
+def load_model_tensors(model, tensors: dict, folder: Path) -> None:
+    """Load the ``model.``-prefixed tensors of a run's weights into ``model``, naming the
+    file when they do not fit the card's config."""
+    state = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
+    try:
+        model.load_state_dict(state)
+    except RuntimeError as exc:
+        raise ckpt.RunFolderError(f"{folder / ckpt.WEIGHTS}: tensors do not match the card's config "
+                                  f"({' '.join(str(exc).split())[:400]})") from None
+
+
 class LoadedRun:
     """A verified run: config, model (EMA weights, eval mode), statistics, text conditioner."""
 
@@ -56,20 +80,11 @@ class LoadedRun:
                                           f"{self.folder / ckpt.CARD}: config")
         tensors = load_tensors(data)
         self.stats = D.JointStats(tensors.pop("stats.mean").numpy(), tensors.pop("stats.std").numpy())
-        text_info = self.card.get("text", {})
-        vocab = text_info.get("vocab") if text_info.get("encoder") == "tokens" else None
-        self.text = TextConditioner(self.config.model.text_encoder, self.config.model.text_max_tokens, vocab)
-        if text_info.get("encoder") == "minilm" and text_info.get("weights_sha256") != self.text.weights_sha256:
-            raise ckpt.RunFolderError(f"{self.folder / ckpt.CARD}: field text.weights_sha256: the local sentence "
-                                      f"encoder differs from the one this run was trained with")
+        self.text, vocab = run_text_conditioner(self.card, self.config.model.text_encoder,
+                                                self.config.model.text_max_tokens, self.folder)
         self.device = torch.device(device)
         self.model = self.spec.build_model(self.config, len(vocab or []), self.text.width)
-        state = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
-        try:
-            self.model.load_state_dict(state)
-        except RuntimeError as exc:
-            raise ckpt.RunFolderError(f"{self.folder / ckpt.WEIGHTS}: tensors do not match the card's config "
-                                      f"({' '.join(str(exc).split())[:400]})") from None
+        load_model_tensors(self.model, tensors, self.folder)
         self.model.to(self.device).eval()
         self.diffusion = GaussianDiffusion(self.config.diffusion)
         self.object_points = self.config.model.object_points
@@ -77,22 +92,7 @@ class LoadedRun:
     def check_store(self, store: Store) -> None:
         """:class:`StoreMismatch` when ``store``'s hoi269 statistics or representation differ
         from the card's (the run's normalisation would not fit its data)."""
-        ds = self.card["dataset"]
-        sha = store.stats_sha256("hoi269")
-        diffs = []
-        if sha != ds.get("store_hoi269_stats_sha256"):
-            diffs.append(f"normalisation statistics (stats/hoi269.npz sha256 {sha[:12] or 'missing'}..., the run's "
-                         f"{str(ds.get('store_hoi269_stats_sha256'))[:12]}...)")
-        rep = store.manifest.get("representations", {}).get("hoi269", "")
-        if rep != ds.get("representation"):
-            diffs.append(f"representation ({rep!r}, the run's {ds.get('representation')!r})")
-        fps = float(store.manifest.get("config", {}).get("fps", 0.0))
-        if fps != ds.get("fps"):
-            diffs.append(f"fps ({fps}, the run's {ds.get('fps')})")
-        if diffs:
-            raise StoreMismatch(f"{store.root}: this store differs from the one run {self.id[:12]} was trained on "
-                                f"({ds.get('name')!r}): {'; '.join(diffs)}. Sample for the store the run was "
-                                f"trained on, or train on this one")
+        check_store_fits(store, self.card["dataset"], self.id, stats=("hoi269",), representation="hoi269")
 
     @torch.no_grad()
     def generate(self, caption: str, points: np.ndarray, length: int, k: int, seed_parts: tuple,
@@ -141,6 +141,28 @@ def load_run(folder: str | Path, device: str = "cpu", baseline: str | None = Non
         from .catmo.sampler import LoadedCatmo
         return LoadedCatmo(folder, device, verified)
     return LoadedRun(folder, device, baseline, verified)
+
+
+def check_store_fits(store: Store, dataset: dict, run_id: str, stats: tuple[str, ...], representation: str) -> None:
+    """:class:`StoreMismatch` naming every difference between ``store`` and the card's
+    ``dataset`` block: the ``stats`` normalisation statistics (card field
+    ``store_<name>_stats_sha256``), the ``representation`` version and the fps."""
+    diffs = []
+    for name in stats:
+        sha, want = store.stats_sha256(name), dataset.get(f"store_{name}_stats_sha256")
+        if sha != want:
+            diffs.append(f"normalisation statistics (stats/{name}.npz sha256 {sha[:12] or 'missing'}..., the run's "
+                         f"{str(want)[:12]}...)")
+    rep = store.manifest.get("representations", {}).get(representation, "")
+    if rep != dataset.get("representation"):
+        diffs.append(f"representation ({rep!r}, the run's {dataset.get('representation')!r})")
+    fps = float(store.manifest.get("config", {}).get("fps", 0.0))
+    if fps != dataset.get("fps"):
+        diffs.append(f"fps ({fps}, the run's {dataset.get('fps')})")
+    if diffs:
+        raise StoreMismatch(f"{store.root}: this store differs from the one run {run_id[:12]} was trained on "
+                            f"({dataset.get('name')!r}): {'; '.join(diffs)}. Sample for the store the run was "
+                            f"trained on, or train on this one")
 
 
 def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:

@@ -17,7 +17,7 @@ import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -128,22 +128,27 @@ def _store_block(store: Store, ts: TrainingSet) -> dict:
             "store_hoi269_stats_sha256": store.stats_sha256("hoi269"), "joint_stats_sha256": ts.stats.sha256()}
 
 
-def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
+def plot_panels(panels: dict[str, tuple[list, list]], path: Path, title: str) -> None:
+    """One log-scale panel per ``title -> (steps, values)``, saved atomically as PNG."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    keys = [k for k in curve[0] if k != "step"]
-    fig, axes = plt.subplots(1, len(keys), figsize=(3.5 * len(keys), 3.2))
-    steps = [c["step"] for c in curve]
-    for ax, key in zip(axes, keys):
-        ax.plot(steps, [max(c[key], 1e-12) for c in curve], lw=1.3)
-        ax.set_title(key if key != "loss" else "total loss", fontsize=10)
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.4 * len(panels), 3.1), squeeze=False)
+    for ax, (name, (steps, values)) in zip(axes[0], panels.items()):
+        ax.plot(steps, [max(v, 1e-12) for v in values], lw=1.3)
+        ax.set_title(name, fontsize=10)
         ax.set_xlabel("step")
         ax.set_yscale("log")
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     atomic_save_figure(fig, path)
+
+
+def _plot_curve(curve: list[dict], path: Path, title: str) -> None:
+    steps = [c["step"] for c in curve]
+    plot_panels({(k if k != "loss" else "total loss"): (steps, [c[k] for c in curve])
+                 for k in curve[0] if k != "step"}, path, title)
 
 
 def _save_checkpoint(path: Path, step: int, curve: list[dict], model, ema: EMA, opt, ident: dict,
@@ -154,8 +159,10 @@ def _save_checkpoint(path: Path, step: int, curve: list[dict], model, ema: EMA, 
                        **ident}, path)
 
 
-def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device
-                     ) -> tuple[int, list[dict], dict]:
+def read_checkpoint(path: Path, ident: dict, device, restore: Callable[[dict], Any]) -> Any:
+    """``restore(checkpoint)`` of the training checkpoint at ``path`` once its identity
+    fields equal ``ident``; :class:`RunFolderError` naming the file for an unreadable
+    checkpoint, another run's, or one ``restore`` cannot apply."""
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
     except Exception as exc:                  # torch raises many types for a bad file
@@ -166,16 +173,33 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
         raise ckpt.RunFolderError(f"{path}: checkpoint of another {', '.join(other)}; delete it or choose another "
                                   f"--out")
     try:
+        return restore(ck)
+    except Exception as exc:
+        raise ckpt.RunFolderError(f"{path}: inconsistent training checkpoint ({type(exc).__name__}: "
+                                  f"{' '.join(str(exc).split())[:160]}); delete it to restart training") from None
+
+
+def drop_checkpoint(cpath: Path) -> None:
+    """Remove a finished run's checkpoint and its folder (when empty)."""
+    if cpath.exists():
+        cpath.unlink()
+        try:
+            cpath.parent.rmdir()
+        except OSError:
+            pass
+
+
+def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device
+                     ) -> tuple[int, list[dict], dict]:
+    def restore(ck: dict) -> tuple[int, list[dict], dict]:
         step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))
         if not 0 < step <= steps:
             raise ValueError(f"step {step} outside 1..{steps}")
         model.load_state_dict(ck["model"])
         ema.load_state_dict(ck["ema"])
         opt.load_state_dict(ck["optimizer"])
-    except Exception as exc:
-        raise ckpt.RunFolderError(f"{path}: inconsistent training checkpoint ({type(exc).__name__}: "
-                                  f"{' '.join(str(exc).split())[:160]}); delete it to restart training") from None
-    return step, curve, window
+        return step, curve, window
+    return read_checkpoint(path, ident, device, restore)
 
 
 def _existing(out: Path, name: str, config: dict, dataset: dict,
@@ -309,12 +333,7 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev), "resumed_from": start,
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
-    if cpath.exists():
-        cpath.unlink()
-        try:
-            cpath.parent.rmdir()
-        except OSError:
-            pass
+    drop_checkpoint(cpath)
     card = json.loads((out / ckpt.CARD).read_text())
     log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
     return TrainResult(out, cid, card, seconds, resumed_from=start)

@@ -74,7 +74,7 @@ def store_statistics(store: Store, with_object: bool) -> tuple[np.ndarray, np.nd
 
 def has_objects(store: Store, ids: list[str]) -> bool:
     """True when the clips carry an object (an HOI store); all or none must."""
-    flags = {cid: "obj_rot" in store.load(cid) for cid in ids}
+    flags = {cid: "obj_rot" in store.load(cid, keys=("obj_rot",)) for cid in ids}
     if len(set(flags.values())) > 1:
         some = sorted(c for c, f in flags.items() if not f)[:3]
         raise ValueError(f"{store.root}: clips {', '.join(some)} have no object while others do: CATMO trains on "
@@ -102,21 +102,12 @@ def read_data(data: str | Path | Store, split: str, object_points: int, min_fram
               stats: tuple | None = None) -> CatmoData:
     """The clips of ``split`` with captions and >= ``min_frames`` rows (``stats``: the run's
     statistics, else the store's)."""
-    from ...evaluator.text import read_captions
     store = data if isinstance(data, Store) else Store(data)
-    ids = store.clip_ids(split)
-    with_object = has_objects(store, ids)
+    with_object = has_objects(store, store.clip_ids(split))
     mean, std, om, os_ = stats if stats is not None else store_statistics(store, with_object)
-    items, missing = [], []
-    for cid in ids:
-        caps = read_captions(store.root, cid)
-        texts = [c.text for c in caps] if caps else []
-        if not texts:
-            missing.append(cid)
-            continue
-        it = load_item(store, cid, texts, mean, std, om, os_)
-        if len(it.motion) >= min_frames:
-            items.append(it)
+    found, missing = D.captioned_ids(store, split)
+    items = [it for it in (load_item(store, cid, texts, mean, std, om, os_) for cid, texts in found)
+             if len(it.motion) >= min_frames]
     names = {it.object_name for it in items if it.object_name}
     points = D.object_points(store, names, object_points) if with_object else {}
     vocab = D.build_vocab([c for it in items for c in it.captions])

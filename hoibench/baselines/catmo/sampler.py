@@ -23,8 +23,7 @@ from ...representations import hml263, hoi269
 from ...store import Store
 from .. import checkpoint as ckpt
 from ..registry import get_spec
-from ..sampler import StoreMismatch
-from ..text import TextConditioner
+from ..sampler import check_store_fits, load_model_tensors, run_text_conditioner
 from ..trainer import _seed
 from .config import CatmoConfig
 from .model import CATMO
@@ -41,51 +40,28 @@ class LoadedCatmo:
         self.spec = get_spec("catmo")
         self.config = CatmoConfig.from_dict(self.card["config"], f"{self.folder / ckpt.CARD}: config")
         tensors = load_tensors(data)
+        self.requires_object = bool(self.card["dataset"].get("with_object"))
         try:
             self.mean = tensors.pop("stats.hml263_mean").numpy()
             self.std = tensors.pop("stats.hml263_std").numpy()
-        except KeyError:
-            raise ckpt.RunFolderError(f"{self.folder / ckpt.WEIGHTS}: the hml263 statistics are missing") from None
-        self.requires_object = bool(self.card["dataset"].get("with_object"))
-        self.obj_mean = tensors.pop("stats.object_mean").numpy() if self.requires_object else None
-        self.obj_std = tensors.pop("stats.object_std").numpy() if self.requires_object else None
-        text_info = self.card.get("text", {})
-        vocab = text_info.get("vocab") if text_info.get("encoder") == "tokens" else None
-        self.text = TextConditioner(self.config.text.encoder, self.config.text.max_tokens, vocab)
-        if text_info.get("encoder") == "minilm" and text_info.get("weights_sha256") != self.text.weights_sha256:
-            raise ckpt.RunFolderError(f"{self.folder / ckpt.CARD}: field text.weights_sha256: the local sentence "
-                                      f"encoder differs from the one this run was trained with")
+            self.obj_mean = tensors.pop("stats.object_mean").numpy() if self.requires_object else None
+            self.obj_std = tensors.pop("stats.object_std").numpy() if self.requires_object else None
+        except KeyError as exc:
+            raise ckpt.RunFolderError(f"{self.folder / ckpt.WEIGHTS}: tensor {exc.args[0]} is missing (the run's "
+                                      f"normalisation statistics)") from None
+        self.text, vocab = run_text_conditioner(self.card, self.config.text.encoder, self.config.text.max_tokens,
+                                                self.folder)
         self.device = torch.device(device)
         self.model = CATMO(self.config, len(vocab or []), self.text.width, self.requires_object)
-        state = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
-        try:
-            self.model.load_state_dict(state)
-        except RuntimeError as exc:
-            raise ckpt.RunFolderError(f"{self.folder / ckpt.WEIGHTS}: tensors do not match the card's config "
-                                      f"({' '.join(str(exc).split())[:400]})") from None
+        load_model_tensors(self.model, tensors, self.folder)
         self.model.to(self.device).eval()
         self.object_points = self.config.gpt.object_points
 
     def check_store(self, store: Store) -> None:
         """:class:`StoreMismatch` when ``store``'s statistics, representation, fps or kind
         (human-only / human-object) differ from the run's."""
-        ds = self.card["dataset"]
-        diffs = []
-        for name in ("hml263",) + (("hoi269",) if self.requires_object else ()):
-            sha = store.stats_sha256(name)
-            if sha != ds.get(f"store_{name}_stats_sha256"):
-                diffs.append(f"normalisation statistics (stats/{name}.npz sha256 {sha[:12] or 'missing'}..., the run's "
-                             f"{str(ds.get(f'store_{name}_stats_sha256'))[:12]}...)")
-        rep = store.manifest.get("representations", {}).get("hml263", "")
-        if rep != ds.get("representation"):
-            diffs.append(f"representation ({rep!r}, the run's {ds.get('representation')!r})")
-        fps = float(store.manifest.get("config", {}).get("fps", 0.0))
-        if fps != ds.get("fps"):
-            diffs.append(f"fps ({fps}, the run's {ds.get('fps')})")
-        if diffs:
-            raise StoreMismatch(f"{store.root}: this store differs from the one run {self.id[:12]} was trained on "
-                                f"({ds.get('name')!r}): {'; '.join(diffs)}. Sample for the store the run was "
-                                f"trained on, or train on this one")
+        check_store_fits(store, self.card["dataset"], self.id,
+                         stats=("hml263",) + (("hoi269",) if self.requires_object else ()), representation="hml263")
 
     def options(self, guidance: float | None = None, steps: int | None = None, temperature: float | None = None
                 ) -> dict:

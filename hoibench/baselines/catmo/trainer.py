@@ -31,7 +31,6 @@ from __future__ import annotations
 import json
 import shutil
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -41,11 +40,11 @@ import torch.nn.functional as F
 
 from ... import __version__
 from ...interrupts import check_interrupted
-from ...io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp
+from ...io import atomic_torch_save, atomic_write_json, clean_stale_tmp
 from ...representations import hml263
 from .. import checkpoint as ckpt
 from ..text import TextConditioner
-from ..trainer import TrainingDiverged, TrainResult, _existing, _seed
+from ..trainer import TrainingDiverged, TrainResult, _existing, _seed, drop_checkpoint, plot_panels, read_checkpoint
 from . import data as CD
 from .config import CatmoConfig, preset
 from .gpt import corrupt, interleave
@@ -172,16 +171,15 @@ class Steps:
         U = max(units)
         mi = np.zeros((len(pick), U), np.int64)
         ci = np.zeros((len(pick), U), np.int64)
-        starts = []
         for b, (i, u) in enumerate(zip(pick, units)):
             m, c = self.tokens[i]
             a = int(rng.integers(0, len(m) - u + 1)) if len(m) > u else 0
             mi[b, :u], ci[b, :u] = m[a:a + u], c[a:a + u]
-            starts.append(a)
         captions = self._captions(pick, rng)
         gen = self._gen("gpt", step)
         Km, Kc = cfg.vq.motion_codes, cfg.vq.contact_codes
-        target, valid = interleave(self._t(mi), self._t(ci), self._t(np.array(units)), Km, Kc)
+        n_units = self._t(np.array(units))
+        target, valid = interleave(self._t(mi), self._t(ci), n_units, Km, Kc)
         inputs = corrupt(target[:, :-1], g.corrupt_rate, Km, Kc, g.corruption, gen)
         with torch.no_grad():
             zt = self._text_embedding(captions)
@@ -195,7 +193,7 @@ class Steps:
             probs = F.softmax(logits[:, 0:2 * U:2, :Km], -1)                     # (B, U, Km)
             motion = self.model.motion_vq.decode_soft(probs)                    # (B, U * unit, 263)
             rows = torch.arange(U * cfg.vq.unit, device=self.dev)[None]
-            vrows = rows < (self._t(np.array(units)) * cfg.vq.unit)[:, None]
+            vrows = rows < (n_units * cfg.vq.unit)[:, None]
             zm = self.model.movement(motion, vrows)
             offset = int(rng.integers(1, max(2, len(pick))))
             align = matching_loss(zt, zm, cfg.text.margin, offset)
@@ -298,20 +296,9 @@ def _store_block(data: CD.CatmoData) -> dict:
 
 
 def _plot(curves: dict[str, list[dict]], path: Path, title: str) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    stages = [s for s in STAGES if curves.get(s)]
-    fig, axes = plt.subplots(1, len(stages), figsize=(3.2 * len(stages), 3.0), squeeze=False)
-    for ax, s in zip(axes[0], stages):
-        ax.plot([r["step"] for r in curves[s]], [max(r["loss"], 1e-12) for r in curves[s]], lw=1.3)
-        ax.set_title(s, fontsize=10)
-        ax.set_xlabel("step")
-        ax.set_yscale("log")
-        ax.grid(alpha=0.3)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    atomic_save_figure(fig, path)
+    """Each stage's total loss, one panel per stage."""
+    plot_panels({s: ([r["step"] for r in curves[s]], [r["loss"] for r in curves[s]])
+                 for s in STAGES if curves.get(s)}, path, title)
 
 
 def _set_trainable(model: CATMO, stage: str) -> list[torch.nn.Parameter]:
@@ -334,25 +321,13 @@ def _save(path: Path, stage: int, step: int, model, opt, curves, window, ident) 
 
 
 def _load(path: Path, ident: dict, model, device) -> tuple[int, int, dict, dict, dict]:
-    try:
-        ck = torch.load(path, map_location=device, weights_only=True)
-    except Exception as exc:                  # torch raises many types for a bad file
-        raise ckpt.RunFolderError(f"{path}: not a readable training checkpoint ({type(exc).__name__}); delete it to "
-                                  f"restart training") from None
-    other = sorted(k for k in ident if not isinstance(ck, dict) or ck.get(k) != ident[k])
-    if other:
-        raise ckpt.RunFolderError(f"{path}: checkpoint of another {', '.join(other)}; delete it or choose another "
-                                  f"--out")
-    try:
+    def restore(ck: dict) -> tuple[int, int, dict, dict, dict]:
         stage, step = int(ck["stage"]), int(ck["step"])
         if not 0 <= stage <= len(STAGES) or step < 0:
             raise ValueError(f"stage {stage} step {step} out of range")
         model.load_state_dict(ck["model"])
-        curves, window = json.loads(ck["curves"]), json.loads(ck["window"])
-    except Exception as exc:
-        raise ckpt.RunFolderError(f"{path}: inconsistent training checkpoint ({type(exc).__name__}: "
-                                  f"{' '.join(str(exc).split())[:160]}); delete it to restart training") from None
-    return stage, step, ck["optimizer"], curves, window
+        return stage, step, ck["optimizer"], json.loads(ck["curves"]), json.loads(ck["window"])
+    return read_checkpoint(path, ident, device, restore)
 
 
 def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny", *, device: str = "cpu",
@@ -486,12 +461,7 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curves are in the card)")
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
                                             "stage_seconds": stage_seconds})
-    if cpath.exists():
-        cpath.unlink()
-        try:
-            cpath.parent.rmdir()
-        except OSError:
-            pass
+    drop_checkpoint(cpath)
     card = json.loads((out / ckpt.CARD).read_text())
     mv, ct = reports.get("test", reports["train"])["motion"], reports.get("test", reports["train"])["contact"]
     log(f"{tag} VQ ({'test' if 'test' in reports else 'train'}): motion MPJPE {mv['mpjpe_m'] * 100:.2f} cm, "
