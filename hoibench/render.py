@@ -615,7 +615,7 @@ def render_comparison(submission, store_root, clip_id: str, out_path, *, sample:
             gen_contacts = joint_contact_labels(gen[:T], tmpl, faces, rot, trans, str(gt["object_name"]))[0]
     legend = "red: joints in contact"
     with tempfile.TemporaryDirectory() as tmp:
-        left = render_sequence(gt["joints"][:T], obj_gt, faces, gt.get("contacts", None) if "contacts" in gt else None,
+        left = render_sequence(gt["joints"][:T], obj_gt, faces, gt.get("contacts"),
                                Path(tmp) / f"gt{suffix}", frames=frames, size=size, fps=fps, clip_fps=clip_fps,
                                title=f"GT: {caption}")
         right = render_sequence(gen[:T], obj_gen, faces, gen_contacts, Path(tmp) / f"gen{suffix}", frames=frames,
