@@ -103,8 +103,10 @@ def _cmd_prepare(args) -> int:
     cfg = PrepareConfig(name, fps=args.fps, mode=args.mode,
                         body_model_type="smplh" if args.dataset == "behave" else "smplx")
     jobs = loader.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
+    warnings = getattr(loader, "prepare_warnings", lambda root, models: [])(args.root, args.body_models)
     manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
-                       source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type})
+                       source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type},
+                       warnings=warnings)
     print(summary_table(manifest))
     missing = manifest.get("incomplete") or []
     if missing:

@@ -271,6 +271,7 @@ def check_sequence(seq, source: str = "") -> None:
     check_speed(J[:, 0], "root joint (pelvis)", where, fps=fps)
     check_body_height(J, where)
     _check_object(seq, T, fps, where)
+    _check_parts(seq, T, fps, where)
     if seq.body is not None:
         _check_body(seq.body, T, where)
     if seq.contacts is not None and np.shape(seq.contacts) != (T, 22):
@@ -296,6 +297,28 @@ def _check_object(seq, T: int, fps: float, where: str) -> None:
     check_track(t, "obj_trans", where, fps=fps)
 
 
+def _check_parts(seq, T: int, fps: float, where: str) -> None:
+    """Every part of a multi-part object: id-safe distinct names, a valid template, a pose
+    over the clip; the first part is the primary object."""
+    parts = list(getattr(seq, "parts", None) or [])
+    if not parts:
+        return
+    if len(parts) < 2 or seq.object_name is None:
+        raise ImplausibleDataError(f"{where}: parts: a multi-part object needs >= 2 parts and a primary object")
+    names = [check_id(p.name, "object part name", where) for p in parts]
+    if len({n.casefold() for n in names}) != len(names) or names[0] != seq.object_name:
+        raise ImplausibleDataError(f"{where}: parts: names {names} must be distinct, the first being the "
+                                   f"object {seq.object_name!r}")
+    for p in parts:
+        check_template(p.vertices, p.faces, f"{where}: object part {p.name!r}")
+        R = check_rotations(p.rot, f"part {p.name} rot", where)
+        t = real_array(p.trans, f"part {p.name} trans", where)
+        if len(R) != T or t.shape != (T, 3):
+            raise ImplausibleDataError(f"{where}: object part {p.name!r}: pose {R.shape} / {t.shape}, joints have "
+                                       f"{T} frames")
+        check_track(t, f"part {p.name} trans", where, fps=fps)
+
+
 def _check_body(body, T: int, where: str) -> None:
     if body.model_type not in MODEL_TYPES:
         raise ImplausibleDataError(f"{where}: body model {body.model_type!r}: expected one of {MODEL_TYPES}")
@@ -312,6 +335,10 @@ def _check_body(body, T: int, where: str) -> None:
     if trans.shape != (T, 3):
         raise ImplausibleDataError(f"{where}: trans: expected ({T}, 3), got {trans.shape}")
     check_positions(trans, "trans", where)
+    if getattr(body, "expression", None) is not None:
+        expr = real_array(body.expression, "expression", where)
+        if expr.ndim != 2 or len(expr) != T or not 1 <= expr.shape[1] <= 100:
+            raise ImplausibleDataError(f"{where}: expression: expected ({T}, E) with 1 <= E <= 100, got {expr.shape}")
 
 
 def _check_texts(texts, where: str) -> None:

@@ -94,9 +94,16 @@ def clip_arrays(seq, mode: str, split: str, source_sha256: str) -> dict[str, np.
                    joint_level=joint_level.from_hoi269(hoi))
     else:
         out["joint_level"] = joint_level.from_hoi269(feats)
+    if len(seq.parts) > 1:           # a multi-part object: every part's name and pose
+        out.update(object_parts=np.array([p.name for p in seq.parts]),
+                   parts_rot=np.stack([p.rot for p in seq.parts]).astype(np.float32),
+                   parts_trans=np.stack([p.trans for p in seq.parts]).astype(np.float32))
     if seq.body is not None:
         out.update(body_model_type=np.array(seq.body.model_type), gender=np.array(seq.body.gender),
-                   betas=seq.body.betas, poses=seq.body.poses, trans=seq.body.trans)
+                   betas=seq.body.betas, poses=seq.body.poses, trans=seq.body.trans,
+                   flat_hand_mean=np.array(bool(seq.body.flat_hand_mean)))
+        if seq.body.expression is not None:
+            out["expression"] = np.asarray(seq.body.expression, dtype=np.float32)
     if seq.contacts is not None:
         out["contacts"] = seq.contacts.astype(bool)
     if seq.texts:   # dataset texts (e.g. OMOMO's annotations), one JSON object per entry
@@ -215,6 +222,8 @@ def run_unit(job: tuple) -> UnitResult:
         atomic_save_npz(path, **arrays)
         if seq.object_vertices is not None:
             _write_object(Path(out_dir), seq.object_name, seq.object_vertices, seq.object_faces)
+        for part in seq.parts[1:]:
+            _write_object(Path(out_dir), part.name, part.vertices, part.faces)
         contacts = int(seq.contacts.any(-1).sum()) if seq.contacts is not None else 0
         return UnitResult(clip_id, "written", split, seq.num_frames, sha, seq.object_name or "", contacts)
     except Exception as exc:
@@ -326,7 +335,8 @@ def unlisted_split_jobs(jobs: list[tuple], splits: dict[str, str], split_file, o
 
 
 def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor: str = "serial",
-            strict: bool = False, source: dict[str, Any] | None = None) -> dict:
+            strict: bool = False, source: dict[str, Any] | None = None,
+            warnings: Sequence[str] = ()) -> dict:
     """Run ``jobs`` (see :func:`run_unit`) and write the manifest, stats and errors.
 
     Returns the manifest. With ``strict`` the first failing sequence (in job order) stops the
@@ -336,8 +346,12 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
     Before running, :func:`check_jobs` fails jobs with an unsafe or duplicate id. A raw file
     the dataset needs that was missing or unreadable (a :func:`fail_source` job) is listed
     under the manifest's ``incomplete``: such a store is not the whole dataset.
+    ``warnings`` (dataset-level, e.g. RICH clips prepared without contacts) are printed and
+    kept in the manifest's ``warnings``.
     """
     out = Path(out)
+    for line in warnings:
+        print(f"[prepare] WARNING: {line}", file=sys.stderr)
     (out / "clips").mkdir(parents=True, exist_ok=True)
     _refuse_foreign_store(out, config, source or {})
     clean_stale_tmp(out, out / "clips", out / "objects", out / "stats")
@@ -364,6 +378,8 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
         "stats": stats,
         "incomplete": incomplete,
     }
+    if warnings:
+        manifest["warnings"] = list(warnings)
     atomic_write_json(out / MANIFEST, manifest)
     return manifest
 

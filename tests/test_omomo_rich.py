@@ -226,7 +226,7 @@ def test_omomo_bad_input_fails_the_sequence_and_the_rest_are_prepared(omomo_raw,
     uses_obj = {n for n in everything if n.split("_")[1] == obj}
     assert set(errors) == {keyless, two_part} | uses_obj
     assert errors[keyless].startswith(keyless) and "missing key 'obj_rot'" in errors[keyless]
-    assert "two-part" in errors[two_part]
+    assert "missing key 'obj_bottom_rot'" in errors[two_part]      # a two-part object needs both poses
     assert errors[no_template].startswith(no_template) and f"{obj}_cleaned_simplified.obj" in errors[no_template]
     assert manifest["counts"]["clips"] == N_OMOMO - len(errors) > 0
     assert set(Store(out).clip_ids()) == set(everything) - set(errors)

@@ -15,7 +15,8 @@ from .proxy import (
     proxy_rest_joints,
     write_proxy_model,
 )
-from .smpl import MODEL_FILE_PREFIX, POSE_LAYOUTS, body_forward, load_body_model, model_path
+from .smpl import (MODEL_FILE_PREFIX, POSE_LAYOUTS, body_forward, clip_body_forward, clip_hand_convention,
+                   load_body_model, model_path)
 
 __all__ = [
     "PROXY_NUM_BETAS",
@@ -30,6 +31,8 @@ __all__ = [
     "MODEL_FILE_PREFIX",
     "POSE_LAYOUTS",
     "body_forward",
+    "clip_body_forward",
+    "clip_hand_convention",
     "load_body_model",
     "model_path",
 ]

@@ -118,7 +118,7 @@ def _model_type_of(model) -> str:
 
 
 def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
-                 return_vertices: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+                 return_vertices: bool = True, expression=None) -> tuple[np.ndarray, np.ndarray | None]:
     """Run a ``smplx`` model over a sequence in chunks, under ``torch.no_grad()``.
 
     Args:
@@ -131,6 +131,8 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
             None = mean shape.
         trans: (T, 3) or (3,) translation, metres; None = 0.
         batch_size: frames per ``smplx`` call.
+        expression: SMPL-X only: (E,) or (T, E) expression coefficients, E <=
+            ``model.num_expression_coeffs`` (zero-padded); None = neutral face.
 
     Returns:
         ``(joints (T, J, 3), vertices (T, V, 3) or None)`` as numpy arrays in the model's
@@ -163,6 +165,17 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
     betas = np.concatenate([betas, np.zeros(betas.shape[:-1] + (nb - betas.shape[-1],))], -1)
     betas = np.broadcast_to(betas, (T, nb))
     trans = np.zeros((T, 3)) if trans is None else np.broadcast_to(np.asarray(trans, np.float64), (T, 3))
+    if expression is not None:
+        if mt != "smplx":
+            raise ValueError(f"expression: only SMPL-X has expression coefficients, the model is {mt}")
+        ne = int(model.num_expression_coeffs)
+        expression = np.asarray(expression, dtype=np.float64)
+        if expression.ndim not in (1, 2) or (expression.ndim == 2 and len(expression) not in (1, T)) \
+                or expression.shape[-1] > ne:
+            raise ValueError(f"expression: expected (E,) or ({T}, E) with E <= {ne} (the model's "
+                             f"num_expression_coeffs), got {expression.shape}")
+        expression = np.concatenate([expression, np.zeros(expression.shape[:-1] + (ne - expression.shape[-1],))], -1)
+        expression = np.broadcast_to(expression, (T, ne))
 
     layout = POSE_LAYOUTS[mt][poses.shape[1]]
     widths = {"global_orient": 3, "body_pose": 3 * model.NUM_BODY_JOINTS}
@@ -194,7 +207,8 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
                     col += w
                 args = {k: tens(v) for k, v in args.items()}
                 if mt == "smplx":
-                    args["expression"] = torch.zeros((n, model.num_expression_coeffs), dtype=dtype, device=device)
+                    args["expression"] = (tens(expression[s:e]) if expression is not None else
+                                          torch.zeros((n, model.num_expression_coeffs), dtype=dtype, device=device))
                 out = model(betas=tens(betas[s:e]), transl=tens(trans[s:e]),
                             return_verts=return_vertices, **args)
                 joints_out.append(out.joints.detach().cpu().numpy())
@@ -207,3 +221,45 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
     joints = np.concatenate(joints_out) if joints_out else np.zeros((0, 0, 3))
     verts = (np.concatenate(verts_out) if verts_out else np.zeros((0, 0, 3))) if return_vertices else None
     return joints, verts
+
+
+def clip_hand_convention(clip: dict) -> bool:
+    """``flat_hand_mean`` of a stored clip's body parameters: the clip's ``flat_hand_mean``
+    array; a store written before it was recorded: False for RICH clips (their toolkit's
+    convention), True otherwise."""
+    if "flat_hand_mean" in clip:
+        return bool(np.asarray(clip["flat_hand_mean"]))
+    import json
+    try:
+        prov = json.loads(str(clip.get("provenance", "{}")))
+    except ValueError:
+        prov = {}
+    return not (isinstance(prov, dict) and prov.get("source") == "rich")
+
+
+def clip_body_forward(clip: dict, model_dir, return_vertices: bool = True, **model_kwargs
+                      ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Rebuild a stored clip's body from its parameters with the user's model files:
+    ``(joints (T, J, 3), vertices (T, V, 3) or None)`` in the store's y-up world.
+
+    Reads ``body_model_type``, ``gender``, ``betas``, ``poses``, ``trans`` and the hand
+    convention (:func:`clip_hand_convention`) and ``expression`` stored with the clip (see
+    :class:`hoibench.datasets.sequence.BodyParams`), so every consumer poses the body the way
+    the source did. ``model_kwargs`` go to :func:`load_body_model`.
+    """
+    missing = [k for k in ("body_model_type", "gender", "poses", "trans") if k not in clip]
+    if missing:
+        raise ValueError(f"clip {str(clip.get('name', '?'))}: no body parameters stored (missing {', '.join(missing)})")
+    mt = str(clip["body_model_type"])
+    betas = np.asarray(clip["betas"], np.float64) if "betas" in clip else None
+    expression = np.asarray(clip["expression"], np.float64) if "expression" in clip else None
+    opts = dict(model_kwargs)
+    if betas is not None:
+        opts.setdefault("num_betas", int(betas.shape[-1]))
+    if mt in ("smplh", "smplx"):
+        opts.setdefault("flat_hand_mean", clip_hand_convention(clip))
+    if mt == "smplx" and expression is not None:
+        opts.setdefault("num_expression_coeffs", int(expression.shape[-1]))
+    model = load_body_model(model_dir, mt, str(clip["gender"]), **opts)
+    return body_forward(model, np.asarray(clip["poses"], np.float64), betas, np.asarray(clip["trans"], np.float64),
+                        return_vertices=return_vertices, expression=expression)

@@ -115,15 +115,17 @@ def object_template_path(objects_root: Path, obj: str) -> Path:
     raise SequenceError(f"unknown object template {obj!r}: none of {names} in {folder}")
 
 
-def read_mesh(path: str | Path, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices and faces of a mesh file as read (``trimesh``, no processing); a
-    SequenceError naming ``what`` (the sequence and object) for an unreadable file."""
+def read_mesh(path: str | Path, what: str, process: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a mesh file as read by ``trimesh`` (``process=False``: as in the
+    file; ``process=True``: trimesh's default processing, which merges vertices at equal
+    positions, as ``trimesh.load_mesh(path)`` does); a SequenceError naming ``what`` (the
+    sequence and object) for an unreadable file."""
     import trimesh
     try:
         size = check_regular_file(path, "mesh file").stat().st_size
         if size > MAX_RAW_MESH_BYTES:
             raise ValueError(f"{size} bytes, over the {MAX_RAW_MESH_BYTES}-byte limit for a mesh file")
-        mesh = trimesh.load(str(path), process=False, force="mesh")
+        mesh = trimesh.load(str(path), process=bool(process), force="mesh")
         return np.asarray(mesh.vertices), np.asarray(mesh.faces)
     except Exception as exc:
         raise SequenceError(f"{what}: unreadable mesh ({type(exc).__name__}: {exc})") from None

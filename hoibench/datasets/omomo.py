@@ -73,7 +73,7 @@ from ..bodies.transform import rigid_transform_smpl
 from ..ids import InvalidIdError, check_id
 from ..skeleton import NUM_JOINTS, PARENTS, forward_kinematics
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_times
-from .sequence import BodyParams, HOISequence
+from .sequence import BodyParams, HOISequence, ObjectPart
 
 __all__ = ["SOURCE_FPS", "ZUP_TO_YUP", "PICKLES", "SequenceError", "parse_name", "official_split",
            "object_template_path", "read_pickle", "load_sequence", "prepare_jobs"]
@@ -88,7 +88,14 @@ TEXT_DIRS = ("omomo_text_anno_json_data", "omomo_text_anno/omomo_text_anno_json_
 GT_DIR = "hoibench_gt"           # ground-truth sidecars written by hoibench's synthetic layout
 _NAME = re.compile(r"^sub(\d+)_([A-Za-z0-9]+)_(.+)$")
 _SEQ_KEYS = {"trans": (3,), "root_orient": (3,), "pose_body": (63,), "obj_rot": (3, 3)}
-_SCALE_TOL = 1e-5                # relative spread allowed in obj_scale over a sequence
+#: Largest accepted shape error, metres, of storing one scale for an ``obj_scale`` that
+#: varies over a sequence: ``max_t |s_t - s| * max_v |v - m|`` (the translation keeps each
+#: frame's own scale, so the template's centre is exact); more is refused, naming the
+#: sequence, the part and the error.
+OBJECT_SCALE_TOL_M = 1e-3
+#: OMOMO's two-part objects: a top (the handle the hands hold) and an articulated bottom,
+#: ``<object>_cleaned_simplified_{top,bottom}.obj`` posed by ``obj_*`` and ``obj_bottom_*``.
+TWO_PART_SUFFIXES = ("top", "bottom")
 #: Largest accepted ``rest_offsets`` bone and ``trans2joint`` length, metres (SMPL-X's
 #: longest bone is about 0.45 m; centimetres or millimetres read 45 or 450).
 MAX_REST_OFFSET_M = 1.0
@@ -107,8 +114,10 @@ def official_split(name: str) -> str:
     return "test" if parse_name(name)[0] in TEST_SUBJECTS else "train"
 
 
-def object_template_path(objects_root: str | Path, obj: str) -> Path:
-    return Path(objects_root) / f"{obj}_cleaned_simplified.obj"
+def object_template_path(objects_root: str | Path, obj: str, part: str = "") -> Path:
+    """``<obj>_cleaned_simplified.obj``, or ``<obj>_cleaned_simplified_<part>.obj`` for a part
+    (``top`` / ``bottom``) of a two-part object."""
+    return Path(objects_root) / (f"{obj}_cleaned_simplified_{part}.obj" if part else f"{obj}_cleaned_simplified.obj")
 
 
 def read_pickle(path: str | Path) -> Any:
@@ -123,14 +132,18 @@ def read_pickle(path: str | Path) -> Any:
 
 
 @lru_cache(maxsize=64)
-def _template(path: str) -> tuple[np.ndarray, np.ndarray]:
-    return pl.check_mesh(*read_mesh(path, Path(path).name), Path(path).name)
+def _template(path: str) -> tuple[np.ndarray, np.ndarray, int]:
+    raw_count = len(read_mesh(path, Path(path).name)[0])
+    v, f = pl.check_mesh(*read_mesh(path, Path(path).name, process=True), Path(path).name)
+    return v, f, raw_count
 
 
-def load_object_template(path: str, obj: str = "", name: str = "") -> tuple[np.ndarray, np.ndarray]:
-    """Raw template vertices (V, 3) float64 (not centred, unscaled) and faces (F, 3) int64
+def load_object_template(path: str, obj: str = "", name: str = "") -> tuple[np.ndarray, np.ndarray, int]:
+    """Template vertices (V, 3) float64 (not centred, unscaled) and faces (F, 3) int64 as
+    OMOMO and CHOIS load them (``trimesh.load_mesh``: vertices at equal positions merged),
     of a mesh that passes :func:`hoibench.plausibility.check_mesh` (its extent is checked
-    once scaled); errors name the sequence ``name``, the object ``obj`` and the file."""
+    once scaled), and the file's own vertex count; errors name the sequence ``name``, the
+    object ``obj`` and the file."""
     try:
         return _template(str(path))
     except ValueError as exc:
@@ -142,6 +155,29 @@ def _body_model(model_dir: str, gender: str, num_betas: int):
     from ..bodies.smpl import load_body_model
     gender = check_id(gender, "gender")
     return load_body_model(model_dir, "smplx", gender, num_betas=num_betas)
+
+
+def _check_beta_capacity(model, betas: np.ndarray, body_models, gender: str, name: str) -> None:
+    """OMOMO's 16 betas need SMPL-X v1.1 files (300 shape components); v1.0 files have 10,
+    and ``smplx`` then silently caps ``num_betas`` at 10: refuse, naming the file and the
+    layout found, when a coefficient past the model's count is non-zero."""
+    nb = int(model.num_betas)
+    if len(betas) <= nb or not np.any(betas[nb:] != 0):
+        return
+    from ..bodies.smpl import model_path
+    path = model_path(body_models, "smplx", gender)
+    found = f"the model has {nb} shape components"
+    if path.suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                k = int(z["shapedirs"].shape[-1])
+            found = (f"its shapedirs has {k} components (SMPL-X v1.0 layout: 10 shape + 10 expression)" if k < 400
+                     else f"its shapedirs has {k} components")
+        except Exception:
+            pass
+    raise SequenceError(f"{name}: betas: {len(betas)} coefficients (non-zero past the {nb}th), but {path} gives only "
+                        f"{nb}: {found}; OMOMO's 16 betas need the SMPL-X v1.1 files (300 shape + 100 "
+                        f"expression components) from smpl-x.is.tue.mpg.de")
 
 
 def _array(seq: dict, key: str, name: str) -> np.ndarray:
@@ -208,22 +244,33 @@ def _gt_contacts(path: str | None, src_t: np.ndarray, dst_t: np.ndarray, name: s
     return c[nearest]
 
 
-def _per_frame(seq: dict, where: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, int]:
-    """The per-frame arrays (trans, root_orient, pose_body, obj_rot), obj_trans (T, 3),
-    obj_scale (T,) and T, the frame count they share: a field with another count is named
-    (:func:`hoibench.plausibility.common_frame_count`), as is an empty one."""
-    arr = {k: _frames(_array(seq, k, where), k, tail, where) for k, tail in _SEQ_KEYS.items()}
-    o_t = _array(seq, "obj_trans", where)
-    if o_t.ndim == 3 and o_t.shape[1:] in ((3, 1), (1, 3)):
-        o_t = o_t.reshape(len(o_t), 3)
-    if o_t.ndim != 2 or o_t.shape[1] != 3:
-        raise SequenceError(f"{where}: obj_trans: expected shape (T, 3, 1), got {o_t.shape}")
-    scale = _array(seq, "obj_scale", where).reshape(-1)
-    counts = {**{k: len(a) for k, a in arr.items()}, "obj_trans": len(o_t)}
-    if scale.size != 1:
-        counts["obj_scale"] = len(scale)
+def _object_pose(seq: dict, prefix: str, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``<prefix>_rot`` (T, 3, 3), ``<prefix>_trans`` (T, 3) and ``<prefix>_scale`` (T,) or
+    (1,) of one rigid part (prefix ``obj`` or ``obj_bottom``)."""
+    R = _frames(_array(seq, f"{prefix}_rot", where), f"{prefix}_rot", (3, 3), where)
+    t = _array(seq, f"{prefix}_trans", where)
+    if t.ndim == 3 and t.shape[1:] in ((3, 1), (1, 3)):
+        t = t.reshape(len(t), 3)
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise SequenceError(f"{where}: {prefix}_trans: expected shape (T, 3, 1), got {t.shape}")
+    return R, t, _array(seq, f"{prefix}_scale", where).reshape(-1)
+
+
+def _per_frame(seq: dict, where: str, prefixes: tuple[str, ...] = ("obj",)
+               ) -> tuple[dict[str, np.ndarray], list[tuple[np.ndarray, np.ndarray, np.ndarray]], int]:
+    """The body's per-frame arrays (trans, root_orient, pose_body), each object part's
+    (rot (T, 3, 3), trans (T, 3), scale (T,)) and T, the frame count they share: a field
+    with another count is named (:func:`hoibench.plausibility.common_frame_count`), as is
+    an empty one. A scale given once is repeated over the frames."""
+    arr = {k: _frames(_array(seq, k, where), k, tail, where) for k, tail in _SEQ_KEYS.items() if k != "obj_rot"}
+    poses = [_object_pose(seq, p, where) for p in prefixes]
+    counts = {k: len(a) for k, a in arr.items()}
+    for p, (R, t, scale) in zip(prefixes, poses):
+        counts.update({f"{p}_rot": len(R), f"{p}_trans": len(t)})
+        if scale.size != 1:
+            counts[f"{p}_scale"] = len(scale)
     T = pl.common_frame_count(counts, where, pl.MIN_FRAMES)
-    return arr, o_t, np.repeat(scale, T) if scale.size == 1 else scale, T
+    return arr, [(R, t, np.repeat(sc, T) if sc.size == 1 else sc) for R, t, sc in poses], T
 
 
 def _rest_skeleton(seq: dict, where: str) -> tuple[np.ndarray, np.ndarray] | None:
@@ -256,6 +303,48 @@ def _rest_offsets_fk(rots: np.ndarray, trans: np.ndarray, offsets: np.ndarray, t
     return joints
 
 
+def _rigid_part(name: str, where: str, obj: str, part: str, pname: str, prefix: str, R_src: np.ndarray,
+                o_t: np.ndarray, scale: np.ndarray, objects_root, src_t: np.ndarray, dst: np.ndarray) -> dict:
+    """One rigid object part in OMOMO's z-up world, resampled to the times ``dst``: the
+    centred template scaled by the mean scale, ``rot`` (T', 3, 3), ``trans`` (T', 3), and
+    its provenance (see the module docstring)."""
+    pl.check_track(o_t, f"{prefix}_trans", where, fps=SOURCE_FPS)
+    ortho = np.abs(R_src @ R_src.swapaxes(-1, -2) - np.eye(3)).max(axis=(-2, -1))
+    bad = np.flatnonzero((ortho > 1e-3) | (np.linalg.det(R_src) < 0))
+    if len(bad):
+        raise SequenceError(f"{where}: {prefix}_rot: not a rotation matrix at frame {int(bad[0])}")
+    if not np.all(scale > 0):
+        raise SequenceError(f"{where}: {prefix}_scale: expected positive scales, got {scale.min():.6g}..{scale.max():.6g}")
+    template_path = object_template_path(objects_root, obj, part)
+    if not template_path.exists():
+        what = f"two-part object {obj!r}: missing its {part} template" if part else "missing object template"
+        raise SequenceError(f"{name}: {what} {template_path.name} in {Path(objects_root)}")
+    raw_v, faces, n_file = load_object_template(str(template_path), obj, name)
+    mean = raw_v.mean(0)
+    s0 = float(scale.mean())
+    radius = float(np.linalg.norm(raw_v - mean, axis=1).max())
+    spread = float(np.abs(scale - s0).max())
+    dev = spread * radius
+    if dev > OBJECT_SCALE_TOL_M:
+        raise SequenceError(f"{where}: {prefix}_scale varies over the sequence ({scale.min():.6g}..{scale.max():.6g}): "
+                            f"one template would misplace vertices by up to {dev * 1000:.2f} mm (tolerance "
+                            f"{OBJECT_SCALE_TOL_M * 1000:g} mm); a per-frame object scale is not stored")
+    verts = s0 * (raw_v - mean)
+    try:
+        pl.check_extent(verts, f"{name}: object {obj!r} template {template_path.name} scaled by {prefix}_scale {s0:.6g}")
+    except ValueError as exc:
+        raise SequenceError(str(exc)) from None
+    o_tc = o_t + scale[:, None] * (R_src @ mean)       # each frame's own scale: the centre is exact
+    o_aa = _slerp_resample(src_t, dst, geo.matrix_to_axis_angle(R_src)[:, None])[:, 0]
+    return {"name": pname, "vertices": verts, "faces": faces, "rot": geo.axis_angle_to_matrix(o_aa),
+            "trans": _lerp(src_t, dst, o_tc),
+            "provenance": {"part": part or "whole", "name": pname, "template": template_path.name,
+                           "pose_keys": f"{prefix}_rot, {prefix}_trans, {prefix}_scale",
+                           "object_scale": s0, "object_scale_spread": spread, "object_scale_max_dev_m": dev,
+                           "template_mean_subtracted": mean.tolist(), "template_vertices_in_file": int(n_file),
+                           "template_vertices_merged": int(len(raw_v))}}
+
+
 def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
                   fps: float = SOURCE_FPS, text_file: str | None = None, object_name: str | None = None,
                   source: str = "", gt_file: str | None = None) -> HOISequence:
@@ -275,55 +364,34 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
     where = f"{name}: {source}" if source else name
     sub, obj, _ = parse_name(name)
     fps = pl.check_fps(fps, "fps", name)
-    if any(str(k).startswith("obj_bottom") for k in seq):
-        raise SequenceError(f"{name}: two-part object {obj!r} (obj_bottom_* keys: an articulated top and "
-                            "bottom part) cannot be one rigid template; not supported (CHOIS skips "
-                            "vacuum and mop too)")
+    two_part = any(str(k).startswith("obj_bottom") for k in seq)
+    prefixes = ("obj", "obj_bottom") if two_part else ("obj",)
     gender = _text(seq, "gender", where).lower()
     if gender not in pl.GENDERS:
         raise SequenceError(f"{where}: gender: expected male/female/neutral, got {gender!r}")
-    arr, o_t, scale, T = _per_frame(seq, where)
+    arr, obj_poses, T = _per_frame(seq, where, prefixes)
     betas = _array(seq, "betas", where).reshape(-1)
     if not 1 <= len(betas) <= pl.MAX_BETAS:
         raise SequenceError(f"{where}: betas: expected 1..{pl.MAX_BETAS} coefficients, got {len(betas)}")
     rest = _rest_skeleton(seq, where)
     pl.check_track(arr["trans"], "trans", where, fps=SOURCE_FPS)
-    pl.check_track(o_t, "obj_trans", where, fps=SOURCE_FPS)
-    s0 = float(scale.mean())
-    if not s0 > 0 or float(np.abs(scale - s0).max()) > _SCALE_TOL * s0:
-        raise SequenceError(f"{where}: obj_scale: expected one positive scale for the sequence, got "
-                            f"{scale.min():.6g}..{scale.max():.6g}")
-    R_src = arr["obj_rot"]
-    ortho = np.abs(R_src @ R_src.swapaxes(-1, -2) - np.eye(3)).max(axis=(-2, -1))
-    bad = np.flatnonzero((ortho > 1e-3) | (np.linalg.det(R_src) < 0))
-    if len(bad):
-        raise SequenceError(f"{where}: obj_rot: not a rotation matrix at frame {int(bad[0])}")
-    template_path = object_template_path(objects_root, obj)
-    if not template_path.exists():
-        raise SequenceError(f"{name}: missing object template {template_path.name} in {Path(objects_root)}")
-    raw_v, faces = load_object_template(str(template_path), obj, name)
 
-    # object: centre the scaled template (v' = s (v - m)), keep s R v + t exactly (t' = t + s R m)
-    mean = raw_v.mean(0)
-    verts = s0 * (raw_v - mean)
-    try:
-        pl.check_extent(verts, f"{name}: object {obj!r} template {template_path.name} scaled by obj_scale {s0:.6g}")
-    except ValueError as exc:
-        raise SequenceError(str(exc)) from None
-    o_tc = o_t + s0 * (R_src @ mean)
-
-    # resample by time
+    # time: resample every track by time
     src_t = np.arange(T) / SOURCE_FPS
     dst = resample_times(src_t, fps)
+    base = object_name or obj
+    parts = []
+    for prefix, (R_src, o_t, scale), part in zip(prefixes, obj_poses, TWO_PART_SUFFIXES if two_part else ("",)):
+        pname = base if part in ("", "top") else f"{base}_{part}"
+        parts.append(_rigid_part(name, where, obj, part, pname, prefix, R_src, o_t, scale, objects_root, src_t, dst))
     pose = np.concatenate([arr["root_orient"], arr["pose_body"]], 1).reshape(T, NUM_JOINTS, 3)
     pose = _slerp_resample(src_t, dst, pose).reshape(len(dst), 3 * NUM_JOINTS)
     trans = _lerp(src_t, dst, arr["trans"])
-    o_aa = _slerp_resample(src_t, dst, geo.matrix_to_axis_angle(R_src)[:, None])[:, 0]
-    o_tc = _lerp(src_t, dst, o_tc)
 
     # SMPL-X in OMOMO's z-up world, then rotate everything to y-up (rigid: exact)
     from ..bodies.smpl import body_forward
     model = _body_model(str(Path(body_models)), gender, max(NUM_BETAS, len(betas)))
+    _check_beta_capacity(model, betas, body_models, gender, name)
     joints_z, verts_z = body_forward(model, pose, betas, trans)
     joints_z = joints_z[:, :NUM_JOINTS].astype(np.float64)
     j0 = (joints_z[:, 0] - trans).mean(0)          # rest pelvis: SMPL-X's pelvis = J0 + transl
@@ -340,15 +408,20 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
     floor = float((verts_z.reshape(-1, 3) @ F[1]).min())
     joints[..., 1] -= floor
     trans_y[:, 1] -= floor
-    o_rot = F @ geo.axis_angle_to_matrix(o_aa)
-    o_trans = o_tc @ F.T
-    o_trans[:, 1] -= floor
+    seq_parts = []
+    for p in parts:
+        o_trans = p["trans"] @ F.T
+        o_trans[:, 1] -= floor
+        seq_parts.append(ObjectPart(p["name"], p["vertices"], p["faces"], F @ p["rot"], o_trans))
+    top = seq_parts[0]
+    part_prov = [p["provenance"] for p in parts]
 
     gt_c = _gt_contacts(gt_file, src_t, dst, name)
     return HOISequence(
         name=name, dataset="omomo", subject=f"sub{sub}", fps=float(fps),
-        joints=joints.astype(np.float32), object_name=object_name or obj,
-        object_vertices=verts, object_faces=faces, obj_rot=o_rot, obj_trans=o_trans,
+        joints=joints.astype(np.float32), object_name=top.name,
+        object_vertices=top.vertices, object_faces=top.faces, obj_rot=top.rot, obj_trans=top.trans,
+        parts=seq_parts if two_part else [],
         contacts=gt_c,
         body=BodyParams("smplx", gender, betas.astype(np.float32), pose.astype(np.float32),
                         trans_y.astype(np.float32), flat_hand_mean=True),
@@ -359,11 +432,20 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
                     "floor_shift_m": floor, "source_fps": SOURCE_FPS, "resampled_to_fps": float(fps),
                     "source_frames": T, "body_model": "smplx", "num_betas": int(len(betas)),
                     "hands": "flat (OMOMO stores no hand pose)",
-                    "object_category": obj, "template": template_path.name,
+                    "object_category": obj, "template": part_prov[0]["template"],
                     "raw_source": f"{source or 'omomo pickle'} (sequence {name}), "
-                                  f"captured_objects/{template_path.name}",
-                    "object_scale": s0, "template_mean_subtracted": mean.tolist(),
-                    "object_convention": "v = s R v_obj + t -> template s (v_obj - mean), t' = t + s R mean",
+                                  + ", ".join(f"captured_objects/{p['template']}" for p in part_prov),
+                    "object_scale": part_prov[0]["object_scale"],
+                    "template_mean_subtracted": part_prov[0]["template_mean_subtracted"],
+                    "object_convention": ("v = s_t R v_obj + t -> template s (v_obj - mean) with s the mean "
+                                          "scale, t' = t + s_t R mean"),
+                    "template_loading": ("trimesh.load_mesh as OMOMO and CHOIS do (vertices at equal positions "
+                                         "merged), centred on the merged vertices' mean"),
+                    **({"object_parts": part_prov} if two_part else
+                       {k: v for k, v in part_prov[0].items() if k in ("template_vertices_in_file",
+                                                                       "template_vertices_merged",
+                                                                       "object_scale_spread",
+                                                                       "object_scale_max_dev_m")}),
                     **check},
     )
 
@@ -499,7 +581,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
             split, loader, args = "unknown", fail_unit, (f"{cid}: not listed in split file {split_file}",)
         except SequenceError as exc:
             split, loader, args = "unknown", fail_unit, (f"{exc} (in {fname})",)
-        files = [object_template_path(objects_root, obj) if obj else objects_root / "<no template>"]
+        two_part = isinstance(seq, dict) and any(str(k).startswith("obj_bottom") for k in seq)
+        files = ([object_template_path(objects_root, obj, p) for p in TWO_PART_SUFFIXES] if obj and two_part else
+                 [object_template_path(objects_root, obj) if obj else objects_root / "<no template>"])
         files += [Path(p) for p in (text_file, gt_file) if p]
         sha = _sequence_sha(seq, files, config.sha256())
         jobs.append((cid, split, sha, str(out), loader, args, config.mode))

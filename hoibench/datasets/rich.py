@@ -78,8 +78,9 @@ from .behave import SequenceError, _lerp, _slerp_resample, load_split_file
 from .omomo import ZUP_TO_YUP
 from .sequence import BodyParams, HOISequence
 
-__all__ = ["SOURCE_FPS", "CLIP_LENGTHS", "LABEL", "SequenceError", "split_runs", "cut_lengths",
-           "vertex_joint_map", "joint_contacts", "read_frame", "load_clip", "prepare_jobs"]
+__all__ = ["SOURCE_FPS", "CLIP_LENGTHS", "LABEL", "SequenceError", "ContactMapUnavailable", "split_runs",
+           "cut_lengths", "vertex_joint_map", "joint_contacts", "contact_joint_map", "read_deftrafo", "read_frame",
+           "load_clip", "prepare_warnings", "prepare_jobs", "transform_path", "shipped_scans"]
 
 SOURCE_FPS = 30.0
 CLIP_LENGTHS = (192, 128, 64)
@@ -94,7 +95,7 @@ _FRAME = re.compile(r"^\d{5}$")
 #: ``bodies/<split>`` folders a complete download has; a missing one is reported (the
 #: manifest's ``incomplete``) instead of giving a store without that split.
 REQUIRED_SPLITS = ("train", "test")
-_SCAN_VARIANT = re.compile(r"^scan_(\w+?)_scene_camcoord$")
+_SCAN_VARIANT = re.compile(r"^scan_(\w+?)(?:_scene)?_camcoord$")
 
 
 # --------------------------------------------------------------------------- frames and clips
@@ -163,22 +164,28 @@ def joint_contacts(vertex_labels, vmap) -> np.ndarray:
     return (lab.astype(np.float32) @ onehot) > 0
 
 
-@lru_cache(maxsize=4)
-def smpl_topology_weights(body_models: str) -> tuple[np.ndarray, str]:
-    """Skinning weights (6890, J) of an SMPL-topology model under ``body_models`` (SMPL-H
-    ``.npz`` read without pickles, else ``smplx`` on SMPL-H / SMPL files) and where they came
-    from. Raises SequenceError when there is none."""
-    root = Path(body_models)
-    tried = []
+#: Where SMPL-X's deformation-transfer setup (SMPL-X vertices -> SMPL vertices; smplx's
+#: ``transfer_model``, a download from the SMPL-X site) is looked for, under ``body_models``.
+DEFTRAFO_PATHS = ("transfer_data/smplx2smpl_deftrafo_setup.pkl", "model_transfer/smplx2smpl_deftrafo_setup.pkl",
+                  "smplx2smpl_deftrafo_setup.pkl", "smplx/smplx2smpl_deftrafo_setup.pkl")
+SMPLX_NUM_VERTICES = 10475
+
+
+class ContactMapUnavailable(SequenceError):
+    """No model files under ``body_models`` give RICH's SMPL-topology labels a joint."""
+
+
+def _smpl_topology_weights(root: Path) -> tuple[np.ndarray, str] | None:
+    """(6890, J) skinning weights of an SMPL-H ``.npz`` (read without pickles) or, through
+    ``smplx``, of SMPL-H / SMPL model files under ``root``; None when there are none."""
     for g in ("NEUTRAL", "MALE", "FEMALE"):
         p = root / "smplh" / f"SMPLH_{g}.npz"
-        tried.append(str(p))
         if p.is_file():
             try:
                 with np.load(p, allow_pickle=False) as z:
                     w = np.asarray(z["weights"], dtype=np.float64)
                 if w.shape[0] == SMPL_NUM_VERTICES:
-                    return w, str(p)
+                    return w, f"smplh/{p.name}"
             except Exception:
                 pass
     from ..bodies.smpl import load_body_model
@@ -186,16 +193,102 @@ def smpl_topology_weights(body_models: str) -> tuple[np.ndarray, str]:
         for g in ("neutral", "male", "female"):
             try:
                 model = load_body_model(root, mt, g)
-            except (FileNotFoundError, ImportError):
-                continue
             except Exception:
                 continue
             w = model.lbs_weights.detach().cpu().numpy().astype(np.float64)
             if w.shape[0] == SMPL_NUM_VERTICES:
                 return w, f"{mt} {g}"
-    raise SequenceError(f"RICH contacts are in SMPL topology (6890 vertices): need SMPL-H or SMPL model "
-                        f"files under {root} (smplh/SMPLH_*.npz or smpl/SMPL_*.pkl) for the skinning "
-                        f"weights; tried {', '.join(tried)} and smplx's loaders")
+    return None
+
+
+def read_deftrafo(path: str | Path) -> np.ndarray:
+    """SMPL-X -> SMPL deformation transfer (``smplx2smpl_deftrafo_setup.pkl``) as a dense
+    (6890, 10475) matrix: SMPL vertex ``i`` = ``M[i] @`` SMPL-X vertices. The file is a
+    pickle (the user's own download from the SMPL-X site) holding ``mtx`` (sparse, vertex
+    columns then normal columns, of which the first half is kept) or ``matrix``."""
+    from ..io import check_regular_file
+    path = Path(path)
+    check_regular_file(path, "deformation transfer setup")
+    try:
+        with open(path, "rb") as fh:
+            setup = pickle.load(fh, encoding="latin1")
+        mat = setup["mtx"] if "mtx" in setup else setup["matrix"]
+        mat = np.asarray(mat.todense() if hasattr(mat, "todense") else mat, dtype=np.float64)
+    except Exception as exc:
+        raise ValueError(f"{path}: expected smplx's deformation transfer setup (a pickled dict with 'mtx' "
+                         f"or 'matrix'): {type(exc).__name__}: {exc}") from None
+    if mat.ndim == 2 and mat.shape == (SMPL_NUM_VERTICES, 2 * SMPLX_NUM_VERTICES):
+        mat = mat[:, :SMPLX_NUM_VERTICES]
+    if mat.shape != (SMPL_NUM_VERTICES, SMPLX_NUM_VERTICES) or not np.isfinite(mat).all():
+        raise ValueError(f"{path}: expected a finite ({SMPL_NUM_VERTICES}, {SMPLX_NUM_VERTICES}) matrix "
+                         f"(SMPL-X -> SMPL), got {mat.shape}")
+    return mat
+
+
+def _smplx_weights(root: Path) -> tuple[np.ndarray, str] | None:
+    """(10475, 55) SMPL-X skinning weights from the first SMPL-X file under ``root/smplx``
+    (``.npz`` read without pickles, else through ``smplx``), or None."""
+    for g in ("NEUTRAL", "MALE", "FEMALE"):
+        p = root / "smplx" / f"SMPLX_{g}.npz"
+        if p.is_file():
+            try:
+                with np.load(p, allow_pickle=False) as z:
+                    w = np.asarray(z["weights"], dtype=np.float64)
+                if w.shape == (SMPLX_NUM_VERTICES, 55):
+                    return w, f"smplx/{p.name}"
+            except Exception:
+                pass
+    from ..bodies.smpl import load_body_model
+    for g in ("neutral", "male", "female"):
+        try:
+            w = load_body_model(root, "smplx", g).lbs_weights.detach().cpu().numpy().astype(np.float64)
+        except Exception:
+            continue
+        if w.shape == (SMPLX_NUM_VERTICES, 55):
+            return w, f"smplx {g}"
+    return None
+
+
+@lru_cache(maxsize=4)
+def contact_joint_map(body_models: str) -> tuple[np.ndarray, str]:
+    """(6890,) joint 0..21 of every SMPL vertex (:func:`vertex_joint_map`) and where it came
+    from, for RICH's SMPL-topology contact labels. In order:
+
+    1. SMPL-H or SMPL model files under ``body_models`` (``smplh/``, ``smpl/``): their own
+       skinning weights;
+    2. SMPL-X files (``smplx/``) and SMPL-X's deformation transfer setup
+       (:data:`DEFTRAFO_PATHS`): SMPL-X's weights carried to SMPL topology, ``W = M W_x``
+       (each SMPL vertex takes the weights of the SMPL-X surface point it corresponds to);
+    3. neither: :class:`ContactMapUnavailable`, naming the files to add.
+    """
+    root = Path(body_models)
+    found = _smpl_topology_weights(root)
+    if found is not None:
+        return vertex_joint_map(found[0]), f"skinning weights of {found[1]}"
+    xw = _smplx_weights(root)
+    trafo = next((root / p for p in DEFTRAFO_PATHS if (root / p).is_file()), None)
+    if xw is not None and trafo is not None:
+        try:
+            M = read_deftrafo(trafo)
+        except ValueError as exc:
+            raise ContactMapUnavailable(str(exc)) from None
+        return (vertex_joint_map(M @ xw[0]),
+                f"skinning weights of {xw[1]} carried to SMPL topology by {trafo.relative_to(root)}")
+    raise ContactMapUnavailable(
+        f"RICH's contact labels are on SMPL's 6890 vertices; to give them a joint, put under {root} either "
+        f"SMPL-H or SMPL model files (smplh/SMPLH_<GENDER>.npz or smpl/SMPL_<GENDER>.pkl) or SMPL-X's "
+        f"deformation transfer setup (transfer_data/smplx2smpl_deftrafo_setup.pkl, from the SMPL-X "
+        f"site's model transfer download) next to smplx/")
+
+
+def prepare_warnings(root: str | Path, body_models: str | Path) -> list[str]:
+    """Dataset-level warnings for ``hoibench prepare`` (recorded in the manifest): clips are
+    prepared without contact labels when no model files map them to joints."""
+    try:
+        contact_joint_map(str(Path(body_models)))
+    except ContactMapUnavailable as exc:
+        return [f"rich: clips are prepared WITHOUT contact labels: {exc}"]
+    return []
 
 
 # --------------------------------------------------------------------------- reading
@@ -418,10 +511,22 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     trans_w = (j0 + transl_r) @ A.T + b - j0
     trans_w[:, 1] -= floor
     betas_out = betas_r[0] if np.allclose(betas_r, betas_r[:1], atol=1e-6) else betas_r
+    pose_store = np.concatenate([pose_w[:, 0], pose_w[:, 1:22].reshape(-1, 63), pose_w[:, 22:25].reshape(-1, 9),
+                                 pose_w[:, 25:].reshape(-1, 90)], 1).astype(np.float32)
+    betas_store = np.asarray(betas_out, dtype=np.float32)
+    trans_store, expr_store = trans_w.astype(np.float32), expr_r.astype(np.float32)
+    # what the stored parameters rebuild, measured against the toolkit's mesh in the store's frame
+    n_out = len(pose_store)
+    rebuilt = _smplx_forward(model, pose_store.astype(np.float64).reshape(n_out, 55, 3),
+                             np.broadcast_to(betas_store, (n_out, betas_store.shape[-1])), expr_store, trans_store)[1]
+    toolkit = verts_c.astype(np.float64) @ A.T + b
+    toolkit[..., 1] -= floor
+    params_dev = float(np.linalg.norm(rebuilt.astype(np.float64) - toolkit, axis=-1).max())
 
     contacts, cmap_src = None, None
     contact_dir = data_root / "human_scene_contact" / split_dir / seq
     if with_contacts and contact_dir.is_dir():
+        contact_joint_map(str(Path(body_models)))      # fails the clip before reading labels
         labels = []
         for i in ids:
             cpath = contact_dir / f"{i:05d}" / f"{sub}.pkl"
@@ -436,8 +541,8 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
                 raise SequenceError(f"{seq}: {_rel(cpath, data_root)}: expected 'contact' with "
                                     f"{SMPL_NUM_VERTICES} finite SMPL-vertex labels")
             labels.append(lab)
-        w, cmap_src = smpl_topology_weights(str(Path(body_models)))
-        jc = joint_contacts(np.stack(labels), vertex_joint_map(w))
+        vmap, cmap_src = contact_joint_map(str(Path(body_models)))
+        jc = joint_contacts(np.stack(labels), vmap)
         nearest = np.clip(np.searchsorted(src_t, dst - 0.5 / SOURCE_FPS), 0, N - 1)
         contacts = jc[nearest]
 
@@ -446,10 +551,8 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     return HOISequence(
         name=name, dataset="rich-cat", subject=str(sub), fps=float(fps),
         joints=joints.astype(np.float32), contacts=contacts,
-        body=BodyParams("smplx", gender, np.asarray(betas_out, dtype=np.float32),
-                        np.concatenate([pose_w[:, 0], pose_w[:, 1:22].reshape(-1, 63), pose_w[:, 22:25].reshape(-1, 9),
-                                        pose_w[:, 25:].reshape(-1, 90)], 1).astype(np.float32),
-                        trans_w.astype(np.float32), flat_hand_mean=False),
+        body=BodyParams("smplx", gender, betas_store, pose_store, trans_store, flat_hand_mean=False,
+                        expression=expr_store),
         provenance={"label": LABEL, "source": "rich", "sequence": seq, "scene": scene, "split_folder": split_dir,
                     "subject": str(sub), "gender": gender,
                     "source_frames": [int(ids[0]), int(ids[-1])], "run_first_frame": int(run_first),
@@ -460,10 +563,18 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
                     "transform": "p_yup = Rx(-90 deg) (c * p_cam @ R + t); y -= floor",
                     "multicam2world": Path(transform_file).name, "world_scale_c": c,
                     "world_R_orthonormality_error": float(np.abs(R.T @ R - np.eye(3)).max()),
-                    "body_params_note": ("exact" if abs(c - 1.0) < 1e-9 else
-                                         "joints exact; stored SMPL-X params are rigid (mesh scaled by 1/c about the pelvis)"),
+                    "body_params_max_dev_m": params_dev,
+                    "body_params_note": (f"measured: the stored SMPL-X parameters (flat_hand_mean=False, with "
+                                         f"expression) rebuild the toolkit's mesh to {params_dev:.2e} m (largest "
+                                         f"vertex distance over the clip); joints are the toolkit's mapped exactly"
+                                         + ("" if abs(c - 1.0) < 1e-9 else
+                                            f"; the parameters are rigid, so the mesh is the toolkit's scaled "
+                                            f"by 1/c = {1 / c:.6g} about the pelvis")),
                     "floor_shift_m": floor,
-                    "hands": "PCA -> axis-angle with the model's components, flat_hand_mean=False",
+                    "hands": "PCA -> axis-angle with the model's components; stored with flat_hand_mean=False "
+                             "(the clip's flat_hand_mean array)",
+                    "expression": f"{expr_store.shape[1]} SMPL-X expression coefficients stored (the clip's "
+                                  f"expression array)",
                     "contacts": (None if contacts is None else
                                  f"human_scene_contact (6890 SMPL vertices) -> joint of largest skinning weight "
                                  f"({cmap_src}), OR over each joint's vertices; nearest source frame")},
@@ -515,22 +626,37 @@ def _gender_json(resource: Path | None) -> dict[str, str]:
                          f"({type(exc).__name__}: {exc})") from None
 
 
+@lru_cache(maxsize=1)
+def shipped_scans() -> dict[str, str]:
+    """``{sequence: scan}`` for the RICH sequences whose scene has several scans, as
+    rich_toolkit's meta files name them (``hoibench/datasets/rich_scans.json``); used when the
+    download has no meta files."""
+    data = json.loads((Path(__file__).with_name("rich_scans.json")).read_text(encoding="utf-8"))
+    return dict(data["scans"])
+
+
+#: Scenes with more than one scan: their transform is never guessed.
+MULTI_SCAN_SCENES = ("LectureHall", "Gym")
+
+
 def transform_path(data_root: Path, seq: str, scan: str | None = None) -> Path:
-    """The ``multicam2world`` json of a sequence (see the module docstring)."""
+    """The ``multicam2world`` json of a sequence: the scan of the meta files (``scan``), else
+    of :func:`shipped_scans`, selects ``<Scene>_<v>_multicam2world.json`` for a scan
+    ``scan_<v>[_scene]_camcoord``; ``scan_camcoord`` (or no scan) selects
+    ``<Scene>_multicam2world.json``. A variant file that is missing falls back to the
+    scene's file, except in scenes with several scans (:data:`MULTI_SCAN_SCENES`), where
+    the variant's name is returned (the clip then fails naming it)."""
     folder = data_root / "multicam2world"
     scene = seq.split("_")[0]
-    cands = []
-    if scan:
-        m = _SCAN_VARIANT.match(scan)
-        cands.append(folder / (f"{scene}_{m.group(1)}_multicam2world.json" if m else f"{scene}_multicam2world.json"))
-    cands.append(folder / f"{scene}_multicam2world.json")
-    if scene == "LectureHall":
-        variant = "chair" if ("chair" in seq or "reparingprojector" in seq) else "yoga"
-        cands.append(folder / f"LectureHall_{variant}_multicam2world.json")
-    for p in cands:
-        if p.is_file():
-            return p
-    return cands[0]
+    scan = scan or shipped_scans().get(seq)
+    m = _SCAN_VARIANT.match(scan) if scan else None
+    default = folder / f"{scene}_multicam2world.json"
+    if m is None:
+        return default
+    variant = folder / f"{scene}_{m.group(1)}_multicam2world.json"
+    if variant.is_file() or scene in MULTI_SCAN_SCENES or not default.is_file():
+        return variant
+    return default
 
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
@@ -550,6 +676,10 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     genders = _gender_json(resource)
     splits = load_split_file(split_file) if split_file else None
     fps = float(config.fps)
+    try:
+        contact_src = contact_joint_map(str(Path(body_models)))[1]
+    except ContactMapUnavailable:
+        contact_src = None          # clips without contacts (prepare_warnings says what to add)
     jobs, sources = [], []
     for split in REQUIRED_SPLITS:
         if not (data_root / "bodies" / split).is_dir():
@@ -601,9 +731,10 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                     if contact_seq.is_dir():
                         files += [contact_seq / f"{i:05d}" / f"{sub}.pkl" for i in fids]
                     files.append(tpath)
-                    sha = file_sha256(files, extra=f"{seq}|{sub}|{gender}|{run[0]}|{a}|{L}|" + config.sha256())
+                    sha = file_sha256(files, extra=f"{seq}|{sub}|{gender}|{run[0]}|{a}|{L}|{contact_src}|"
+                                      + config.sha256())
                     loader, args = load_clip, (str(data_root), split_path.name, seq, sub, fids, run[0], a, L, fps,
-                                               str(body_models), gender, str(tpath), True, cid)
+                                               str(body_models), gender, str(tpath), contact_src is not None, cid)
                     split = split_path.name
                     if splits is not None:
                         split = splits.get(cid, splits.get(seq, "unknown"))

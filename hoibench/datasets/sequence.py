@@ -16,8 +16,17 @@ import numpy as np
 class BodyParams:
     """Parameters that rebuild the body mesh with ``model_type`` files (y-up world).
 
-    ``poses`` (T, P) axis-angle (SMPL-H: root 3 + body 63 + hands 90), ``betas`` (B,) or
-    (T, B), ``trans`` (T, 3) as SMPL's ``transl`` (the posed pelvis is rest pelvis + trans).
+    ``poses`` (T, P) axis-angle (SMPL-H: root 3 + body 63 + hands 90; SMPL-X: root 3 +
+    body 63 + jaw/eyes 9 + hands 90), ``betas`` (B,) or (T, B), ``trans`` (T, 3) as SMPL's
+    ``transl`` (the posed pelvis is rest pelvis + trans).
+
+    ``flat_hand_mean`` is the hand convention the poses are in: True, zero hand pose is the
+    flat hand (BEHAVE, OMOMO); False, the model's mean hand is added to the stored pose
+    (RICH, whose toolkit builds SMPL-X with ``flat_hand_mean=False``). ``expression`` (T, E)
+    holds SMPL-X expression coefficients when the source had them (RICH), else None (zero
+    expression). Both are stored with the clip and read by
+    :func:`hoibench.bodies.clip_body_forward`, so the stored parameters rebuild the mesh
+    the source drew.
     """
 
     model_type: str
@@ -26,6 +35,24 @@ class BodyParams:
     poses: np.ndarray
     trans: np.ndarray
     flat_hand_mean: bool = True
+    expression: np.ndarray | None = None
+
+
+@dataclass
+class ObjectPart:
+    """One rigid part of an object with several parts (OMOMO's vacuum and mop: a top and a
+    bottom): template ``vertices`` (V, 3) centred on their mean, ``faces`` (F, 3) and the
+    part's own pose, ``v = rot[t] @ vertex + trans[t]`` (y-up metres)."""
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    rot: np.ndarray                            # (T, 3, 3)
+    trans: np.ndarray                          # (T, 3)
+
+    def vertices_at(self, frames: slice | np.ndarray | None = None) -> np.ndarray:
+        sel = slice(None) if frames is None else frames
+        return np.einsum("tij,vj->tvi", self.rot[sel], self.vertices) + self.trans[sel, None]
 
 
 @dataclass
@@ -45,6 +72,10 @@ class HOISequence:
     texts: list[dict[str, Any]] = field(default_factory=list)  # {"text", "start", "end", "source"}
     group_id: str | None = None
     provenance: dict[str, Any] = field(default_factory=dict)
+    #: every part of a multi-part object, the first being the primary part that
+    #: ``object_name`` / ``object_vertices`` / ``obj_rot`` / ``obj_trans`` describe (the one
+    #: the representations and metrics use); empty for a one-part object.
+    parts: list[ObjectPart] = field(default_factory=list)
 
     @property
     def num_frames(self) -> int:
