@@ -1,3 +1,3 @@
 """hoibench: datasets, representations, evaluators, metrics and leaderboards for
 text-driven 3D human-object interaction generation."""
-__version__ = "0.5.0"
+__version__ = "0.6.0"

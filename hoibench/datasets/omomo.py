@@ -40,15 +40,20 @@ Conversion (per sequence):
 3. Floor: y is shifted so the lowest body-surface vertex of the sequence sits at y = 0
    (as for BEHAVE; OMOMO's own floor is z = 0, so the shift is small); recorded in the
    provenance.
-4. Objects: OMOMO's templates are *not* centred and carry a per-object scale:
-   ``v = s R v_obj + t``. hoibench stores the scaled template centred on its vertex mean
-   ``m``, ``v' = s (v_obj - m)``, and the translation ``t' = t + s R m``, so
-   ``R v' + t'`` reproduces OMOMO's vertices exactly. ``obj_scale`` must be constant over
-   the sequence (it is one per object). If one object name appears with different scales
-   in the release, each scale gets its own template name ``<object>_s<scale>`` (the
-   store keeps one template per name); the category stays in the provenance.
-   Two-part objects (vacuum, mop: a top and an articulated bottom part) cannot be one rigid
-   template: those sequences fail with a message (CHOIS skips them too).
+4. Objects: OMOMO's templates are *not* centred and carry a per-frame scale:
+   ``v = s_t R v_obj + t``. Templates are loaded as OMOMO and CHOIS load them
+   (``trimesh.load_mesh``: vertices at equal positions merged). hoibench stores the template
+   scaled by the mean scale ``s`` and centred on the merged vertices' mean ``m``,
+   ``v' = s (v_obj - m)``, and the translation ``t' = t + s_t R m``, so ``R v' + t'``
+   reproduces OMOMO's vertices exactly for a constant scale. A varying scale is kept when
+   the shape error ``max_t |s_t - s| * max_v |v_obj - m|`` is at most
+   :data:`OBJECT_SCALE_TOL_M` (recorded as ``object_scale_max_dev_m``), else the sequence
+   fails with the error. If one object name appears with different scales in the release,
+   each scale gets its own template name ``<object>_s<scale>`` (the store keeps one template
+   per name); the category stays in the provenance. Two-part objects (vacuum, mop:
+   ``obj_bottom_*`` keys, ``_top`` / ``_bottom`` templates) keep both parts
+   (:class:`~hoibench.datasets.sequence.ObjectPart`): the top is the clip's object (the
+   representations and metrics use it), the bottom ``<object>_bottom`` a second part.
 5. Time: 30 fps, resampled by time to ``fps`` (poses by quaternion slerp, translations
    linearly).
 6. Text: the sentence of ``<seq_name>.json`` as one sequence-level text, source "omomo"

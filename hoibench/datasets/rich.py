@@ -26,8 +26,9 @@ folder holds one pickle per subject. Facts (rich_toolkit's ``smplx2images.py``,
   ``multicam2world`` maps that frame to the scan's z-up world as row vectors,
   ``X_world = c * X @ R + t`` (a similarity: ``c`` is a scale; some ``R`` are rounded to
   three decimals, so not exactly orthonormal). LectureHall has two scans (chair / yoga):
-  the json is chosen from the meta file's scan name (``scan_<v>_scene_camcoord`` ->
-  ``<Scene>_<v>_multicam2world.json``), else ``<Scene>_multicam2world.json``, else by action;
+  the json is chosen from the meta file's scan name (``scan_<v>[_scene]_camcoord`` ->
+  ``<Scene>_<v>_multicam2world.json``), else from the same mapping shipped as
+  ``rich_scans.json``, else ``<Scene>_multicam2world.json`` (never guessed by action);
 * ``human_scene_contact`` pickles hold ``contact`` (6890,) per-vertex 0/1 labels in **SMPL**
   topology (plus SMPL-X distance fields hoibench does not read);
 * frame ids are 5-digit, start anywhere and may skip.
@@ -46,7 +47,11 @@ Conversion (per subject of a sequence):
    ``<seq>_<sub>_<first source frame id:05d>``.
 2. Body: SMPL-X of the subject's gender (meta file, else ``gender.json``), hand PCA turned
    into axis-angle with the model's own components (``flat_hand_mean=False``: the hand mean
-   is added by the model), expression included -- the toolkit's mesh, exactly.
+   is added by the model), expression included -- the toolkit's mesh, exactly. The stored
+   parameters keep the expression and the hand convention as arrays (``expression``,
+   ``flat_hand_mean``; :func:`hoibench.bodies.clip_body_forward` reads both), and the clip
+   records ``body_params_max_dev_m``, the measured distance between the mesh they rebuild
+   and the toolkit's.
 3. Frame: camera 0 -> z-up world (``c X R + t``) -> y-up (``F = Rx(-90 deg)``, as OMOMO):
    joints and vertices are mapped with the full similarity, so they are exactly the
    toolkit's. The stored SMPL-X parameters get the rotation part (the nearest rotation to
@@ -57,7 +62,10 @@ Conversion (per subject of a sequence):
    finger joints to their wrist, SMPL-X face joints to the head); a joint is in contact in
    a frame when any of its vertices is (OR). The weights come from SMPL-topology model
    files under ``body_models`` (``smplh/`` or ``smpl/``; hoibench's proxy SMPL-H for
-   synthetic data). Output frames take the nearest source frame's labels.
+   synthetic data), else from SMPL-X's weights carried to SMPL topology by SMPL-X's
+   deformation transfer setup (:func:`contact_joint_map`); with neither, clips are
+   prepared without contacts and :func:`prepare_warnings` says what to add. Output frames
+   take the nearest source frame's labels.
 6. No object: RICH's scenes are static (``object_name`` None).
 """
 from __future__ import annotations
