@@ -190,6 +190,10 @@ def _stored_result(path: Path, clip_id: str, split: str, sha: str) -> UnitResult
         with np.load(path, allow_pickle=False) as z:
             if "source_sha256" not in z.files or str(z["source_sha256"]) != sha:
                 return None
+            if "layout" in z.files:          # a multi-body clip
+                contacts = int(z["contact_frames"].any(0).sum()) if len(z["contact_frames"]) else 0
+                objects = ",".join(str(t) for t in z["body_templates"] if str(t))
+                return UnitResult(clip_id, "skipped", split, int(len(z["body0_trans"])), sha, objects, contacts)
             contacts = int(z["contacts"].any(-1).sum()) if "contacts" in z.files else 0
             return UnitResult(clip_id, "skipped", split, int(len(z["joints"])), sha,
                               str(z["object_name"]) if "object_name" in z.files else "", contacts)
@@ -216,6 +220,9 @@ def run_unit(job: tuple) -> UnitResult:
         return done
     try:
         seq = loader(*loader_args)
+        from .multibody.clip import MultiBodyClip
+        if isinstance(seq, MultiBodyClip):
+            return _write_multibody(seq, path, Path(out_dir), clip_id, split, sha)
         prov = seq.provenance if isinstance(seq.provenance, dict) else {}
         check_sequence(seq, str(prov.get("raw_source") or prov.get("source_file") or ""))
         arrays = clip_arrays(seq, mode, split, sha)
@@ -228,6 +235,23 @@ def run_unit(job: tuple) -> UnitResult:
         return UnitResult(clip_id, "written", split, seq.num_frames, sha, seq.object_name or "", contacts)
     except Exception as exc:
         return UnitResult(clip_id, "failed", split, error=_message(clip_id, exc))
+
+
+def _write_multibody(clip, path: Path, out_dir: Path, clip_id: str, split: str, sha: str) -> UnitResult:
+    """Write a :class:`~hoibench.multibody.clip.MultiBodyClip` (checked by its
+    ``to_arrays``) and its object templates."""
+    if clip.name != clip_id:
+        raise ValueError(f"{clip_id}: the loader returned clip {clip.name!r}")
+    arrays = clip.to_arrays()
+    arrays.update(split=np.array(split), source_sha256=np.array(sha))
+    atomic_save_npz(path, **arrays)
+    for b in clip.bodies:
+        if b.template:
+            v, f = clip.templates[b.template]
+            _write_object(out_dir, b.template, np.asarray(v), np.asarray(f))
+    objects = ",".join(b.template for b in clip.bodies if b.template)
+    contact = (np.stack(list(clip.contacts.values())).any(0).sum() if clip.contacts else 0)
+    return UnitResult(clip_id, "written", split, clip.num_frames, sha, objects, int(contact))
 
 
 def _message(clip_id: str, exc: BaseException) -> str:
