@@ -85,6 +85,18 @@ def _cmd_synth(args) -> int:
     else:
         if args.defect:
             raise ValueError("--defect: defects are injected in the behave layout only")
+        if args.layout in ("grab", "core4d"):
+            import importlib
+            mod = importlib.import_module(f".datasets.{args.layout}_layout", __package__)
+            getattr(mod, f"write_{args.layout}_layout")(args.out, args.clips, seed=args.seed)
+            print(f"wrote {args.clips} synthetic {args.layout} sequences to {args.out} in {args.layout.upper()}'s "
+                  f"layout; body models in {Path(args.out) / 'body_models'}")
+            return 0
+        if args.layout == "multibody":
+            from .datasets.multibody import write_synthetic_layout
+            write_synthetic_layout(args.out, args.clips, seed=args.seed)
+            print(f"wrote {args.clips} synthetic multi-body clips to {args.out} (hoibench's multi-body layout)")
+            return 0
         from .datasets import synthetic_layouts
         writer = getattr(synthetic_layouts, f"write_{args.layout}_layout")
         writer(args.out, args.clips, seed=args.seed)
@@ -100,6 +112,10 @@ def _cmd_prepare(args) -> int:
     # hoibench's own synthetic data in a raw layout is named as such (its protocol differs)
     synthetic = args.dataset == "behave" and (Path(args.root) / "hoibench_synthetic.json").exists()
     name = "synthetic" if synthetic else args.dataset
+    if args.dataset == "multibody":
+        name = loader.dataset_name(args.root)
+    elif args.body_models is None:
+        raise ValueError(f"prepare {args.dataset}: --body-models is required (the folder with smplh/ or smplx/)")
     cfg = PrepareConfig(name, fps=args.fps, mode=args.mode,
                         body_model_type="smplh" if args.dataset == "behave" else "smplx")
     jobs = loader.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
@@ -183,6 +199,13 @@ def _cmd_submission(args) -> int:
         return 0
     if args.out is None:
         raise ValueError(f"submission {args.action}: --out is required")
+    from .store import Store
+    from .multibody.evaluate import is_multibody_store, write_multibody_submission
+    if args.action in ("reference", "from-store") and is_multibody_store(Store(args.data)):
+        kind = "gt" if args.action == "from-store" else (args.kind or "gt")
+        path = write_multibody_submission(args.data, args.out, kind=kind, as_zip=args.zip)
+        print(f"wrote {path} ({kind}, multi-body)")
+        return 0
     if args.action == "reference":
         if args.kind is None:
             raise ValueError("submission reference: --kind is required (gt, gt-noise, static-first-pose, mean-pose, "
@@ -206,7 +229,25 @@ def _cmd_evaluator(args) -> int:
     return main_show(args.dir, as_json=args.json)
 
 
+def _cmd_train_recognizer(args) -> int:
+    from .multibody.recognizer import train_recognizer
+    if args.out.exists() and any(args.out.iterdir()):
+        raise ValueError(f"--out {args.out}: not empty; choose a new folder")
+    card = train_recognizer(args.data, args.out, split=args.split, steps=args.steps, seed=args.seed)
+    acc = ", ".join(f"{k} {v:.3f}" for k, v in card["gt_accuracy"].items())
+    print(f"wrote {args.out}: recognizer {card['recognizer_id']} trained on {card['trained_on_split']} "
+          f"({card['train_clips']} clips, {len(card['classes'])} actions); ground-truth accuracy {acc} "
+          f"(chance {card['chance_accuracy']:.3f})")
+    return 0
+
+
 def _cmd_evaluate(args) -> int:
+    from .store import Store
+    from .multibody.evaluate import is_multibody_store
+    if is_multibody_store(Store(args.data)):
+        from .multibody.evaluate import main_evaluate as main_multibody
+        return main_multibody(args.submission, args.data, args.evaluator, out=args.out, protocol=args.protocol,
+                              executor=args.executor)
     from .evaluate import main_evaluate
     return main_evaluate(args.submission, args.data, args.evaluator, out=args.out,
                          protocol=args.protocol, executor=args.executor, allow_failed_gate=args.allow_failed_gate,
@@ -318,19 +359,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--clips", type=int, default=24)
     s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--layout", choices=["behave", "omomo", "rich"], default="behave")
+    s.add_argument("--layout", choices=["behave", "omomo", "rich", "multibody", "grab", "core4d"], default="behave",
+                   help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d: "
+                        "multi-body sequences in GRAB's / CORE4D's release layout (proxy body models)")
     s.add_argument("--defect", action="append", default=[],
                    help="CLIP:KIND=MAGNITUDE, KIND in foot_skating (m/s), penetration (m), lost_contact (m)")
     s.add_argument("--executor", default="serial")
     s.set_defaults(func=_cmd_synth)
 
-    s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich) -> processed store",
+    s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich, multibody) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave", "omomo", "rich"])
+    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab"])
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
-    s.add_argument("--body-models", type=Path, required=True,
-                   help="folder with smplh/ (BEHAVE) or smplx/ (OMOMO, RICH) model files: yours or the proxy")
+    s.add_argument("--body-models", type=Path, default=None,
+                   help="folder with smplh/ (BEHAVE) or smplx/ (OMOMO, RICH) model files: yours or the proxy "
+                        "(not needed for multibody)")
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--fps", type=float, default=20.0, help="resample to this rate, by time")
     s.add_argument("--mode", choices=["clean", "legacy"], default="clean", help="representation mode")
@@ -403,7 +447,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("data", type=Path)
     s.add_argument("--out", type=Path, default=None, help="prompts: a .jsonl file (default: print)")
     s.add_argument("--kind", default=None,
-                   choices=["gt", "gt-noise", "static-first-pose", "mean-pose", "mismatched-texts"],
+                   choices=["gt", "gt-noise", "static-first-pose", "mean-pose", "mismatched-texts",
+                            "desync", "lost_contact", "interpenetration", "static"],
                    help="reference: which row (docs/leaderboards.md)")
     s.add_argument("--sigma", type=float, default=0.01, help="gt-noise: noise std in metres (default 0.01)")
     s.add_argument("--seed", type=int, default=0)
@@ -419,6 +464,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--epochs", type=int, default=None)
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=_cmd_train_evaluator)
+
+    s = sub.add_parser("train-recognizer", help="train the multi-body action recognizer (RA, FID) on a store",
+                       epilog="example: hoibench train-recognizer data --out recognizers/mb --split train")
+    s.add_argument("data", type=Path)
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--split", choices=["train", "all"], default="train",
+                   help="train (hoibench's protocols) or all (every split, as the SyncDiff paper)")
+    s.add_argument("--steps", type=int, default=400)
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=_cmd_train_recognizer)
 
     s = sub.add_parser("evaluator", help="show an evaluator card (and verify its id)",
                        epilog="example: hoibench evaluator show evaluators/synthetic-tiny")

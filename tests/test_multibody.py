@@ -1,0 +1,237 @@
+"""Multi-body clips end to end: the representation's exact round trip, single-body stores
+read as multi-body, the synthetic multi-body track (prepare, recognizer, evaluate), analytic
+checks of the surfaces the metrics measure, executor invariance and one-line errors."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("open3d")
+pytest.importorskip("trimesh")
+
+from hoibench.multibody import representation as rep  # noqa: E402
+from hoibench.multibody import synthetic as syn  # noqa: E402
+from hoibench.multibody.clip import Body, MultiBodyClip, check_clip  # noqa: E402
+from hoibench.multibody.surfaces import ObjectField, pair_penetration, skeleton_object_distance  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def family_clips():
+    return [syn.generate(i, fam, act, seed=3) for i, fam, act in syn.plan(9, 3)]
+
+
+def test_representation_round_trip_is_exact_and_relative_blocks_are_consistent(family_clips):
+    for clip in family_clips:
+        x, blocks = rep.encode(clip)
+        widths = {b.body: b.width for b in blocks if b.ref is None}
+        assert sum(b.width for b in blocks) == x.shape[1]
+        back = {b.name: b for b in rep.decode(x, clip)}
+        for b in clip.bodies:
+            if b.is_rigid:
+                np.testing.assert_allclose(back[b.name].trans, b.trans, atol=1e-12)
+                np.testing.assert_allclose(back[b.name].rot, b.rot, atol=1e-12)
+                assert widths[b.name] == 7
+            else:
+                np.testing.assert_allclose(back[b.name].joints, b.joints, atol=1e-12)
+        assert rep.consistency(x, clip) < 1e-9
+        # SyncDiff's comb(a, rel(a, b)) == b for every rigid reference
+        for a in clip.of_kind("object"):
+            for b in clip.bodies:
+                if b.name == a.name:
+                    continue
+                c = rep.combine(a, rep.relative(a, b), b)
+                if b.is_rigid:
+                    np.testing.assert_allclose(c.rot, b.rot, atol=1e-12)
+                    np.testing.assert_allclose(c.trans, b.trans, atol=1e-12)
+                else:
+                    np.testing.assert_allclose(c.joints, b.joints, atol=1e-12)
+        # no relative block between two skeletons (the paper's rule)
+        kinds = {b.name: b.kind for b in clip.bodies}
+        assert all(kinds[b.ref] == "object" for b in blocks if b.ref is not None)
+        # a generated array whose object moved without its relative blocks is inconsistent
+        y = x.copy()
+        obj = next(b for b in blocks if b.ref is None and b.kind == "rigid")
+        y[:, obj.start] += 0.05
+        assert rep.consistency(y, clip) > 0.05 / np.sqrt(2) - 1e-9      # |R^T (0.05, 0, 0)|_inf, R a yaw
+
+
+def test_a_translation_of_the_scene_leaves_relative_blocks_unchanged(family_clips):
+    clip = family_clips[0]
+    x, blocks = rep.encode(clip)
+    moved = dataclasses.replace(clip, bodies=[dataclasses.replace(
+        b, trans=b.trans + [1.0, 0.0, -2.0], joints=None if b.joints is None else b.joints + [1.0, 0.0, -2.0])
+        for b in clip.bodies])
+    y, _ = rep.encode(moved)
+    for b in blocks:
+        if b.ref is not None:
+            np.testing.assert_allclose(y[:, b.columns], x[:, b.columns], atol=1e-9)
+
+
+def test_a_single_body_store_clip_is_the_one_human_one_object_case(tmp_path):
+    from hoibench.datasets.synthetic_store import build_synthetic_store
+    from hoibench.store import Store
+    _, data, _ = build_synthetic_store(tmp_path, 3, seed=1)
+    store = Store(data)
+    cid = store.clip_ids()[0]
+    z = store.load(cid)
+    clip = MultiBodyClip.from_arrays(z, store.object_template)
+    assert clip.signature() == "human,object"
+    check_clip(clip)
+    np.testing.assert_array_equal(clip.bodies[0].joints, z["joints"])
+    tmpl = store.object_template(str(z["object_name"]))[0].astype(np.float64)
+    want = np.einsum("ij,vj->vi", z["obj_rot"][0].astype(np.float64), tmpl) + z["obj_trans"][0]
+    np.testing.assert_allclose(clip.object_vertices(clip.bodies[1].name)[0], want, atol=1e-6)
+    x, blocks = rep.encode(clip)
+    assert x.shape == (len(z["joints"]), 66 + 7 + 66)
+
+
+def _box_body(name, centre, T=1):
+    return Body(name, "object", np.repeat(np.asarray(centre, float)[None], T, 0), np.repeat(np.eye(3)[None], T, 0),
+                None, "box")
+
+
+def test_two_boxes_overlapping_by_a_known_volume_give_that_iv():
+    import trimesh
+    m = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    tmpl = {"box": (np.asarray(m.vertices), np.asarray(m.faces))}
+    fields = {"box": ObjectField(*tmpl["box"])}
+    a = _box_body("a", (0.0, 0.0, 0.0))
+    b = _box_body("b", (0.07, 0.02, 0.0))
+    clip = MultiBodyClip("boxes", "t", "s", 20.0, [a, b], tmpl)
+    want = 0.03 * 0.08 * 0.1                            # overlap 3 cm x 8 cm x 10 cm
+    for voxel in (0.005, 0.0025):
+        vol, dep = pair_penetration(clip, 0, 1, fields, voxel_m=voxel)
+        assert vol[0] == pytest.approx(want, rel=0.12 if voxel == 0.005 else 0.06)
+        assert dep[0] == pytest.approx(0.03, abs=2e-3)    # b's vertices 3 cm inside a along x
+    far = MultiBodyClip("boxes", "t", "s", 20.0, [a, _box_body("b", (0.2, 0.0, 0.0))], tmpl)
+    vol, dep = pair_penetration(far, 0, 1, fields)
+    assert vol[0] == 0.0 and dep[0] == 0.0
+
+
+def _hand_above(top_y: float, gap: float) -> Body:
+    """A straight proxy-sized hand lying flat whose lowest capsule surface is ``gap`` above
+    ``top_y``: every joint on one horizontal line (capsule radius 12 mm palm, 9 mm fingers)."""
+    from hoibench.multibody.surfaces import bones
+    J = np.zeros((1, 21, 3))
+    J[0, :, 0] = np.linspace(-0.03, 0.03, 21)
+    pa, pb, r = bones("hand")
+    J[0, :, 1] = top_y + gap + r.max()
+    return Body("right_hand", "hand", J[:, 0], None, J, None, "right")
+
+
+def test_a_hand_at_a_known_distance_flips_contact_at_the_threshold():
+    import trimesh
+    from hoibench.multibody.evaluate import _contacts
+    from hoibench.multibody.protocol import get
+    proto = get("multibody-synthetic")
+    m = trimesh.creation.box(extents=(0.2, 0.1, 0.2))
+    tmpl = {"box": (np.asarray(m.vertices), np.asarray(m.faces))}
+    fields = {"box": ObjectField(*tmpl["box"])}
+    box = _box_body("box", (0.0, 0.0, 0.0))
+    for gap, touching in ((0.0049, True), (0.0051, False), (0.0, True), (0.02, False)):
+        hand = _hand_above(0.05, gap)
+        d = skeleton_object_distance(hand, fields["box"], box)[0]
+        assert d == pytest.approx(gap, abs=2e-4)
+        clip = MultiBodyClip("h", "t", "s", 20.0, [hand, box], tmpl)
+        assert bool(_contacts(clip, fields, proto)["right_hand"][0]) is touching
+
+
+@pytest.fixture(scope="module")
+def track(tmp_path_factory):
+    """The synthetic multi-body track: 54 clips (6 per action), a recognizer, GT and defects."""
+    from hoibench.datasets import multibody as mbl
+    from hoibench.multibody.evaluate import write_multibody_submission
+    from hoibench.multibody.recognizer import train_recognizer
+    from hoibench.store import PrepareConfig, prepare
+    base = tmp_path_factory.mktemp("mbtrack")
+    mbl.write_synthetic_layout(base / "raw", 54, seed=0)
+    cfg = PrepareConfig("multibody-synthetic", fps=syn.FPS)
+    manifest = prepare(mbl.prepare_jobs(base / "raw", None, base / "data", cfg), base / "data", cfg)
+    card = train_recognizer(base / "data", base / "rec", steps=200)
+    subs = {}
+    for kind in ("gt", "desync", "lost_contact", "interpenetration", "static"):
+        subs[kind] = write_multibody_submission(base / "data", base / f"sub_{kind}", kind=kind)
+    return base, manifest, card, subs
+
+
+def test_the_track_prepares_and_clips_equal_the_generator(track):
+    from hoibench.store import Store
+    base, manifest, _, _ = track
+    assert manifest["counts"]["failed"] == 0 and manifest["counts"]["by_split"] == {"test": 13, "train": 41}
+    store = Store(base / "data")
+    for cid in store.clip_ids()[:9]:
+        clip = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
+        i, fam, act = cid.split("_")
+        want = syn.generate(int(i[2:]), fam, act, seed=0)
+        assert clip.action == act and clip.signature() == want.signature()
+        for b, w in zip(clip.bodies, want.bodies):
+            np.testing.assert_allclose(b.trans, w.trans, atol=1e-6)
+            if w.joints is not None:
+                np.testing.assert_allclose(b.joints, w.joints, atol=1e-6)
+        for k, v in want.contacts.items():
+            np.testing.assert_array_equal(clip.contacts[k], v)
+
+
+def test_the_recognizer_is_far_above_chance_on_the_ground_truth_and_deterministic(track, tmp_path):
+    from hoibench.multibody.recognizer import train_recognizer
+    base, _, card, _ = track
+    assert card["gt_accuracy"]["test"] >= 0.8 > 3 * card["chance_accuracy"]
+    again = train_recognizer(base / "data", tmp_path / "rec", steps=200)
+    assert again["recognizer_id"] == card["recognizer_id"]
+    assert (tmp_path / "rec" / "recognizer.safetensors").read_bytes() == \
+        (base / "rec" / "recognizer.safetensors").read_bytes()
+
+
+def test_ground_truth_scores_best_and_defects_score_worse(track):
+    from hoibench.multibody.evaluate import evaluate
+    base, _, _, subs = track
+    res = {k: evaluate(p, base / "data", base / "rec") for k, p in subs.items()}
+    gt = res["gt"]["metrics"]
+    assert gt["csiou"] == 1.0 and gt["ra"] >= 0.8 and abs(gt["fid"]) < 1e-2     # 0 up to rank-deficient numerics
+    assert gt["iv_cm3"] < 0.01 and gt["id_mm"] < 0.1
+    for kind in ("desync", "lost_contact", "interpenetration"):
+        m = res[kind]["metrics"]
+        assert m["csiou"] < gt["csiou"], kind
+        assert m["fid"] > gt["fid"] + 0.1, kind
+    for kind in ("desync", "interpenetration"):
+        assert res[kind]["metrics"]["iv_cm3"] > 100 * max(gt["iv_cm3"], 1e-4), kind
+        assert res[kind]["metrics"]["id_mm"] > 1.0, kind
+    assert res["static"]["metrics"]["ra"] < gt["ra"]
+    assert res["gt"]["recognizer_trained_on_split"] == "train" and not res["gt"]["notes"]
+
+
+def test_serial_and_process_executors_give_identical_results(track):
+    from hoibench.multibody.evaluate import evaluate
+    base, _, _, subs = track
+    a = evaluate(subs["desync"], base / "data", base / "rec", executor="serial")
+    b = evaluate(subs["desync"], base / "data", base / "rec", executor="processes:2")
+    assert json.dumps(a["metrics"], sort_keys=True) == json.dumps(b["metrics"], sort_keys=True)
+
+
+def test_bad_submissions_get_one_line_naming_the_id_and_field(track, tmp_path, capsys):
+    import shutil
+    from hoibench.cli import main
+    from hoibench.io import npz_bytes
+    base, _, _, subs = track
+    bad = tmp_path / "bad"
+    shutil.copytree(subs["gt"], bad)
+    first = sorted((bad / "samples").glob("*.npz"))[0]
+    with np.load(first) as z:
+        arrays = {k: z[k] for k in z.files}
+    key = next(k for k in arrays if k.endswith("__joints"))
+    arrays[key] = arrays[key][:, :, :5]
+    first.write_bytes(npz_bytes(arrays))
+    argv = ["evaluate", str(bad), "--data", str(base / "data"), "--evaluator", str(base / "rec")]
+    assert main(argv) != 0
+    err = [ln for ln in capsys.readouterr().err.strip().splitlines() if not ln.startswith("[")]
+    assert len(err) == 1 and first.stem in err[0] and key in err[0] and "Traceback" not in err[0]
+    first.unlink()
+    assert main(argv) != 0
+    err = capsys.readouterr().err
+    assert first.stem in err and "missing" in err and "Traceback" not in err
+    assert main(["evaluate", str(subs["gt"]), "--data", str(base / "data"), "--evaluator", str(tmp_path)]) != 0
+    err = capsys.readouterr().err
+    assert "recognizer.json" in err and "Traceback" not in err
