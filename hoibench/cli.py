@@ -203,7 +203,8 @@ def _cmd_submission(args) -> int:
     from .multibody.evaluate import is_multibody_store, write_multibody_submission
     if args.action in ("reference", "from-store") and is_multibody_store(Store(args.data)):
         kind = "gt" if args.action == "from-store" else (args.kind or "gt")
-        path = write_multibody_submission(args.data, args.out, kind=kind, as_zip=args.zip)
+        path = write_multibody_submission(args.data, args.out, kind=kind, as_zip=args.zip, samples=args.samples,
+                                          sigma=args.sigma, seed=args.seed)
         print(f"wrote {path} ({kind}, multi-body)")
         return 0
     if args.action == "reference":
@@ -449,9 +450,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--kind", default=None,
                    choices=["gt", "gt-noise", "static-first-pose", "mean-pose", "mismatched-texts",
                             "desync", "lost_contact", "interpenetration", "static"],
-                   help="reference: which row (docs/leaderboards.md)")
+                   help="reference: which row (docs/leaderboards.md; multi-body stores: gt, gt-noise, desync, "
+                        "lost_contact, interpenetration, static -- docs/multibody.md)")
     s.add_argument("--sigma", type=float, default=0.01, help="gt-noise: noise std in metres (default 0.01)")
     s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--samples", "-k", type=int, default=1, help="multi-body gt-noise: samples per prompt")
     s.add_argument("--zip", action="store_true")
     s.set_defaults(func=_cmd_submission)
 

@@ -112,7 +112,18 @@ def test_split_subjects_and_incomplete(layout, store30):
     split = {c["id"]: c["split"] for c in m["clips"]}
     imos = {"s1": "val", "s10": "test"}
     assert split == {e["clip_id"]: imos.get(e["subject"], "train") for e in manifest["sequences"]}
-    # the fixture holds 4 of GRAB's 10 subject folders: the others are missing sources
+    # the synthetic fixture holds 4 of GRAB's 10 subject folders and says so (hoibench_synthetic.json)
+    assert m["incomplete"] == []
+
+
+def test_a_real_download_missing_subject_folders_is_incomplete(layout, tmp_path):
+    import shutil
+    root, _ = layout
+    copy = tmp_path / "raw"
+    shutil.copytree(root, copy)
+    (copy / "hoibench_synthetic.json").unlink()
+    cfg = PrepareConfig("grab", fps=30.0, body_model_type="smplx")
+    m = prepare(grab.prepare_jobs(copy, copy / "body_models", tmp_path / "out", cfg), tmp_path / "out", cfg)
     assert len(m["incomplete"]) == 10 - N_SEQ and all("missing" in x for x in m["incomplete"])
 
 

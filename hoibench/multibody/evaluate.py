@@ -40,7 +40,7 @@ from .surfaces import HUMAN_HAND_RADIUS_M, ObjectField, hand_root_points, pair_p
 __all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "main_evaluate",
            "format_result", "is_multibody_store", "REFERENCE_KINDS"]
 
-REFERENCE_KINDS = ("gt", "desync", "lost_contact", "interpenetration", "static")
+REFERENCE_KINDS = ("gt", "gt-noise", "desync", "lost_contact", "interpenetration", "static")
 
 
 def is_multibody_store(store) -> bool:
@@ -101,11 +101,12 @@ def _field(arrays, sid: str, key: str, tail: tuple, k: int) -> np.ndarray:
 
 
 def write_multibody_submission(data, out, kind: str = "gt", samples: int = 1, method: str | None = None,
-                               as_zip: bool = False) -> Path:
+                               as_zip: bool = False, sigma: float = 0.01, seed: int = 0) -> Path:
     """A reference submission from a multi-body store's test split: ``gt`` (the ground
-    truth), ``desync`` / ``lost_contact`` / ``interpenetration`` (its defective copies,
-    :func:`hoibench.multibody.synthetic.inject`) or ``static`` (every body held at its
-    first frame)."""
+    truth), ``gt-noise`` (each of ``samples`` samples: every position plus i.i.d. Gaussian
+    noise of ``sigma`` metres, seeded), ``desync`` / ``lost_contact`` / ``interpenetration``
+    (its defective copies, :func:`hoibench.multibody.synthetic.inject`) or ``static``
+    (every body held at its first frame)."""
     from ..store import Store
     from ..submission import write_submission
     from . import synthetic as syn
@@ -122,10 +123,21 @@ def write_multibody_submission(data, out, kind: str = "gt", samples: int = 1, me
                                                rot=None if b.rot is None else np.repeat(b.rot[:1], gt.num_frames, 0),
                                                joints=None if b.joints is None else
                                                np.repeat(b.joints[:1], gt.num_frames, 0)) for b in gt.bodies])
+        elif kind == "gt-noise":
+            rng = np.random.default_rng([int(seed), int.from_bytes(cid.encode()[:8].ljust(8, b"\0"), "little")])
+            versions = []
+            for _ in range(int(samples)):
+                versions.append(replace(gt, bodies=[replace(
+                    b, trans=b.trans + rng.normal(0, sigma, b.trans.shape),
+                    joints=None if b.joints is None else b.joints + rng.normal(0, sigma, b.joints.shape))
+                    for b in gt.bodies]))
+            items.append((cid, sample_arrays(versions)))
+            continue
         else:
             clip = syn.inject(gt, kind)
         items.append((cid, sample_arrays([clip] * int(samples))))
-    meta = {"method": method or f"reference: {kind}", "version": __version__, "representation": "multibody-joints",
+    label = f"reference: {kind}" + (f" ({sigma * 100:g} cm, K = {samples})" if kind == "gt-noise" else "")
+    meta = {"method": method or label, "version": __version__, "representation": "multibody-joints",
             "fps": float(store.manifest["config"]["fps"]),
             "flags": {"uses_gt_length": True, "samples_per_prompt": int(samples), "checkpoint_selection": "none"}}
     return write_submission(out, meta, items, as_zip=as_zip)

@@ -112,7 +112,13 @@ class ObjectField:
         return d.reshape(local.shape[:2])
 
     def inside(self, points: np.ndarray, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
-        return self.signed(points, rot, trans) < 0
+        """``points`` (T, P, 3) world -> (T, P) bool inside the posed closed mesh (ray-parity
+        occupancy, majority of 3 rays)."""
+        import open3d as o3d
+        local = np.einsum("tji,tpj->tpi", np.asarray(rot, np.float64), points - np.asarray(trans, np.float64)[:, None])
+        flat = o3d.core.Tensor(local.reshape(-1, 3).astype(np.float32))
+        occ = self._scene.compute_occupancy(flat, nsamples=3).numpy()
+        return occ.reshape(local.shape[:2]) > 0.5
 
 
 #: surface points per template used, with its vertices, to probe how deep it penetrates
@@ -162,8 +168,16 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
 
 
 def inside_capsules(points: np.ndarray, a: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """(N,) bool: inside any capsule ``(a_s, b_s, r_s)`` (one frame)."""
-    return (_segment_distance(points, a, b) < r[None]).any(1)
+    """(N,) bool: inside any capsule ``(a_s, b_s, r_s)`` (one frame). Each capsule tests only
+    the points in its bounding box, and only those not already inside another."""
+    inside = np.zeros(len(points), bool)
+    for s in range(len(r)):
+        lo = np.minimum(a[s], b[s]) - r[s]
+        hi = np.maximum(a[s], b[s]) + r[s]
+        cand = np.flatnonzero(~inside & (points >= lo).all(1) & (points <= hi).all(1))
+        if len(cand):
+            inside[cand] = _segment_distance(points[cand], a[s:s + 1], b[s:s + 1])[:, 0] < r[s]
+    return inside
 
 
 def capsule_depth_into(points: np.ndarray, pr: np.ndarray, a: np.ndarray, b: np.ndarray, r: np.ndarray) -> float:
@@ -182,6 +196,28 @@ def _grid(lo: np.ndarray, hi: np.ndarray, voxel: float) -> np.ndarray:
     if any(len(x) == 0 for x in axes):
         return np.zeros((0, 3))
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+
+
+def capsule_grid_mask(lo: np.ndarray, hi: np.ndarray, voxel: float, a: np.ndarray, b: np.ndarray,
+                      r: np.ndarray) -> np.ndarray:
+    """Flat bool mask over :func:`_grid` ``(lo, hi, voxel)``: voxel centres inside any capsule.
+    Each capsule is tested only on the block of voxels its bounding box covers."""
+    axes = [np.arange(lo[k] + voxel / 2, hi[k], voxel) for k in range(3)]
+    shape = tuple(len(x) for x in axes)
+    mask = np.zeros(shape, bool)
+    if 0 in shape:
+        return mask.reshape(-1)
+    for s in range(len(r)):
+        blo = np.minimum(a[s], b[s]) - r[s]
+        bhi = np.maximum(a[s], b[s]) + r[s]
+        idx = [(np.searchsorted(x, blo[k]), np.searchsorted(x, bhi[k], side="right")) for k, x in enumerate(axes)]
+        if any(i0 >= i1 for i0, i1 in idx):
+            continue
+        sub = np.stack(np.meshgrid(*(axes[k][i0:i1] for k, (i0, i1) in enumerate(idx)), indexing="ij"), -1)
+        d = _segment_distance(sub.reshape(-1, 3), a[s:s + 1], b[s:s + 1])[:, 0].reshape(sub.shape[:3])
+        view = mask[idx[0][0]:idx[0][1], idx[1][0]:idx[1][1], idx[2][0]:idx[2][1]]
+        view |= d < r[s]
+    return mask.reshape(-1)
 
 
 def pair_penetration(clip: MultiBodyClip, i: int, j: int, fields: dict[str, ObjectField],
@@ -237,15 +273,16 @@ def pair_penetration(clip: MultiBodyClip, i: int, j: int, fields: dict[str, Obje
             continue
         grid = _grid(lo, hi, voxel_m)
         mask = np.ones(len(grid), bool)
-        for key, body in (("A", A), ("B", B)):
+        order = sorted((("A", A), ("B", B)), key=lambda kb: geo[kb[0]][0] == "object")   # capsules first
+        for key, body in order:
             if not mask.any():
                 break
             kind, g, extra = geo[key]
-            sel = np.flatnonzero(mask)
             if kind == "object":
+                sel = np.flatnonzero(mask)
                 mask[sel] = extra.inside(grid[sel][None], body.rot[t:t + 1], body.trans[t:t + 1])[0]
             else:
                 a, b, r = g
-                mask[sel] = inside_capsules(grid[sel], a[t], b[t], r)
+                mask &= capsule_grid_mask(lo, hi, voxel_m, a[t], b[t], r)
         vol[n] = mask.sum() * voxel_m ** 3
     return vol, dep
