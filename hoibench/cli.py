@@ -148,6 +148,15 @@ def _cmd_render(args) -> int:
         root, clip_id = args.data, str(clip)
     else:
         raise ValueError("clip: give DATA/clips/<id>.npz, or an id with --data DATA")
+    from .store import Store
+    from .multibody.clip import MultiBodyClip, is_multibody_arrays
+    store = Store(root)
+    arrays = store.load(clip_id)
+    if is_multibody_arrays(arrays):               # a multi-body clip: a strip of frames
+        from .multibody.render import render_multibody
+        path = render_multibody(MultiBodyClip.from_arrays(arrays, store.object_template), args.out)
+        print(f"wrote {path}")
+        return 0
     path = render_clip(root, clip_id, args.out, body=args.body)
     print(f"wrote {path}")
     return 0

@@ -204,18 +204,23 @@ def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
     return proto
 
 
-def load_protocol(path: str | Path) -> Protocol:
-    """Read and validate one protocol YAML file."""
+def read_protocol_yaml(path: str | Path):
+    """The parsed content of a protocol YAML file (single-body or multi-body); errors name
+    the file."""
     import yaml
 
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"protocol: no file at {p}")
     try:
-        data = yaml.safe_load(p.read_text())
+        return yaml.safe_load(p.read_text())
     except yaml.YAMLError as e:
         raise ValueError(f"{p}: not valid YAML: {e}") from None
-    return protocol_from_dict(data, str(p))
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Read and validate one protocol YAML file."""
+    return protocol_from_dict(read_protocol_yaml(path), str(path))
 
 
 def list_protocols() -> list[Protocol]:

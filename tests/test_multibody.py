@@ -235,3 +235,17 @@ def test_bad_submissions_get_one_line_naming_the_id_and_field(track, tmp_path, c
     assert main(["evaluate", str(subs["gt"]), "--data", str(base / "data"), "--evaluator", str(tmp_path)]) != 0
     err = capsys.readouterr().err
     assert "recognizer.json" in err and "Traceback" not in err
+
+
+def test_a_multibody_clip_renders_as_a_strip_of_frames(track, tmp_path, capsys):
+    pytest.importorskip("pyvista")
+    from hoibench.cli import main
+    base, _, _, _ = track
+    clip = sorted((base / "data" / "clips").glob("*carry*.npz"))[0]
+    out = tmp_path / "strip.png"
+    assert main(["render", str(clip), "--out", str(out)]) == 0
+    from PIL import Image
+    w, h = Image.open(out).size
+    assert (w, h) == (4 * 360, 320)
+    assert main(["render", str(clip), "--out", str(tmp_path / "x.gif")]) != 0
+    assert "writes .png" in capsys.readouterr().err

@@ -7,7 +7,6 @@ clip's recorded floor, independently of hoibench's loader."""
 from __future__ import annotations
 
 import json
-import pickle
 import shutil
 
 import numpy as np

@@ -17,7 +17,7 @@ import pytest
 smplx = pytest.importorskip("smplx")
 trimesh = pytest.importorskip("trimesh")
 
-from hoibench.bodies import build_proxy_arrays, clip_body_forward, write_proxy_model  # noqa: E402
+from hoibench.bodies import build_proxy_arrays, clip_body_forward  # noqa: E402
 from hoibench.bodies.proxy import ProxyBody  # noqa: E402
 from hoibench.datasets import rich  # noqa: E402
 from hoibench.datasets import synthetic_layouts as sl  # noqa: E402

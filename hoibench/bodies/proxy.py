@@ -377,18 +377,14 @@ def _landmark_targets(J: np.ndarray, model_type: str = "smplh") -> list[tuple[st
     return out
 
 
-@lru_cache(maxsize=None)
-def _build(model_type: str) -> dict[str, np.ndarray]:
-    mt = _check_model_type(model_type)
-    n_joints, joint_parents, _, _ = _LAYOUT[mt]
-    J = _rest_joints(mt)
-    parts = _parts(mt)
-    n_target = _NUM_VERTICES[mt]
-
-    verts, faces, part_of, ring = [], [], [], {}
+def _assemble(parts: list[_Part], n_joints: int):
+    """The capsules of ``parts`` as one mesh: vertices, faces, each vertex's part, each
+    joint's regressor ring (vertex ids) and each part's first vertex id."""
+    verts, faces, part_of, ring, starts = [], [], [], {}, []
     off = 0
     for k, p in enumerate(parts):
         v, f, r0, r1 = _capsule(p)
+        starts.append(off)
         verts.append(v)
         faces.append(f + off)
         part_of.append(np.full(len(v), k))
@@ -398,9 +394,30 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
                 ring[j] = r + off
         off += len(v)
     assert sorted(ring) == list(range(n_joints)), "every joint needs one ring"
-    V = np.concatenate(verts)
-    F = np.concatenate(faces)
-    part_of = np.concatenate(part_of)
+    return np.concatenate(verts), np.concatenate(faces), np.concatenate(part_of), ring, starts + [off]
+
+
+def _split_faces(V: np.ndarray, F: np.ndarray, part_of: np.ndarray, pick: np.ndarray):
+    """Split the faces ``pick`` at their centroid (1 -> 3 triangles, orientation kept); the
+    new vertices lie on the surface, after all others, in the part of the face."""
+    new = len(V) + np.arange(len(pick))
+    a, b, c = F[pick, 0], F[pick, 1], F[pick, 2]
+    V = np.concatenate([V, (V[a] + V[b] + V[c]) / 3.0])
+    part_of = np.concatenate([part_of, part_of[a]])
+    F[pick] = np.stack([a, b, new], -1)
+    F = np.concatenate([F, np.stack([b, c, new], -1), np.stack([c, a, new], -1)])
+    return V, F, part_of
+
+
+@lru_cache(maxsize=None)
+def _build(model_type: str) -> dict[str, np.ndarray]:
+    mt = _check_model_type(model_type)
+    n_joints, joint_parents, _, _ = _LAYOUT[mt]
+    J = _rest_joints(mt)
+    parts = _parts(mt)
+    n_target = _NUM_VERTICES[mt]
+
+    V, F, part_of, ring, _ = _assemble(parts, n_joints)
 
     # Pad to the SMPL vertex count by splitting faces of the big parts at their centroid
     # (1 -> 3 triangles, orientation kept): the new vertices lie on the surface.
@@ -411,13 +428,7 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
     while pad:  # one round for SMPL-H; SMPL-X's larger count splits the split faces again
         cand = np.flatnonzero(np.isin(part_of[F[:, 0]], sorted(big)))
         step = min(pad, len(cand))
-        pick = cand[(np.arange(step) * len(cand)) // step]
-        new = len(V) + np.arange(step)
-        a, b, c = F[pick, 0], F[pick, 1], F[pick, 2]
-        V = np.concatenate([V, (V[a] + V[b] + V[c]) / 3.0])
-        part_of = np.concatenate([part_of, part_of[a]])
-        F[pick] = np.stack([a, b, new], -1)
-        F = np.concatenate([F, np.stack([b, c, new], -1), np.stack([c, a, new], -1)])
+        V, F, part_of = _split_faces(V, F, part_of, cand[(np.arange(step) * len(cand)) // step])
         pad -= step
 
     # Move smplx's landmark vertices (extra joints) to the indices smplx reads.

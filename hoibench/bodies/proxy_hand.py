@@ -69,7 +69,8 @@ import numpy as np
 
 from ..geometry import axis_angle_to_matrix
 from ..io import atomic_write_bytes, npz_bytes
-from .proxy import _FINGER_RADIUS, _FINGERS, _LEFT_FINGERS, PROXY_SCALE_PER_BETA, _capsule, _Part
+from .proxy import (_FINGER_RADIUS, _FINGERS, _LEFT_FINGERS, PROXY_SCALE_PER_BETA, _assemble, _Part,
+                    _split_faces)
 
 __all__ = [
     "MANO_NUM_VERTICES",
@@ -177,22 +178,9 @@ def _build(side: str) -> dict:
 
     J, _ = _right_joints_and_tips()
     parts = _parts()
-    verts, faces, part_of, ring, tip_src = [], [], [], {}, {}
-    off = 0
-    for k, p in enumerate(parts):
-        v, f, r0, r1 = _capsule(p)
-        verts.append(v)
-        faces.append(f + off)
-        part_of.append(np.full(len(v), k))
-        for j, rg in ((p.j0, r0), (p.j1, r1)):
-            if j >= 0:
-                assert j not in ring, f"joint {j} has two regressor rings"
-                ring[j] = rg + off
-        if p.name.endswith("3"):
-            tip_src[p.name[:-1]] = off + len(v) - 1  # the pole at the finger tip
-        off += len(v)
-    assert sorted(ring) == list(range(MANO_NUM_JOINTS)), "every joint needs one ring"
-    V, F, part_of = np.concatenate(verts), np.concatenate(faces), np.concatenate(part_of)
+    V, F, part_of, ring, starts = _assemble(parts, MANO_NUM_JOINTS)
+    # the pole at each finger tip: the last vertex of the finger's third segment
+    tip_src = {p.name[:-1]: starts[k + 1] - 1 for k, p in enumerate(parts) if p.name.endswith("3")}
 
     # Pad to 778 vertices by splitting palm faces at their centroid (1 -> 3 triangles,
     # orientation kept; the new vertices lie on the palm surface, after all others).
@@ -200,13 +188,7 @@ def _build(side: str) -> dict:
     assert 0 <= pad, f"proxy hand resolution too high: {len(V)} > {MANO_NUM_VERTICES} vertices"
     if pad:
         cand = np.flatnonzero(part_of[F[:, 0]] == 0)
-        pick = cand[(np.arange(pad) * len(cand)) // pad]
-        new = len(V) + np.arange(pad)
-        a, b, c = F[pick, 0], F[pick, 1], F[pick, 2]
-        V = np.concatenate([V, (V[a] + V[b] + V[c]) / 3.0])
-        part_of = np.concatenate([part_of, np.zeros(pad, np.int64)])
-        F[pick] = np.stack([a, b, new], -1)
-        F = np.concatenate([F, np.stack([b, c, new], -1), np.stack([c, a, new], -1)])
+        V, F, part_of = _split_faces(V, F, part_of, cand[(np.arange(pad) * len(cand)) // pad])
 
     # Move the tip poles to smplx's MANO tip indices; everything else keeps its order.
     order = np.full(len(V), -1)

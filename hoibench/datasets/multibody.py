@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..ids import InvalidIdError, check_id
-from ..multibody.clip import Body, MultiBodyClip, check_clip, is_multibody_arrays
+from ..multibody.clip import MultiBodyClip, check_clip, is_multibody_arrays
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_times
 
 __all__ = ["SequenceError", "load_sequence", "prepare_jobs", "write_synthetic_layout", "dataset_name"]

@@ -98,6 +98,9 @@ _SEQ_KEYS = {"trans": (3,), "root_orient": (3,), "pose_body": (63,), "obj_rot": 
 #: frame's own scale, so the template's centre is exact); more is refused, naming the
 #: sequence, the part and the error.
 OBJECT_SCALE_TOL_M = 1e-3
+#: in every clip's checksum: a store prepared by an older loader (unmerged templates, no
+#: object parts) is rebuilt on the next ``prepare`` instead of being kept.
+LOADER_VERSION = "omomo-loader-0.6"
 #: OMOMO's two-part objects: a top (the handle the hands hold) and an articulated bottom,
 #: ``<object>_cleaned_simplified_{top,bottom}.obj`` posed by ``obj_*`` and ``obj_bottom_*``.
 TWO_PART_SUFFIXES = ("top", "bottom")
@@ -590,7 +593,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         files = ([object_template_path(objects_root, obj, p) for p in TWO_PART_SUFFIXES] if obj and two_part else
                  [object_template_path(objects_root, obj) if obj else objects_root / "<no template>"])
         files += [Path(p) for p in (text_file, gt_file) if p]
-        sha = _sequence_sha(seq, files, config.sha256())
+        sha = _sequence_sha(seq, files, config.sha256() + LOADER_VERSION)
         jobs.append((cid, split, sha, str(out), loader, args, config.mode))
         sources.append(origin)
     jobs = refuse_duplicates(jobs, sources)

@@ -183,19 +183,29 @@ class ContactMapUnavailable(SequenceError):
     """No model files under ``body_models`` give RICH's SMPL-topology labels a joint."""
 
 
-def _smpl_topology_weights(root: Path) -> tuple[np.ndarray, str] | None:
-    """(6890, J) skinning weights of an SMPL-H ``.npz`` (read without pickles) or, through
-    ``smplx``, of SMPL-H / SMPL model files under ``root``; None when there are none."""
+def _npz_weights(root: Path, model_type: str, shape: tuple) -> tuple[np.ndarray, str] | None:
+    """Skinning weights of the first ``<model_type>/<PREFIX>_<GENDER>.npz`` under ``root``
+    whose ``weights`` start with ``shape`` (read without pickles), and the file's name."""
+    from ..bodies.smpl import MODEL_FILE_PREFIX
     for g in ("NEUTRAL", "MALE", "FEMALE"):
-        p = root / "smplh" / f"SMPLH_{g}.npz"
+        p = root / model_type / f"{MODEL_FILE_PREFIX[model_type]}_{g}.npz"
         if p.is_file():
             try:
                 with np.load(p, allow_pickle=False) as z:
                     w = np.asarray(z["weights"], dtype=np.float64)
-                if w.shape[0] == SMPL_NUM_VERTICES:
-                    return w, f"smplh/{p.name}"
+                if w.shape[:len(shape)] == shape:
+                    return w, f"{model_type}/{p.name}"
             except Exception:
                 pass
+    return None
+
+
+def _smpl_topology_weights(root: Path) -> tuple[np.ndarray, str] | None:
+    """(6890, J) skinning weights of an SMPL-H ``.npz`` (read without pickles) or, through
+    ``smplx``, of SMPL-H / SMPL model files under ``root``; None when there are none."""
+    found = _npz_weights(root, "smplh", (SMPL_NUM_VERTICES,))
+    if found is not None:
+        return found
     from ..bodies.smpl import load_body_model
     for mt in ("smplh", "smpl"):
         for g in ("neutral", "male", "female"):
@@ -236,16 +246,9 @@ def read_deftrafo(path: str | Path) -> np.ndarray:
 def _smplx_weights(root: Path) -> tuple[np.ndarray, str] | None:
     """(10475, 55) SMPL-X skinning weights from the first SMPL-X file under ``root/smplx``
     (``.npz`` read without pickles, else through ``smplx``), or None."""
-    for g in ("NEUTRAL", "MALE", "FEMALE"):
-        p = root / "smplx" / f"SMPLX_{g}.npz"
-        if p.is_file():
-            try:
-                with np.load(p, allow_pickle=False) as z:
-                    w = np.asarray(z["weights"], dtype=np.float64)
-                if w.shape == (SMPLX_NUM_VERTICES, 55):
-                    return w, f"smplx/{p.name}"
-            except Exception:
-                pass
+    found = _npz_weights(root, "smplx", (SMPLX_NUM_VERTICES, 55))
+    if found is not None:
+        return found
     from ..bodies.smpl import load_body_model
     for g in ("neutral", "male", "female"):
         try:

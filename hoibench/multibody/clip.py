@@ -182,7 +182,6 @@ def from_hoi_arrays(z: dict, template_loader: Callable[[str], tuple[np.ndarray, 
     object body per part) read as a multi-body clip. The human-object contact frames are
     the frames where any joint is in contact (the clip's ``contacts``)."""
     joints = np.asarray(z["joints"], np.float64)
-    T = len(joints)
     human = Body("human", "human", joints[:, 0].copy(), None, joints)
     bodies, templates, contacts = [human], {}, {}
     if "obj_rot" in z and str(z.get("object_name", "")):

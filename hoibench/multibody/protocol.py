@@ -97,15 +97,8 @@ def from_dict_plain(d: dict) -> MultiBodyProtocol:
 
 
 def load(path: str | Path) -> MultiBodyProtocol:
-    import yaml
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"protocol: no file at {p}")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as e:
-        raise ValueError(f"{p}: not valid YAML: {e}") from None
-    return from_dict(data, str(p))
+    from ..protocol import read_protocol_yaml
+    return from_dict(read_protocol_yaml(path), str(path))
 
 
 def list_all() -> list[MultiBodyProtocol]:
