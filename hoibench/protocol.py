@@ -335,13 +335,24 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
     """``hoibench protocols ls`` (table of the shipped protocols) or ``hoibench protocols show
     NAME`` (the YAML file, its path and sha256). Returns an exit status."""
     try:
+        from .multibody import protocol as mbp
         if action == "ls":
             print(format_table(list_protocols()))
+            print("\nmulti-body (docs/multibody.md):")
+            for p in mbp.list_all():
+                print(f"{p.id:22s} {p.version:>7s} {p.dataset:20s} fps {p.fps:g}  CSR {p.csr_threshold_m * 1000:g} mm  "
+                      f"CRR {p.crr_threshold_m * 100:g} cm  voxel {p.voxel_m * 1000:g} mm  recognizer on "
+                      f"{p.recognizer_split}")
             return 0
         if action == "show":
             if not name:
                 print("hoibench protocols: error: show needs a protocol id, e.g. behave-clean", file=sys.stderr)
                 return 2
+            if any(m.id == str(name).partition("@")[0] for m in mbp.list_all()):
+                m = mbp.get(name)
+                print(f"# {m.ref}  sha256 {m.sha256()}\n# file: {m.source}")
+                print(Path(m.source).read_text().rstrip())
+                return 0
             p = get_protocol(name)
             print(f"# {p.ref}  sha256 {p.sha256}\n# file: {p.source}")
             print(Path(p.source).read_text().rstrip())

@@ -149,6 +149,8 @@ def write_synthetic_layout(out: str | Path, n_clips: int, seed: int = 0) -> dict
     layout above; every fourth clip is test. Byte-identical for the same arguments."""
     from ..io import atomic_write_bytes, atomic_write_text, npz_bytes
     from ..multibody import synthetic as syn
+    if int(n_clips) < 1:
+        raise ValueError(f"--clips: expected at least 1, got {n_clips}")
     out = Path(out)
     split: dict[str, list[str]] = {"train": [], "test": []}
     entries = []
