@@ -210,6 +210,13 @@ def _lerp(src_t, dst_t, x):
     return np.stack([np.interp(dst_t, src_t, x[:, k]) for k in range(x.shape[1])], -1)
 
 
+def resample_rigid(src_t: np.ndarray, dst_t: np.ndarray, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A rigid pose track (T, 3, 3), (T, 3) at times ``dst_t``: rotations by quaternion
+    slerp (:func:`_slerp_resample`), translations linearly."""
+    aa = _slerp_resample(src_t, dst_t, geo.matrix_to_axis_angle(R)[:, None])[:, 0]
+    return np.asarray(geo.axis_angle_to_matrix(aa)), _lerp(src_t, dst_t, t)
+
+
 def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: str | Path,
                   fps: float = SOURCE_FPS) -> HOISequence:
     """Read one BEHAVE sequence folder into a canonical :class:`HOISequence` at ``fps``.

@@ -127,7 +127,7 @@ from .. import geometry as geo
 from .. import plausibility as pl
 from ..ids import InvalidIdError, check_id
 from ..skeleton import NUM_JOINTS
-from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_times
+from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_rigid, resample_times
 
 __all__ = ["SOURCE_FPS", "PERSONS", "POSE_FILE", "LEGACY_POSE_FILE", "STORED_JOINTS_TOL_M", "OFFICIAL_SPLIT",
            "SequenceError", "official_lists", "official_split", "object_template_path", "object_pose_path",
@@ -572,8 +572,7 @@ def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: st
     if same:
         o_rot, o_trans = R_src, t_centred.copy()
     else:
-        o_aa = _slerp_resample(src_t, dst, geo.matrix_to_axis_angle(R_src)[:, None])[:, 0]
-        o_rot, o_trans = geo.axis_angle_to_matrix(o_aa), _lerp(src_t, dst, t_centred)
+        o_rot, o_trans = resample_rigid(src_t, dst, R_src, t_centred)
     o_trans[:, 1] -= floor
     bodies.append(Body(obj, "object", o_trans, o_rot, None, obj))
 

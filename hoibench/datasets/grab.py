@@ -142,7 +142,7 @@ from .. import plausibility as pl
 from ..ids import InvalidIdError, check_id
 from ..multibody.clip import Body, MultiBodyClip
 from .behave import SequenceError, _lerp, _slerp_resample, load_object_template, load_split_file, read_mesh, \
-    resample_times
+    resample_rigid, resample_times
 from .omomo import ZUP_TO_YUP
 
 __all__ = ["SOURCE_FPS", "SUBJECTS", "IMOS_SPLIT", "LEFT_HAND_LABELS", "RIGHT_HAND_LABELS", "SequenceError",
@@ -543,8 +543,7 @@ def _rigid(R_grab: np.ndarray, t: np.ndarray, mean: np.ndarray, src_t, dst) -> t
     translation of the mean-centred template, resampled to ``dst`` (z-up)."""
     Rc = R_grab.swapaxes(-1, -2)
     tc = t + Rc @ mean
-    aa = _slerp_resample(src_t, dst, geo.matrix_to_axis_angle(Rc)[:, None])[:, 0]
-    return geo.axis_angle_to_matrix(aa), _lerp(src_t, dst, tc)
+    return resample_rigid(src_t, dst, Rc, tc)
 
 
 def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE_FPS, root: str | Path | None = None,

@@ -25,10 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import geometry as geo
 from ..ids import InvalidIdError, check_id
 from ..multibody.clip import MultiBodyClip, check_clip, is_multibody_arrays
-from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_times
+from .behave import SequenceError, _lerp, load_split_file, read_mesh, resample_rigid, resample_times
 
 __all__ = ["SequenceError", "load_sequence", "prepare_jobs", "write_synthetic_layout", "dataset_name"]
 
@@ -94,10 +93,10 @@ def load_sequence(path: str | Path, objects: str | Path, fps: float, clip_id: st
         src_t = np.arange(T) / src_fps
         dst = resample_times(src_t, fps)
         for b in clip.bodies:
-            b.trans = _lerp(src_t, dst, b.trans)
             if b.rot is not None:
-                aa = geo.matrix_to_axis_angle(b.rot)[:, None]
-                b.rot = np.asarray(geo.axis_angle_to_matrix(_slerp_resample(src_t, dst, aa)[:, 0]))
+                b.rot, b.trans = resample_rigid(src_t, dst, b.rot, b.trans)
+            else:
+                b.trans = _lerp(src_t, dst, b.trans)
             if b.joints is not None:
                 b.joints = _lerp(src_t, dst, b.joints.reshape(T, -1)).reshape(len(dst), -1, 3)
         nearest = np.clip(np.searchsorted(src_t, dst - 0.5 / src_fps), 0, T - 1)

@@ -77,7 +77,7 @@ from .. import plausibility as pl
 from ..bodies.transform import rigid_transform_smpl
 from ..ids import InvalidIdError, check_id
 from ..skeleton import NUM_JOINTS, PARENTS, forward_kinematics
-from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_times
+from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_rigid, resample_times
 from .sequence import BodyParams, HOISequence, ObjectPart
 
 __all__ = ["SOURCE_FPS", "ZUP_TO_YUP", "PICKLES", "SequenceError", "parse_name", "official_split",
@@ -343,9 +343,8 @@ def _rigid_part(name: str, where: str, obj: str, part: str, pname: str, prefix: 
     except ValueError as exc:
         raise SequenceError(str(exc)) from None
     o_tc = o_t + scale[:, None] * (R_src @ mean)       # each frame's own scale: the centre is exact
-    o_aa = _slerp_resample(src_t, dst, geo.matrix_to_axis_angle(R_src)[:, None])[:, 0]
-    return {"name": pname, "vertices": verts, "faces": faces, "rot": geo.axis_angle_to_matrix(o_aa),
-            "trans": _lerp(src_t, dst, o_tc),
+    rot, trans = resample_rigid(src_t, dst, R_src, o_tc)
+    return {"name": pname, "vertices": verts, "faces": faces, "rot": rot, "trans": trans,
             "provenance": {"part": part or "whole", "name": pname, "template": template_path.name,
                            "pose_keys": f"{prefix}_rot, {prefix}_trans, {prefix}_scale",
                            "object_scale": s0, "object_scale_spread": spread, "object_scale_max_dev_m": dev,
