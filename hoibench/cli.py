@@ -151,10 +151,9 @@ def _cmd_render(args) -> int:
     from .store import Store
     from .multibody.clip import MultiBodyClip, is_multibody_arrays
     store = Store(root)
-    arrays = store.load(clip_id)
-    if is_multibody_arrays(arrays):               # a multi-body clip: a strip of frames
+    if is_multibody_arrays(store.load(clip_id, keys=("layout",))):   # a multi-body clip: a strip of frames
         from .multibody.render import render_multibody
-        path = render_multibody(MultiBodyClip.from_arrays(arrays, store.object_template), args.out)
+        path = render_multibody(MultiBodyClip.from_arrays(store.load(clip_id), store.object_template), args.out)
         print(f"wrote {path}")
         return 0
     path = render_clip(root, clip_id, args.out, body=args.body)

@@ -35,7 +35,7 @@ import numpy as np
 
 from .. import __version__
 from .clip import Body, MultiBodyClip, is_multibody_arrays
-from .surfaces import HUMAN_HAND_RADIUS_M, ObjectField, hand_root_points, pair_penetration, skeleton_object_distance
+from .surfaces import object_fields, pair_contact_frames, pair_penetration
 
 __all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "main_evaluate",
            "format_result", "is_multibody_store", "REFERENCE_KINDS"]
@@ -144,25 +144,12 @@ def write_multibody_submission(data, out, kind: str = "gt", samples: int = 1, me
 
 
 # --------------------------------------------------------------------------- per clip
-def _fields(clip: MultiBodyClip) -> dict[str, ObjectField]:
-    return {name: ObjectField(*clip.templates[name]) for name in clip.templates}
-
-
 def _contacts(clip: MultiBodyClip, fields, proto) -> dict[str, np.ndarray]:
-    """Contact frames per hand (CSR rule) and per human (CRR rule), keyed by body name."""
-    out = {}
-    objects = clip.of_kind("object")
-    for b in clip.bodies:
-        if b.is_rigid or not objects:
-            continue
-        if b.kind == "hand":
-            d = np.stack([skeleton_object_distance(b, fields[o.template], o) for o in objects]).min(0)
-            out[b.name] = d <= proto.csr_threshold_m
-        else:
-            roots = hand_root_points(b)
-            both = np.stack([((fields[o.template].signed(roots, o.rot, o.trans) - HUMAN_HAND_RADIUS_M)
-                              <= proto.crr_threshold_m).all(1) for o in objects])
-            out[b.name] = both.any(0)
+    """Contact frames per skeleton, keyed by body name: in contact with any object by the
+    protocol's thresholds (:func:`hoibench.multibody.surfaces.pair_contact_frames`)."""
+    out: dict[str, np.ndarray] = {}
+    for (skel, _), frames in pair_contact_frames(clip, fields, proto.csr_threshold_m, proto.crr_threshold_m).items():
+        out[skel] = out[skel] | frames if skel in out else frames
     return out
 
 
@@ -195,7 +182,7 @@ def _clip_unit(job: tuple) -> dict:
     proto = from_dict_plain(proto_dict)
     gt = MultiBodyClip.from_arrays(gt_arrays)
     gt.templates = templates
-    fields = _fields(gt)
+    fields = object_fields(gt)
     pairs = _pairs(gt)
     red = {"sum": np.sum, "max": np.max, "mean": np.mean}[proto.pair_reduction]
 
@@ -264,12 +251,17 @@ def evaluate(submission, data, recognizer, protocol=None, executor: str = "seria
     od: dict[str, mbm.OverallDiversity] = {}         # per body layout: wrists compare within one
     gt_od: dict[str, mbm.OverallDiversity] = {}
     gens, gts = [], []
+    jobs_by_id = {j[0]: j for j in jobs}
     for u in sorted(units, key=lambda x: x["id"]):
         cid = u["id"]
-        gt = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
+        _, arrays, sample, _, templates, K = jobs_by_id[cid]
+        gt = MultiBodyClip.from_arrays(arrays)
+        gt.templates = templates
         gts.append(gt)
+        # every generated sample, for the recognizer
+        gens += [(gt, clip_from_sample(gt, sample, k, cid)) for k in range(K)]
         g = u["gt"]
-        hands = [n for n, b in ((b.name, b) for b in gt.bodies) if b.kind == "hand"]
+        hands = [b.name for b in gt.bodies if b.kind == "hand"]
         humans = [b.name for b in gt.bodies if b.kind == "human"]
         if hands:
             gt_csr.update_frames(cid, [g["contacts"][h] for h in hands])
@@ -293,17 +285,11 @@ def evaluate(submission, data, recognizer, protocol=None, executor: str = "seria
             od.setdefault(sig, mbm.OverallDiversity(num_frames=proto.diversity_frames)).update(key, s["wrists"])
         if len(u["samples"]) > 1:
             sd.update(cid, np.stack([s["wrists"] for s in u["samples"]]))
-    # recognizer on generated samples (every sample of every clip) and on the ground truth
-    with Submission(submission) as sub:
-        for gt in gts:
-            sample = sub.load(gt.name, keys=None)
-            K = len(next(iter(sample.values())))
-            gens += [(gt, clip_from_sample(gt, sample, k, gt.name)) for k in range(K)]
-    gen_feats = rec.features([c for _, c in gens])
-    gt_feats = rec.features(gts)
-    pred = rec.predict([c for _, c in gens])
+    # the recognizer on every generated sample and on the ground truth (one pass each)
+    gen_feats, pred = rec.run([c for _, c in gens])
+    gt_feats, gt_pred = rec.run(gts)
     ra = float(np.mean([p == g.action for p, (g, _) in zip(pred, gens)]))
-    gt_ra = float(np.mean([p == g.action for p, g in zip(rec.predict(gts), gts)]))
+    gt_ra = float(np.mean([p == g.action for p, g in zip(gt_pred, gts)]))
 
     def computed(m):
         try:

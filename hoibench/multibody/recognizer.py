@@ -101,22 +101,28 @@ def _model(n_classes: int):
     return Net()
 
 
+def _xz_columns() -> np.ndarray:
+    """Column of the x component of every 3-vector of :func:`clip_features`' positions and
+    velocities (joints; objects' translation and 6D rotation columns); z is 2 further."""
+    starts, col = [], 0
+    for kind, _, nj in _SLOTS:
+        w = _slot_width(kind, nj)
+        starts += list(range(col, col + w, 3))
+        col += w
+    return np.array(starts + [IN_POS + c for c in starts])
+
+
+_XZ = _xz_columns()
+
+
 def _yaw_augment(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Rotate every position/velocity triple of the slots about the vertical axis (objects:
     translation and the 6D rotation's two columns) by one random angle per clip."""
     out = x.copy()
-    for n in range(len(x)):
-        a = rng.uniform(-np.pi, np.pi)
-        c, s = np.cos(a), np.sin(a)
-        for base in (0, IN_POS):
-            col = base
-            for kind, _, nj in _SLOTS:
-                w = _slot_width(kind, nj)
-                trip = list(range(col, col + w, 3)) if kind != "object" else [col, col + 3, col + 6]
-                for t0 in trip:
-                    xs, zs = out[n, :, t0].copy(), out[n, :, t0 + 2].copy()
-                    out[n, :, t0], out[n, :, t0 + 2] = c * xs + s * zs, -s * xs + c * zs
-                col += w
+    a = rng.uniform(-np.pi, np.pi, len(x))
+    c, s = np.cos(a)[:, None, None], np.sin(a)[:, None, None]
+    xs, zs = out[:, :, _XZ].copy(), out[:, :, _XZ + 2].copy()
+    out[:, :, _XZ], out[:, :, _XZ + 2] = c * xs + s * zs, -s * xs + c * zs
     return out
 
 
@@ -139,15 +145,19 @@ class Recognizer:
         x = np.stack([clip_features(c) for c in clips]) if clips else np.zeros((0, WINDOW, IN_DIM), np.float32)
         x = (x - self.mean) / self.std
         with torch.no_grad():
-            t = torch.from_numpy(x.astype(np.float32))
-            return self.net.features(t).numpy().astype(np.float64), self.net(t).numpy()
+            f = self.net.features(torch.from_numpy(x.astype(np.float32)))
+            return f.numpy().astype(np.float64), self.net.head(torch.relu(f)).numpy()   # = net(x), features once
+
+    def run(self, clips: list[MultiBodyClip]) -> tuple[np.ndarray, list[str]]:
+        """Features (N, 64) and predicted action names of ``clips``, from one forward pass."""
+        feats, logits = self._forward(clips)
+        return feats, [self.classes[i] for i in logits.argmax(1)]
 
     def features(self, clips: list[MultiBodyClip]) -> np.ndarray:
         return self._forward(clips)[0]
 
     def predict(self, clips: list[MultiBodyClip]) -> list[str]:
-        logits = self._forward(clips)[1]
-        return [self.classes[i] for i in logits.argmax(1)]
+        return self.run(clips)[1]
 
 
 def _labelled(store, split: str) -> tuple[list[MultiBodyClip], list[str]]:

@@ -22,8 +22,8 @@ import numpy as np
 
 from .clip import Body, MultiBodyClip
 
-__all__ = ["bones", "axis_points", "ObjectField", "skeleton_object_distance", "capsule_depth_into",
-           "inside_capsules", "pair_penetration", "HAND_RADIUS_M", "AXIS_SAMPLES"]
+__all__ = ["bones", "axis_points", "ObjectField", "object_fields", "skeleton_object_distance", "capsule_depth_into",
+           "capsule_grid_mask", "pair_contact_frames", "pair_penetration", "HAND_RADIUS_M", "AXIS_SAMPLES"]
 
 HAND_RADIUS_M = 0.009
 PALM_RADIUS_M = 0.012
@@ -151,11 +151,36 @@ def _scene(vb: bytes, fb: bytes, vshape: tuple, fshape: tuple):
     return scene
 
 
+def object_fields(clip: MultiBodyClip) -> dict[str, ObjectField]:
+    """One :class:`ObjectField` per template of ``clip``."""
+    return {name: ObjectField(*clip.templates[name]) for name in clip.templates}
+
+
 def skeleton_object_distance(body: Body, field: ObjectField, obj: Body) -> np.ndarray:
     """(T,) signed distance between a skeleton's capsule surface and an object: the
     smallest ``sd(axis point) - radius`` (negative when a capsule penetrates)."""
     pts, r = axis_points(body.joints, body.kind)
     return (field.signed(pts, obj.rot, obj.trans) - r[None]).min(1)
+
+
+def pair_contact_frames(clip: MultiBodyClip, fields: dict[str, ObjectField], csr_threshold_m: float,
+                        crr_threshold_m: float) -> dict[tuple[str, str], np.ndarray]:
+    """Per (skeleton, object) pair, the frames in contact by SyncDiff's rules on these
+    surfaces: a hand's capsule surface within ``csr_threshold_m`` of the object (CSR), both
+    hand roots of a human (the ends of its hand capsules) within ``crr_threshold_m`` of it
+    (CRR)."""
+    out = {}
+    for b in clip.bodies:
+        if b.is_rigid:
+            continue
+        for o in clip.of_kind("object"):
+            fld = fields[o.template]
+            if b.kind == "hand":
+                out[(b.name, o.name)] = skeleton_object_distance(b, fld, o) <= csr_threshold_m
+            else:
+                d = fld.signed(hand_root_points(b), o.rot, o.trans) - HUMAN_HAND_RADIUS_M
+                out[(b.name, o.name)] = (d <= crr_threshold_m).all(1)
+    return out
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -165,19 +190,6 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     t = np.clip(np.einsum("nsk,sk->ns", p[:, None] - a[None], ab) / denom, 0.0, 1.0)
     closest = a[None] + t[..., None] * ab[None]
     return np.linalg.norm(p[:, None] - closest, axis=-1)
-
-
-def inside_capsules(points: np.ndarray, a: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """(N,) bool: inside any capsule ``(a_s, b_s, r_s)`` (one frame). Each capsule tests only
-    the points in its bounding box, and only those not already inside another."""
-    inside = np.zeros(len(points), bool)
-    for s in range(len(r)):
-        lo = np.minimum(a[s], b[s]) - r[s]
-        hi = np.maximum(a[s], b[s]) + r[s]
-        cand = np.flatnonzero(~inside & (points >= lo).all(1) & (points <= hi).all(1))
-        if len(cand):
-            inside[cand] = _segment_distance(points[cand], a[s:s + 1], b[s:s + 1])[:, 0] < r[s]
-    return inside
 
 
 def capsule_depth_into(points: np.ndarray, pr: np.ndarray, a: np.ndarray, b: np.ndarray, r: np.ndarray) -> float:

@@ -35,7 +35,7 @@ import numpy as np
 from .. import geometry as geo
 from ..skeleton import NUM_JOINTS, SMPL_REST_JOINTS, forward_kinematics
 from .clip import Body, MultiBodyClip
-from .surfaces import ObjectField, hand_root_points, skeleton_object_distance
+from .surfaces import ObjectField, hand_root_points, object_fields, pair_contact_frames, skeleton_object_distance
 
 __all__ = ["FAMILIES", "ACTIONS", "FPS", "GENERATOR_VERSION", "GAP_M", "CSR_THRESHOLD_M", "CRR_THRESHOLD_M",
            "templates", "plan", "generate", "contact_frames", "inject", "DEFECTS", "caption"]
@@ -308,29 +308,11 @@ def generate(index: int, family: str, action: str, seed: int = 0) -> MultiBodyCl
     return clip
 
 
-def _fields(clip: MultiBodyClip) -> dict[str, ObjectField]:
-    return {name: ObjectField(*clip.templates[name]) for name in clip.templates}
-
-
 def contact_frames(clip: MultiBodyClip, fields: dict[str, ObjectField] | None = None) -> dict[tuple[str, str], np.ndarray]:
-    """Per (skeleton, object) pair, the frames in contact by the metrics' rules: a hand's
-    capsule surface within :data:`CSR_THRESHOLD_M` of the object (CSR), both hand roots of
-    a human within :data:`CRR_THRESHOLD_M` of it (CRR)."""
-    fields = fields or _fields(clip)
-    out = {}
-    for b in clip.bodies:
-        if b.is_rigid:
-            continue
-        for o in clip.of_kind("object"):
-            fld = fields[o.template]
-            if b.kind == "hand":
-                out[(b.name, o.name)] = skeleton_object_distance(b, fld, o) <= CSR_THRESHOLD_M
-            else:
-                roots = hand_root_points(b)
-                from .surfaces import HUMAN_HAND_RADIUS_M
-                d = fld.signed(roots, o.rot, o.trans) - HUMAN_HAND_RADIUS_M
-                out[(b.name, o.name)] = (d <= CRR_THRESHOLD_M).all(1)
-    return out
+    """Per (skeleton, object) pair, the frames in contact by the metrics' rules at the
+    track's thresholds (:data:`CSR_THRESHOLD_M`, :data:`CRR_THRESHOLD_M`;
+    :func:`hoibench.multibody.surfaces.pair_contact_frames`)."""
+    return pair_contact_frames(clip, fields or object_fields(clip), CSR_THRESHOLD_M, CRR_THRESHOLD_M)
 
 
 def inject(clip: MultiBodyClip, defect: str, frames: int = 6) -> MultiBodyClip:
@@ -351,13 +333,12 @@ def inject(clip: MultiBodyClip, defect: str, frames: int = 6) -> MultiBodyClip:
         away[T // 2:, 1] = -0.08                                   # the object drops 8 cm
         held.trans = held.trans + away
     else:                                                          # interpenetration
-        push = np.array([0.0, -0.02, 0.0]) if holder.kind == "hand" else np.zeros(3)
-        if holder.kind == "human":
-            push = held.trans[:, None] - holder.joints                # towards the box ...
-            push = 0.06 * push / np.linalg.norm(push, axis=-1, keepdims=True)  # ... by 6 cm
-            holder.joints = holder.joints + push
-        else:
-            holder.joints = holder.joints + push
+        if holder.kind == "human":                                 # every joint 6 cm towards the box
+            push = held.trans[:, None] - holder.joints
+            push = 0.06 * push / np.linalg.norm(push, axis=-1, keepdims=True)
+        else:                                                      # the hand 2 cm down into its object
+            push = np.array([0.0, -0.02, 0.0])
+        holder.joints = holder.joints + push
         holder.trans = holder.joints[:, 0].copy()
     out = dataclasses.replace(clip, bodies=bodies, contacts={}, provenance={**clip.provenance, "defect": defect})
     out.contacts = contact_frames(out)
