@@ -409,6 +409,22 @@ def _split_faces(V: np.ndarray, F: np.ndarray, part_of: np.ndarray, pick: np.nda
     return V, F, part_of
 
 
+def _reorder_and_skin(V: np.ndarray, F: np.ndarray, part_of: np.ndarray, order: np.ndarray, ring: dict,
+                      parts: list[_Part], n_joints: int):
+    """Put vertex ``order[i]`` at index ``i`` (faces renumbered), then one-hot skinning
+    weights (each vertex rigid to its part's joint) and a joint regressor averaging each
+    joint's ring: ``(V, F, part_of, weights (V, J), J_regressor (J, V))``."""
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    V, part_of, F = V[order], part_of[order], inv[F]
+    weights = np.zeros((len(V), n_joints))
+    weights[np.arange(len(V)), np.array([p.joint for p in parts])[part_of]] = 1.0
+    J_reg = np.zeros((n_joints, len(V)))
+    for j, r in ring.items():
+        J_reg[j, inv[r]] = 1.0 / len(r)
+    return V, F, part_of, weights, J_reg
+
+
 @lru_cache(maxsize=None)
 def _build(model_type: str) -> dict[str, np.ndarray]:
     mt = _check_model_type(model_type)
@@ -441,16 +457,8 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
         order[idx] = src
         taken[src] = True
     order[order < 0] = np.flatnonzero(~taken)
-    inv = np.empty_like(order)
-    inv[order] = np.arange(len(order))
-    V, part_of, F = V[order], part_of[order], inv[F]
-
+    V, F, part_of, weights, J_reg = _reorder_and_skin(V, F, part_of, order, ring, parts, n_joints)
     n_v = len(V)
-    weights = np.zeros((n_v, n_joints))
-    weights[np.arange(n_v), np.array([p.joint for p in parts])[part_of]] = 1.0
-    J_reg = np.zeros((n_joints, n_v))
-    for j, r in ring.items():
-        J_reg[j, inv[r]] = 1.0 / len(r)
     if mt == "smplx":  # float32: 400 directions of 10475 vertices (the files store no more)
         shapedirs = np.zeros((n_v, 3, _SMPLX_SHAPE_DIMS + _SMPLX_EXPR_DIMS), dtype=np.float32)
         posedirs = np.zeros((n_v, 3, 9 * (n_joints - 1)), dtype=np.float32)

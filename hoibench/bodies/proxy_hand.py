@@ -70,7 +70,7 @@ import numpy as np
 from ..geometry import axis_angle_to_matrix
 from ..io import atomic_write_bytes, npz_bytes
 from .proxy import (_FINGER_RADIUS, _FINGERS, _LEFT_FINGERS, PROXY_SCALE_PER_BETA, _assemble, _Part,
-                    _split_faces)
+                    _reorder_and_skin, _split_faces)
 
 __all__ = [
     "MANO_NUM_VERTICES",
@@ -195,16 +195,8 @@ def _build(side: str) -> dict:
     for name, idx in MANO_TIP_VERTEX_IDS.items():
         order[idx] = tip_src[name]
     order[order < 0] = np.setdiff1d(np.arange(len(V)), list(tip_src.values()))
-    inv = np.empty_like(order)
-    inv[order] = np.arange(len(order))
-    V, part_of, F = V[order], part_of[order], inv[F]
-
+    V, F, part_of, weights, J_reg = _reorder_and_skin(V, F, part_of, order, ring, parts, MANO_NUM_JOINTS)
     n_v = len(V)
-    weights = np.zeros((n_v, MANO_NUM_JOINTS))
-    weights[np.arange(n_v), np.array([p.joint for p in parts])[part_of]] = 1.0
-    J_reg = np.zeros((MANO_NUM_JOINTS, n_v))
-    for j, rg in ring.items():
-        J_reg[j, inv[rg]] = 1.0 / len(rg)
     shapedirs = np.zeros((n_v, 3, MANO_NUM_BETAS))
     shapedirs[:, :, 0] = PROXY_SCALE_PER_BETA * V
     parents = np.array(MANO_PARENTS, dtype=np.int64)
