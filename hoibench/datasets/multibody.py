@@ -123,6 +123,7 @@ def prepare_jobs(root: str | Path, body_models, out: str | Path, config, split_f
     split_path = Path(split_file) if split_file else (root / "split.json" if (root / "split.json").exists() else None)
     splits = load_split_file(split_path) if split_path else None
     dataset = dataset_name(root)
+    objs = sorted((root / "objects").glob("*.obj")) if (root / "objects").is_dir() else []
     jobs, sources = [], []
     for p in sorted(seq_dir.glob("*.npz")):
         cid = p.stem
@@ -133,7 +134,6 @@ def prepare_jobs(root: str | Path, body_models, out: str | Path, config, split_f
             sources.append(str(p))
             continue
         split = splits.get(cid, "unknown") if splits is not None else "train"
-        objs = sorted((root / "objects").glob("*.obj")) if (root / "objects").is_dir() else []
         sha = file_sha256([p, *objs], extra=f"{cid}|{dataset}|" + config.sha256())
         loader, args = load_sequence, (str(p), str(root / "objects"), float(config.fps), cid, dataset)
         if split == "unknown":

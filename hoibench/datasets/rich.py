@@ -537,7 +537,7 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     contacts, cmap_src = None, None
     contact_dir = data_root / "human_scene_contact" / split_dir / seq
     if with_contacts and contact_dir.is_dir():
-        contact_joint_map(str(Path(body_models)))      # fails the clip before reading labels
+        vmap, cmap_src = contact_joint_map(str(Path(body_models)))   # fails the clip before reading labels
         labels = []
         for i in ids:
             cpath = contact_dir / f"{i:05d}" / f"{sub}.pkl"
@@ -552,7 +552,6 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
                 raise SequenceError(f"{seq}: {_rel(cpath, data_root)}: expected 'contact' with "
                                     f"{SMPL_NUM_VERTICES} finite SMPL-vertex labels")
             labels.append(lab)
-        vmap, cmap_src = contact_joint_map(str(Path(body_models)))
         jc = joint_contacts(np.stack(labels), vmap)
         nearest = np.clip(np.searchsorted(src_t, dst - 0.5 / SOURCE_FPS), 0, N - 1)
         contacts = jc[nearest]
