@@ -25,7 +25,7 @@ def load_process_file(reference_dir: str | Path):
     from common.skeleton import Skeleton  # noqa: F401  (from the user's checkout)
     import paramUtil
 
-    from hoibench.skeleton import REFERENCE_TARGET_OFFSETS
+    from hoibench.core.skeleton import REFERENCE_TARGET_OFFSETS
 
     ns: dict = {}
     exec("from common.skeleton import Skeleton\nfrom common.quaternion import *\n"

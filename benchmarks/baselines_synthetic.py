@@ -2,9 +2,9 @@
 
 Rows: ground truth (real motion), ChainHOI tiny (paper chain mask), ChainHOI tiny with the
 released code's mask, EJIM tiny, CATMO tiny, the untrained ChainHOI and CATMO tiny (0 steps),
-mean pose + static object, and the reference rows of :mod:`hoibench.reference_rows` (GT + 1
+mean pose + static object, and the reference rows of :mod:`hoibench.scoring.reference_rows` (GT + 1
 and 3 cm noise, static first pose, mismatched texts).
-Each is written as a standard submission and scored by ``hoibench.evaluate.evaluate`` under
+Each is written as a standard submission and scored by ``hoibench.scoring.evaluate.evaluate`` under
 the store's default protocol (synthetic-clean: 20 replications, pools of 32) with the given
 evaluator. Runs, submissions and results are reused when they already exist (training and
 sampling are deterministic), so a rerun only redoes what is missing.
@@ -30,10 +30,10 @@ from hoibench.baselines.registry import get_spec
 from hoibench.baselines.sampler import sample
 from hoibench.baselines.trainer import train
 from hoibench.baselines.trivial import write_mean_pose_submission
-from hoibench.evaluate import evaluate
-from hoibench.io import atomic_write_json, atomic_write_text
-from hoibench.leaderboard import entry_from_result, write_entry
-from hoibench.submission import from_store
+from hoibench.scoring.evaluate import evaluate
+from hoibench.core.io import atomic_write_json, atomic_write_text
+from hoibench.publish.leaderboard import entry_from_result, write_entry
+from hoibench.scoring.submission import from_store
 
 COLUMNS = [("fid", "FID", "down"), ("r_precision_top1", "R@1", "up"), ("r_precision_top3", "R@3", "up"),
            ("mm_dist", "MM-Dist", "down"), ("diversity", "Diversity", "near GT"), ("cd", "CD (m^2)", "down"),
@@ -99,7 +99,7 @@ def main() -> None:
     results = {}
     t_all = time.perf_counter()
     from hoibench.baselines.catmo.data import has_objects
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     store = Store(args.data)
     human_only = not has_objects(store, store.clip_ids("test"))
     for label, kind, over in rows_spec(args.steps, human_only):
@@ -112,7 +112,7 @@ def main() -> None:
             if kind == "gt":
                 from_store(args.data, sub)
             elif kind.startswith("ref:"):
-                from hoibench.reference_rows import write_reference
+                from hoibench.scoring.reference_rows import write_reference
                 write_reference(kind[4:], args.data, sub, **(over or {}))
             elif kind == "mean-pose":
                 write_mean_pose_submission(args.data, sub)

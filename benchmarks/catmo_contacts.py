@@ -4,7 +4,7 @@ For every test clip: the text's body parts ``P_i`` are the parts the annotator n
 clip's actions (``DATA/annotations/<id>.json``, the parts its captions mention); CATMO
 generates ``K`` samples from the clip's first caption and the contact VQ-VAE's decoded
 contacts (probability > 0.5) are turned into body parts ``G_ik`` the way the annotator turns
-contact labels into parts (:func:`hoibench.annotate.body_part_timeline`, same minimum
+contact labels into parts (:func:`hoibench.text.annotate.body_part_timeline`, same minimum
 segment length). Scores per clip: Jaccard ``|G n P| / |G u P|`` (1 when both are empty) and
 recall ``|G n P| / |P|``, averaged over the K samples. Also printed: the per joint-frame
 accuracy and F1 of the generated contacts against the clip's ground-truth contact labels.
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from hoibench.annotate import body_part_timeline, load_spec
+from hoibench.text.annotate import body_part_timeline, load_spec
 from hoibench.baselines import joint_data as D
 from hoibench.baselines.catmo.sampler import LoadedCatmo
 from hoibench.evaluator.text import read_captions
-from hoibench.store import Store
+from hoibench.datasets.store import Store
 
 
 def parts_of(contacts: np.ndarray, spec) -> set[str]:

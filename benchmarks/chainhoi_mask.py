@@ -24,7 +24,7 @@ from hoibench.baselines import joint_data as D
 from hoibench.baselines.chainhoi.graph import chain_mask
 from hoibench.baselines.sampler import LoadedRun
 from hoibench.evaluator.text import read_captions
-from hoibench.store import Store
+from hoibench.datasets.store import Store
 
 
 def set_mask(model, mode: str) -> None:

@@ -1,4 +1,4 @@
-"""Throughput of signed-distance queries and contact labels (hoibench.contact).
+"""Throughput of signed-distance queries and contact labels (hoibench.bodies.contact).
 
     python benchmarks/contact.py [--frames 20] [--repeats 3] [--trimesh-points 5000]
 
@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from hoibench import contact as C
+from hoibench.bodies import contact as C
 from hoibench.bodies.proxy import ProxyBody
 from hoibench.datasets import synthetic as syn
 

@@ -50,14 +50,14 @@ def main(argv=None) -> None:
     ap.add_argument("--trimesh-samples", type=int, default=2)
     args = ap.parse_args(argv)
 
-    from hoibench.annotate import annotate_store
+    from hoibench.text.annotate import annotate_store
     from hoibench.datasets.synthetic_store import build_synthetic_store
     from hoibench.evaluator import load_evaluator
     from hoibench.metrics import embedding as em
     from hoibench.metrics.physical import clip_inputs, evaluate_physical, load_groups
-    from hoibench.protocol import get_protocol
+    from hoibench.tracks.protocol import get_protocol
     from hoibench.representations import hoi269
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
 
     tmp = Path(tempfile.mkdtemp(prefix="hoibench-eval-bench-"))
     try:

@@ -41,9 +41,9 @@ def _loop(a: np.ndarray, n: int) -> np.ndarray:
 def benchmark_store(src: Path, out: Path, prompts: int, frames: int) -> list[str]:
     """Copy the store ``src`` to ``out`` with a test split of ``prompts`` looped clips."""
     from hoibench.datasets.sequence import BodyParams, HOISequence
-    from hoibench.io import atomic_write_json
-    from hoibench.store import Store, clip_arrays
-    from hoibench.io import npz_bytes, atomic_write_bytes
+    from hoibench.core.io import atomic_write_json
+    from hoibench.datasets.store import Store, clip_arrays
+    from hoibench.core.io import npz_bytes, atomic_write_bytes
 
     shutil.copytree(src, out)
     st = Store(src)
@@ -98,8 +98,8 @@ def benchmark_store(src: Path, out: Path, prompts: int, frames: int) -> list[str
 
 
 def write_zip(store: Path, ids: list[str], k: int, out: Path, seed: int = 0) -> Path:
-    from hoibench.store import Store
-    from hoibench.submission import write_submission
+    from hoibench.datasets.store import Store
+    from hoibench.scoring.submission import write_submission
     st = Store(store)
     rng = np.random.default_rng(seed)
     meta = {"method": f"GT{' + 1 cm noise' if k > 1 else ''}, benchmark", "version": "", "url": "",
@@ -150,7 +150,7 @@ def main(argv=None) -> None:
     ap.add_argument("--executor", default="processes:2")
     ap.add_argument("--work", type=Path, default=None, help="keep the stores and zips here (default: a temp dir)")
     args = ap.parse_args(argv)
-    from hoibench.annotate import annotate_store
+    from hoibench.text.annotate import annotate_store
     from hoibench.datasets.synthetic_store import build_synthetic_store
 
     tmp = args.work or Path(tempfile.mkdtemp(prefix="hoibench-eval-cli-"))
@@ -165,7 +165,7 @@ def main(argv=None) -> None:
         if not (ev / "card.json").exists():
             subprocess.run([sys.executable, "-m", "hoibench.cli", "train-evaluator", str(data), "--out", str(ev),
                             "--size", "tiny"], check=True, capture_output=True)
-        from hoibench.store import Store
+        from hoibench.datasets.store import Store
         cases = []
         for k, n in ((1, args.prompts), (30, max(2, round(args.prompts / 30)))):
             big = tmp / f"bench_{n}x{args.frames}"

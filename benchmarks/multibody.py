@@ -14,10 +14,10 @@ import time
 from pathlib import Path
 
 from hoibench.datasets import multibody as mbl
-from hoibench.multibody import synthetic as syn
-from hoibench.multibody.evaluate import evaluate, write_multibody_submission
-from hoibench.multibody.recognizer import train_recognizer
-from hoibench.store import PrepareConfig, prepare
+from hoibench.datasets import synthetic_multibody as syn
+from hoibench.scoring.multibody import evaluate, write_multibody_submission
+from hoibench.evaluator.recognizer import train_recognizer
+from hoibench.datasets.store import PrepareConfig, prepare
 
 ROWS = (("gt", 1), ("gt-noise", 3), ("desync", 1), ("lost_contact", 1), ("interpenetration", 1), ("static", 1))
 KEYS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")

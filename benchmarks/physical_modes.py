@@ -27,7 +27,7 @@ VARIANTS = {
 def _store(base: Path, clips: int, seed: int, defects):
     from hoibench.datasets import behave
     from hoibench.datasets.synthetic import Defect, write_behave_layout
-    from hoibench.store import PrepareConfig, Store, prepare
+    from hoibench.datasets.store import PrepareConfig, Store, prepare
     raw, data = base / "raw", base / "data"
     d = None if defects is None else {i: Defect(k, m) for i, (k, m) in defects.items()}
     write_behave_layout(raw, clips, seed=seed, defects=d, progress=False)

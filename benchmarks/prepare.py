@@ -17,7 +17,7 @@ from pathlib import Path
 
 from hoibench.datasets import behave
 from hoibench.datasets.synthetic import write_behave_layout
-from hoibench.store import PrepareConfig, prepare
+from hoibench.datasets.store import PrepareConfig, prepare
 
 
 def _files(root: Path) -> dict[str, bytes]:

@@ -40,9 +40,9 @@ def _cmd_representations(args) -> int:
 def _cmd_represent(args) -> int:
     import numpy as np
 
-    from .io import read_regular_file
+    from .core.io import read_regular_file
     from .representations import hml263, joint_level
-    from .submission import MAX_ARRAY_BYTES
+    from .scoring.submission import MAX_ARRAY_BYTES
     import io as _io
     raw = read_regular_file(args.joints, MAX_ARRAY_BYTES, "joints file")
     try:
@@ -57,7 +57,7 @@ def _cmd_represent(args) -> int:
     feats = hml263.encode(joints, mode=args.mode, fps=args.fps)
     if args.format == "joint_level":
         feats = joint_level.from_hoi269(feats)
-    from .io import atomic_save_npy
+    from .core.io import atomic_save_npy
     atomic_save_npy(args.out, feats)
     print(f"wrote {args.out}: {feats.shape} {feats.dtype}")
     return 0
@@ -106,7 +106,7 @@ def _cmd_synth(args) -> int:
 
 
 def _cmd_prepare(args) -> int:
-    from .store import PrepareConfig, prepare, summary_table
+    from .datasets.store import PrepareConfig, prepare, summary_table
     import importlib
     loader = importlib.import_module(f".datasets.{args.dataset}", __package__)
     # hoibench's own synthetic data in a raw layout is named as such (its protocol differs)
@@ -136,11 +136,11 @@ def _cmd_render(args) -> int:
     if args.id is not None:                       # a submission's sample beside its ground truth
         if args.data is None:
             raise ValueError("render SUB --id ID: --data DATA (the store the submission is for) is required")
-        from .render import render_comparison
+        from .publish.render import render_comparison
         path = render_comparison(args.clip, args.data, args.id, args.out, sample=args.sample)
         print(f"wrote {path}")
         return 0
-    from .render import render_clip
+    from .publish.render import render_clip
     clip = Path(args.clip)
     if clip.suffix == ".npz":
         root, clip_id = clip.parent.parent, clip.stem
@@ -148,11 +148,11 @@ def _cmd_render(args) -> int:
         root, clip_id = args.data, str(clip)
     else:
         raise ValueError("clip: give DATA/clips/<id>.npz, or an id with --data DATA")
-    from .store import Store
-    from .multibody.clip import MultiBodyClip, is_multibody_arrays
+    from .datasets.store import Store
+    from .bodies.multibody import MultiBodyClip, is_multibody_arrays
     store = Store(root)
     if is_multibody_arrays(store.load(clip_id, keys=("layout",))):   # a multi-body clip: a strip of frames
-        from .multibody.render import render_multibody
+        from .publish.render_multibody import render_multibody
         path = render_multibody(MultiBodyClip.from_arrays(store.load(clip_id), store.object_template), args.out)
         print(f"wrote {path}")
         return 0
@@ -162,7 +162,7 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_splits(args) -> int:
-    from . import splits
+    from .datasets import splits
     if args.action == "ls":
         print("\n".join(splits.summary_lines()))
         print("(* = default)")
@@ -176,29 +176,29 @@ def _cmd_splits(args) -> int:
 
 
 def _cmd_export(args) -> int:
-    from .export import main_export
+    from .datasets.export import main_export
     return main_export(args.data, args.out, args.format)
 
 
 def _cmd_annotate(args) -> int:
-    from .annotate import main_annotate
+    from .text.annotate import main_annotate
     return main_annotate(args.data, preview=args.preview, executor=args.executor, strict=args.strict,
                          seed=args.seed, spec_dir=args.spec_dir, labels=args.labels)
 
 
 def _cmd_protocols(args) -> int:
-    from .protocol import main_protocols
+    from .tracks.protocol import main_protocols
     return main_protocols(args.action, args.name)
 
 
 def _cmd_validate(args) -> int:
-    from .submission import main_validate
+    from .scoring.submission import main_validate
     return main_validate(args.submission, args.data, protocol=args.protocol)
 
 
 def _cmd_submission(args) -> int:
     if args.action == "prompts":
-        from .prompts import write_prompts
+        from .scoring.prompts import write_prompts
         text = write_prompts(args.data, args.out)
         if args.out is None:
             print(text, end="")
@@ -207,8 +207,8 @@ def _cmd_submission(args) -> int:
         return 0
     if args.out is None:
         raise ValueError(f"submission {args.action}: --out is required")
-    from .store import Store
-    from .multibody.evaluate import is_multibody_store, write_multibody_submission
+    from .datasets.store import Store
+    from .scoring.multibody import is_multibody_store, write_multibody_submission
     if args.action in ("reference", "from-store") and is_multibody_store(Store(args.data)):
         kind = "gt" if args.action == "from-store" else (args.kind or "gt")
         path = write_multibody_submission(args.data, args.out, kind=kind, as_zip=args.zip, samples=args.samples,
@@ -219,11 +219,11 @@ def _cmd_submission(args) -> int:
         if args.kind is None:
             raise ValueError("submission reference: --kind is required (gt, gt-noise, static-first-pose, mean-pose, "
                              "mismatched-texts)")
-        from .reference_rows import write_reference
+        from .scoring.reference_rows import write_reference
         path = write_reference(args.kind, args.data, args.out, sigma=args.sigma, seed=args.seed, as_zip=args.zip)
         print(f"wrote {path} ({args.kind})")
         return 0
-    from .submission import main_submission_from_store
+    from .scoring.submission import main_submission_from_store
     return main_submission_from_store(args.data, args.out, as_zip=args.zip)
 
 
@@ -239,7 +239,7 @@ def _cmd_evaluator(args) -> int:
 
 
 def _cmd_train_recognizer(args) -> int:
-    from .multibody.recognizer import train_recognizer
+    from .evaluator.recognizer import train_recognizer
     if args.out.exists() and any(args.out.iterdir()):
         raise ValueError(f"--out {args.out}: not empty; choose a new folder")
     card = train_recognizer(args.data, args.out, split=args.split, steps=args.steps, seed=args.seed)
@@ -251,13 +251,13 @@ def _cmd_train_recognizer(args) -> int:
 
 
 def _cmd_evaluate(args) -> int:
-    from .store import Store
-    from .multibody.evaluate import is_multibody_store
+    from .datasets.store import Store
+    from .scoring.multibody import is_multibody_store
     if is_multibody_store(Store(args.data)):
-        from .multibody.evaluate import main_evaluate as main_multibody
+        from .scoring.multibody import main_evaluate as main_multibody
         return main_multibody(args.submission, args.data, args.evaluator, out=args.out, protocol=args.protocol,
                               executor=args.executor)
-    from .evaluate import main_evaluate
+    from .scoring.evaluate import main_evaluate
     return main_evaluate(args.submission, args.data, args.evaluator, out=args.out,
                          protocol=args.protocol, executor=args.executor, allow_failed_gate=args.allow_failed_gate,
                          allow_protocol_mismatch=args.allow_protocol_mismatch,
@@ -278,7 +278,7 @@ def _cmd_baseline(args) -> int:
 
 
 def _cmd_import(args) -> int:
-    from .importers import import_results
+    from .scoring.importers import import_results
     path, rep = import_results(args.format, args.results, args.data, args.out, match=args.match, mapping=args.map,
                                trust_pickle=args.trust_pickle, fps=args.fps, up=args.up, normalized=args.normalized,
                                method=args.method, as_zip=args.zip)
@@ -296,7 +296,7 @@ def _cmd_import(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from .compare import compare, plot
+    from .scoring.compare import compare, plot
     names = [n.strip() for n in args.names.split(",")] if args.names else None
     if names is not None and len(names) != len(args.results):
         raise ValueError(f"--names: {len(names)} names for {len(args.results)} results")
@@ -308,7 +308,7 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_leaderboard(args) -> int:
-    from . import leaderboard as lb
+    from .publish import leaderboard as lb
     root = Path(args.root)
     if args.action == "add":
         path = lb.add_result(args.result, root / args.track, method=args.method, role=args.role,
@@ -323,7 +323,7 @@ def _cmd_leaderboard(args) -> int:
             print(f"{track.name:12s} {len(entries):3d} entries  ({', '.join(e['method'] for e in lb.order(entries)[:4])}"
                   f"{', ...' if len(entries) > 4 else ''})")
         return 0
-    from .leaderboard_render import build
+    from .publish.pages import build
     tracks = [root / args.track] if args.track else sorted(p for p in root.iterdir() if (p / "entries").is_dir())
     if not tracks:
         raise FileNotFoundError(f"{root}: no track folders with entries/")
@@ -643,8 +643,8 @@ def main(argv: list[str] | None = None) -> int:
     ``HOIBENCH_DEBUG=1`` re-raises for debugging."""
     import os
 
-    from .errors import HoibenchError
-    from .interrupts import EXIT_INTERRUPTED, interrupt_message, terminate_as_interrupt, was_interrupted
+    from .core.errors import HoibenchError
+    from .core.interrupts import EXIT_INTERRUPTED, interrupt_message, terminate_as_interrupt, was_interrupted
     args = build_parser().parse_args(argv)
     debug = os.environ.get("HOIBENCH_DEBUG") == "1"
     try:

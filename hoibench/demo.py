@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import atomic_save_npy, atomic_write_json
+from .core.io import atomic_save_npy, atomic_write_json
 
 
 def representation_stage(out: Path, seed: int = 0, clips: int = 8, frames: int = 120) -> dict:
@@ -59,12 +59,12 @@ def representation_stage(out: Path, seed: int = 0, clips: int = 8, frames: int =
 def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = "serial") -> dict:
     """synth (BEHAVE layout) -> prepare -> annotate -> train a tiny evaluator -> score the
     ground-truth submission -> render one clip."""
-    from .annotate import annotate_store, preview_table
+    from .text.annotate import annotate_store, preview_table
     from .datasets.synthetic_store import build_synthetic_store
-    from .evaluate import evaluate, format_result
+    from .scoring.evaluate import evaluate, format_result
     from .evaluator import main_train_evaluator
-    from .store import summary_table
-    from .submission import from_store
+    from .datasets.store import summary_table
+    from .scoring.submission import from_store
 
     t0 = time.perf_counter()
     raw, data, manifest = build_synthetic_store(out, clips, seed=seed, executor=executor)
@@ -88,7 +88,7 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = 
     print("  " + format_result(result).replace("\n", "\n  "))
     report["gt_result"] = str(out / "gt_result.json")
     try:
-        from .render import render_clip
+        from .publish.render import render_clip
         clip = next(c["id"] for c in manifest["clips"] if c["contact_frames"] > 0)
         gif = render_clip(data, clip, out / f"{clip}.gif")
         report["render"] = str(gif)
@@ -115,8 +115,8 @@ def _fresh(path: Path) -> Path:
 def _score(label: str, role: str, sub: Path, data: Path, ev_dir: Path, track: Path, executor: str) -> dict:
     import json
 
-    from .evaluate import evaluate
-    from .leaderboard import entry_from_result, write_entry
+    from .scoring.evaluate import evaluate
+    from .publish.leaderboard import entry_from_result, write_entry
     result = evaluate(sub, data, ev_dir, executor=executor)
     meta = json.loads((sub / "submission.json").read_text())
     entry = entry_from_result(result, method=label, track="synthetic", submission_meta=meta)
@@ -133,9 +133,9 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
     import subprocess
     import sys
 
-    from .leaderboard import entry_from_result, write_entry
-    from .leaderboard_render import build
-    from .reference_rows import write_reference
+    from .publish.leaderboard import entry_from_result, write_entry
+    from .publish.pages import build
+    from .scoring.reference_rows import write_reference
     data, ev_dir = out / "data", out / "evaluator"
     track = out / "leaderboards" / "synthetic"
     if (track / "entries").exists():
@@ -180,7 +180,7 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
         times["train_baselines_s"] = round(time.perf_counter() - t1, 1)
         t2 = time.perf_counter()
         from .baselines.sampler import sample
-        from .submission import validation_report
+        from .scoring.submission import validation_report
         print("[baselines] sampled, validated and scored:")
         for name, label in (("chainhoi", "ChainHOI tiny"), ("catmo", "CATMO tiny")):
             sub = _fresh(out / "submissions" / f"{name}-tiny")
@@ -191,8 +191,8 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
             _score(label, "baseline", sub, data, ev_dir, track, executor)
         times["sample_and_score_baselines_s"] = round(time.perf_counter() - t2, 1)
         try:
-            from .render import render_comparison
-            from .store import Store
+            from .publish.render import render_comparison
+            from .datasets.store import Store
             cid = Store(data).clip_ids("test")[0]
             gif = render_comparison(out / "submissions" / "catmo-tiny", data, cid, out / f"compare_{cid}.gif")
             print(f"  CATMO tiny beside the ground truth: {gif}")
@@ -203,7 +203,7 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
     times["leaderboard_build_s"] = round(time.perf_counter() - t3, 1)
     print(f"[leaderboard] {paths['index.html']} (open it in a browser), {paths['README.md']}, "
           f"{paths['leaderboard.csv']}")
-    from .leaderboard import load_track, order
+    from .publish.leaderboard import load_track, order
     print("  " + "\n  ".join(f"{i + 1:2d}. {e['method']}" for i, e in enumerate(order(load_track(track)))))
     return {"track": str(track), "times": times}
 

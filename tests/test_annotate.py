@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import yaml
 
-from hoibench import annotate as an
-from hoibench import contact as contact_mod
+from hoibench.text import annotate as an
+from hoibench.bodies import contact as contact_mod
 
 N_CLIPS = 12
 
@@ -24,7 +24,7 @@ def store(tmp_path_factory):
     pytest.importorskip("trimesh")
     from hoibench.datasets import behave
     from hoibench.datasets.synthetic import write_behave_layout
-    from hoibench.store import PrepareConfig, prepare
+    from hoibench.datasets.store import PrepareConfig, prepare
 
     base = tmp_path_factory.mktemp("annotate")
     raw, data = base / "raw", base / "data"
@@ -202,7 +202,7 @@ def test_deterministic_for_a_seed_and_varies_with_another(store, tmp_path):
 
 def test_process_executor_gives_identical_annotations(store):
     raw, data = store
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     ids = Store(data).clip_ids()[:3]
     serial = an.annotate_store(data, clip_ids=ids, write=False)["annotations"]
     pooled = an.annotate_store(data, clip_ids=ids, write=False, executor="processes:2")["annotations"]
@@ -301,7 +301,7 @@ def test_store_clip_without_contact_and_without_contacts_array(store, tmp_path, 
     with pytest.raises(RuntimeError, match="Date04_Sub02_boxsmall_hold"):
         an.annotate_store(copy, strict=True)
 
-    # when hoibench.contact can compute contacts, the annotator uses it
+    # when hoibench.bodies.contact can compute contacts, the annotator uses it
     calls = []
 
     def fake_labels(joints, vertices, faces, rot, trans, object_name):
@@ -378,7 +378,7 @@ def test_preview_table_and_main_annotate_preview_write_nothing(store, tmp_path, 
     shutil.rmtree(copy / "annotations")
     shutil.rmtree(copy / "texts")
     table = an.preview_table(copy, 3)
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     for clip in Store(copy).clip_ids()[:3]:
         ann = _annotation(data, clip)
         assert clip in table and ann["group_id"] in table and ann["object_name"] in table

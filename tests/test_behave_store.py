@@ -10,10 +10,10 @@ import pytest
 pytest.importorskip("smplx")
 trimesh = pytest.importorskip("trimesh")
 
-from hoibench import geometry as geo  # noqa: E402
+from hoibench.core import geometry as geo  # noqa: E402
 from hoibench.bodies import ProxyBody, write_proxy_model  # noqa: E402
 from hoibench.datasets import behave  # noqa: E402
-from hoibench.store import PrepareConfig, Store, prepare  # noqa: E402
+from hoibench.datasets.store import PrepareConfig, Store, prepare  # noqa: E402
 
 F = np.diag([1.0, -1.0, -1.0])
 CAM_OFFSET = np.array([0.3, 1.1, 2.5])    # camera-frame translation added after the flip
@@ -187,7 +187,7 @@ def test_serial_processes_and_dask_give_identical_stores(raw, tmp_path):
 
 
 def test_parse_executor_errors():
-    from hoibench.parallel import parse_executor
+    from hoibench.core.parallel import parse_executor
     assert str(parse_executor("processes:3")) == "processes:3"
     assert parse_executor("dask://127.0.0.1:8786").address == "127.0.0.1:8786"
     for bad in ["threads", "processes:0", "processes:x", "dask://"]:
@@ -197,10 +197,10 @@ def test_parse_executor_errors():
 
 def test_worker_processes_start_with_one_library_thread(monkeypatch):
     """Workers get OMP/BLAS = 1 thread from their first import on; the parent's setting
-    comes back afterwards (open3d reads OMP_NUM_THREADS through hoibench.contact)."""
+    comes back afterwards (open3d reads OMP_NUM_THREADS through hoibench.bodies.contact)."""
     import os
 
-    from hoibench.parallel import map_units
+    from hoibench.core.parallel import map_units
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "7")
     monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     got = list(map_units(os.getenv, ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"], "processes:1"))

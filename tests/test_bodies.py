@@ -16,8 +16,8 @@ from hoibench.bodies import (
     write_proxy_model,
 )
 from hoibench.bodies import proxy as proxy_mod
-from hoibench.geometry import axis_angle_to_matrix
-from hoibench.skeleton import PARENTS, SMPL_REST_JOINTS, forward_kinematics
+from hoibench.core.geometry import axis_angle_to_matrix
+from hoibench.core.skeleton import PARENTS, SMPL_REST_JOINTS, forward_kinematics
 
 RNG = np.random.default_rng(7)
 T = 16

@@ -263,7 +263,7 @@ def test_resume_gives_the_uninterrupted_run(template_store, tiny_run, tmp_path):
 def test_sampling_is_deterministic_and_independent_of_other_clips(tiny_run, template_store, tmp_path):
     from hoibench.baselines.catmo.sampler import LoadedCatmo
     from hoibench.baselines.sampler import sample
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     run = LoadedCatmo(tiny_run[0])
     st = Store(template_store)
     clip = st.load(st.clip_ids("test")[0])
@@ -287,7 +287,7 @@ def test_sampling_is_deterministic_and_independent_of_other_clips(tiny_run, temp
 
 def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, template_store, tmp_path):
     from hoibench.baselines.sampler import StoreMismatch, sample
-    from hoibench.submission import validation_report
+    from hoibench.scoring.submission import validation_report
     sub = sample(tiny_run[0], template_store, tmp_path / "sub", samples=2, log=None)
     rep = validation_report(sub, template_store)
     assert rep.complete, [p for p in rep.problems][:3]
@@ -306,7 +306,7 @@ def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, te
 
 
 def test_items_pair_each_motion_row_with_its_contacts_and_object(template_store):
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     st = Store(template_store)
     data = CD.read_data(st, "train", 32)
     it = data.items[0]

@@ -108,7 +108,7 @@ def test_surface_points_lie_on_the_mesh_and_are_seeded():
 
 def test_interaction_positions_equal_the_decoded_joints(template_store):
     from hoibench.representations import hoi269
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     st = Store(template_store)
     clip = st.load(st.clip_ids("train")[0])
     joints, _, _ = hoi269.decode(clip["hoi269"])
@@ -117,8 +117,8 @@ def test_interaction_positions_equal_the_decoded_joints(template_store):
 
 
 def test_recentred_window_is_the_same_motion_in_its_own_frame(template_store):
-    from hoibench.geometry import axis_angle_to_matrix, rotation_about_y
-    from hoibench.store import Store
+    from hoibench.core.geometry import axis_angle_to_matrix, rotation_about_y
+    from hoibench.datasets.store import Store
     st = Store(template_store)
     rows = st.load(st.clip_ids("train")[0])["joint_level"].astype(np.float64)
     a, n = 7, 20
@@ -181,7 +181,7 @@ def test_contact_loss_is_the_gated_squared_distance(template_store):
         for i in range(raw.shape[1]):
             if not batch["valid"][b, i]:
                 continue
-            from hoibench.geometry import axis_angle_to_matrix
+            from hoibench.core.geometry import axis_angle_to_matrix
             R = axis_angle_to_matrix(raw[b, i, 23, 0:3].numpy())
             surf = batch["contact_points"][b].double().numpy() @ R.T + raw[b, i, 23, 3:6].numpy()
             joints = interaction_positions(raw[b:b + 1, i:i + 1])[0, 0].numpy()
@@ -228,7 +228,7 @@ def test_resume_gives_the_uninterrupted_run(template_store, tiny_run, tmp_path):
 
 def test_sampling_is_deterministic_and_guidance_one_is_conditional(tiny_run, template_store):
     from hoibench.baselines.sampler import LoadedRun
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     run = LoadedRun(tiny_run[0])
     st = Store(template_store)
     clip = st.load(st.clip_ids("test")[0])
@@ -256,7 +256,7 @@ def test_sampling_is_deterministic_and_guidance_one_is_conditional(tiny_run, tem
 
 def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, template_store, tmp_path):
     from hoibench.baselines.sampler import StoreMismatch, sample
-    from hoibench.submission import validation_report
+    from hoibench.scoring.submission import validation_report
     sub = sample(tiny_run[0], template_store, tmp_path / "sub", samples=2, steps=2, log=None)
     rep = validation_report(sub, template_store)
     assert rep.complete, [p for p in rep.problems][:3]
@@ -351,7 +351,7 @@ def test_a_finished_run_names_what_differs(template_store, tiny_run):
 
 
 def test_submission_output_must_be_new_or_empty(tmp_path):
-    from hoibench.submission import write_submission
+    from hoibench.scoring.submission import write_submission
     meta = {"method": "x"}
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "notes.txt").write_text("mine")

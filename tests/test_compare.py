@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from hoibench.compare import compare, outside
+from hoibench.scoring.compare import compare, outside
 
 
 def res(fid, ci, r1=0.5, ev="a" * 64, k=30) -> dict:

@@ -1,4 +1,4 @@
-"""Signed distances, mesh repair and contact labels (hoibench.contact).
+"""Signed distances, mesh repair and contact labels (hoibench.bodies.contact).
 
 The claims: the open3d fast path equals analytic distances and trimesh's reference; a mesh
 with a hole or degenerate faces is repaired or reported and never silently mis-signed; the
@@ -15,8 +15,8 @@ import pytest
 pytest.importorskip("open3d")
 trimesh = pytest.importorskip("trimesh")
 
-from hoibench import contact as C  # noqa: E402
-from hoibench import geometry as geo  # noqa: E402
+from hoibench.bodies import contact as C  # noqa: E402
+from hoibench.core import geometry as geo  # noqa: E402
 from hoibench.datasets import synthetic as syn  # noqa: E402
 
 BOX_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * (0.3, 0.2, 0.1)

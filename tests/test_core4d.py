@@ -16,8 +16,8 @@ pytest.importorskip("trimesh")
 from hoibench.bodies.proxy import write_proxy_model  # noqa: E402
 from hoibench.datasets import core4d  # noqa: E402
 from hoibench.datasets import core4d_layout as cl  # noqa: E402
-from hoibench.multibody.clip import MultiBodyClip  # noqa: E402
-from hoibench.store import PrepareConfig, Store, prepare  # noqa: E402
+from hoibench.bodies.multibody import MultiBodyClip  # noqa: E402
+from hoibench.datasets.store import PrepareConfig, Store, prepare  # noqa: E402
 
 TOL_M = 1e-4
 N_SEQ = 3

@@ -152,7 +152,7 @@ def test_a_training_step_reduces_the_loss_on_a_fixed_batch(template_store):
 def test_train_sample_is_deterministic_and_valid(template_store, tmp_path):
     from hoibench.baselines.sampler import sample
     from hoibench.baselines.trainer import train
-    from hoibench.submission import validation_report
+    from hoibench.scoring.submission import validation_report
     run = tmp_path / "run"
     res = train("ejim", template_store, run, small_config(), log=None)
     assert res.card["baseline"] == "ejim"

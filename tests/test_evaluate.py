@@ -13,10 +13,10 @@ pytest.importorskip("open3d")
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
-    from hoibench.annotate import annotate_store
+    from hoibench.text.annotate import annotate_store
     from hoibench.datasets.synthetic_store import build_synthetic_store
     from hoibench.evaluator import main_train_evaluator
-    from hoibench.submission import from_store
+    from hoibench.scoring.submission import from_store
 
     base = tmp_path_factory.mktemp("evaluate")
     _, data, _ = build_synthetic_store(base, 120, seed=0)
@@ -27,7 +27,7 @@ def setup(tmp_path_factory):
 
 
 def test_ground_truth_submission_scores_fid_zero_and_is_complete(setup, tmp_path):
-    from hoibench.evaluate import evaluate
+    from hoibench.scoring.evaluate import evaluate
     base, data = setup
     res = evaluate(base / "gt", data, base / "ev")
     assert res["complete"] and res["protocol"] == "synthetic-clean"
@@ -45,7 +45,7 @@ def test_ground_truth_submission_scores_fid_zero_and_is_complete(setup, tmp_path
 
 
 def test_partial_submission_is_scored_on_valid_ids_and_marked_incomplete(setup, tmp_path):
-    from hoibench.evaluate import evaluate
+    from hoibench.scoring.evaluate import evaluate
     base, data = setup
     sub = tmp_path / "partial"
     shutil.copytree(base / "gt", sub)
@@ -61,7 +61,7 @@ def test_partial_submission_is_scored_on_valid_ids_and_marked_incomplete(setup, 
 
 
 def test_executors_give_identical_results(setup):
-    from hoibench.evaluate import evaluate
+    from hoibench.scoring.evaluate import evaluate
     base, data = setup
     a = evaluate(base / "gt", data, base / "ev", executor="serial")
     b = evaluate(base / "gt", data, base / "ev", executor="processes:2")
@@ -80,7 +80,7 @@ def _store_copy(data, tmp_path, **manifest_changes):
 
 
 def test_result_records_the_submission_flags_and_is_strict_json(setup, tmp_path):
-    from hoibench.evaluate import main_evaluate
+    from hoibench.scoring.evaluate import main_evaluate
     base, data = setup
     out = tmp_path / "result.json"
     assert main_evaluate(base / "gt", data, base / "ev", out=out) == 0
@@ -97,7 +97,7 @@ def test_result_records_the_submission_flags_and_is_strict_json(setup, tmp_path)
 
 @pytest.mark.parametrize("protocol, needle", [("behave-clean", "dataset"), ("synthetic-legacy", "mode")])
 def test_a_protocol_for_another_dataset_or_mode_is_refused(setup, protocol, needle):
-    from hoibench.evaluate import EvaluationRefused, evaluate
+    from hoibench.scoring.evaluate import EvaluationRefused, evaluate
     base, data = setup
     with pytest.raises(EvaluationRefused, match=needle):
         evaluate(base / "gt", data, base / "ev", protocol=protocol)
@@ -108,7 +108,7 @@ def test_a_protocol_for_another_dataset_or_mode_is_refused(setup, protocol, need
 
 
 def test_an_evaluator_trained_on_another_dataset_is_refused(setup, tmp_path):
-    from hoibench.evaluate import EvaluationRefused, evaluate
+    from hoibench.scoring.evaluate import EvaluationRefused, evaluate
     base, data = setup
     other = _store_copy(data, tmp_path, dataset="synthetic2")
     with pytest.raises(EvaluationRefused, match="allow-evaluator-mismatch"):
@@ -118,7 +118,7 @@ def test_an_evaluator_trained_on_another_dataset_is_refused(setup, tmp_path):
 def test_the_gate_is_measured_on_the_store_not_read_from_the_card(setup, tmp_path):
     """Captions permuted among clips: the evaluator no longer matches them to their motions on
     this store, whatever its card says; refused unless --allow-failed-gate, which marks it."""
-    from hoibench.evaluate import EvaluationRefused, evaluate
+    from hoibench.scoring.evaluate import EvaluationRefused, evaluate
     base, data = setup
     shuffled = _store_copy(data, tmp_path)
     texts = sorted((shuffled / "texts").glob("*.txt"))
@@ -134,7 +134,7 @@ def test_the_gate_is_measured_on_the_store_not_read_from_the_card(setup, tmp_pat
 
 
 def test_undefined_metrics_are_named_and_infinite_ones_stop_the_run():
-    from hoibench.evaluate import _finite_rows
+    from hoibench.scoring.evaluate import _finite_rows
     rows, undefined = _finite_rows([{"fid": 1.0, "fsr": float("nan")}, {"fid": 2.0, "fsr": float("nan")}])
     assert rows == [{"fid": 1.0}, {"fid": 2.0}] and "fsr" in undefined and "2 of 2" in undefined["fsr"]
     with pytest.raises(ValueError, match="'cd' is infinite in replication 1"):

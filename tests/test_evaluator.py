@@ -21,7 +21,7 @@ from hoibench.evaluator import card as card_mod  # noqa: E402
 from hoibench.evaluator import retrieval  # noqa: E402
 from hoibench.evaluator.features import FeatureStats, object_relative  # noqa: E402
 from hoibench.evaluator.text import parse_text_file  # noqa: E402
-from hoibench.store import Store  # noqa: E402
+from hoibench.datasets.store import Store  # noqa: E402
 
 from hoibench.datasets.synthetic_store import template_captions, write_template_texts  # noqa: E402,F401
 
@@ -149,7 +149,7 @@ def test_hoi_variant_uses_object_tokens_and_masks_them(store_root):
 
 
 def test_object_relative_features_are_in_the_body_frame(store_root):
-    from hoibench import geometry as geo
+    from hoibench.core import geometry as geo
     from hoibench.representations import hml263
     clip = Store(store_root).load(Store(store_root).clip_ids("train")[0])
     f = object_relative(clip["hoi269"])
@@ -218,7 +218,7 @@ def test_loaded_evaluator_reproduces_the_card_scores(trained, store_root):
     out, res = trained
     ev = load_evaluator(out)
     assert ev.id == res.evaluator_id
-    from hoibench.protocol import get_protocol
+    from hoibench.tracks.protocol import get_protocol
     # the card's GT retrieval uses the store's protocol draw (synthetic-clean)
     again = gt_scores(ev, load_items(store_root, "test").items, seed=0, protocol=get_protocol("synthetic-clean"))
     assert again["top1"]["mean"] == pytest.approx(res.card["gt_retrieval"]["top1"]["mean"], abs=1e-9)
@@ -271,7 +271,7 @@ def test_hoi_evaluator_round_trips_through_its_folder(store_root, tmp_path):
     norm = res.card["normalization"]
     assert len(norm["object"]["mean"]) == 15 and res.card["dataset"]["features"] == "hoi269"
     ev = load_evaluator(tmp_path / "hoi", allow_failed_gate=True)      # 3 epochs: the gate may fail
-    from hoibench.protocol import get_protocol
+    from hoibench.tracks.protocol import get_protocol
     again = gt_scores(ev, load_items(store_root, "test", "hoi").items, protocol=get_protocol("synthetic-clean"))
     assert again["mm_dist"]["mean"] == pytest.approx(res.card["gt_retrieval"]["mm_dist"]["mean"], abs=1e-6)
     assert ev.representation == "hoi269-clean-1.0"

@@ -90,7 +90,7 @@ from hoibench.evaluator import (CheckpointError, CorruptEvaluatorFile, Evaluator
                                 preset, recompute_gate, store_mismatches, train_evaluator)
 from hoibench.evaluator import card as card_mod  # noqa: E402
 from hoibench.evaluator.features import FeatureStats  # noqa: E402
-from hoibench.store import Store  # noqa: E402
+from hoibench.datasets.store import Store  # noqa: E402
 
 
 def _quiet(_msg):
@@ -196,7 +196,7 @@ def test_recompute_gate_reproduces_the_card_and_fails_random_weights(trained, un
 
 def test_gate_from_embeddings_does_not_depend_on_row_order(trained, store_root):
     from hoibench.evaluator import load_items
-    from hoibench.protocol import get_protocol
+    from hoibench.tracks.protocol import get_protocol
     ev = load_evaluator(trained[0])
     items = load_items(store_root, "test").items
     m = ev.embed_motion([it.features for it in items])

@@ -5,9 +5,9 @@ import json
 
 import numpy as np
 
-from hoibench.export import export, read_humanml3d
+from hoibench.datasets.export import export, read_humanml3d
 from hoibench.representations import hml263
-from hoibench.store import Store
+from hoibench.datasets.store import Store
 
 
 def _write_texts(data, ids):

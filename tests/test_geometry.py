@@ -1,11 +1,11 @@
-"""Tests for hoibench.geometry against scipy.spatial.transform.Rotation and closed forms."""
+"""Tests for hoibench.core.geometry against scipy.spatial.transform.Rotation and closed forms."""
 
 import numpy as np
 import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from hoibench import geometry as g
+from hoibench.core import geometry as g
 
 RNG = np.random.default_rng(0)
 N = 64

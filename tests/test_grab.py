@@ -9,8 +9,8 @@ import pytest
 
 from hoibench.datasets import grab
 from hoibench.datasets.grab_layout import GT_DIR, grab_npz_bytes, write_grab_layout
-from hoibench.multibody.clip import MultiBodyClip
-from hoibench.store import PrepareConfig, Store, prepare
+from hoibench.bodies.multibody import MultiBodyClip
+from hoibench.datasets.store import PrepareConfig, Store, prepare
 
 N_SEQ = 4           # s2 (train), s1 (val), s10 (test), s5 (train, female)
 TOL = 1e-4          # metres

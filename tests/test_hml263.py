@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hoibench import geometry as geo
+from hoibench.core import geometry as geo
 from hoibench.datasets.random_motion import random_motion
 from hoibench.representations import hml263
 

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hoibench import geometry as geo
-from hoibench import skeleton as sk
+from hoibench.core import geometry as geo
+from hoibench.core import skeleton as sk
 from hoibench.datasets.random_motion import random_motion
 from hoibench.representations import hml263, hoi269, joint_level, normalization
 

@@ -17,14 +17,14 @@ trimesh = pytest.importorskip("trimesh")
 
 from test_omomo_rich import _editable_omomo_copy, _read_pickle, _write_pickle, omomo_raw, rich_raw  # noqa: E402,F401
 
-from hoibench import plausibility as pl  # noqa: E402
+from hoibench.core import plausibility as pl  # noqa: E402
 from hoibench.datasets import behave, omomo, rich  # noqa: E402
 from hoibench.datasets.synthetic import write_behave_layout  # noqa: E402
-from hoibench.export import export  # noqa: E402
-from hoibench.ids import InvalidIdError  # noqa: E402
-from hoibench.skeleton import SMPL_REST_JOINTS  # noqa: E402
-from hoibench.splits import SplitFileError, split_assignment  # noqa: E402
-from hoibench.store import PrepareConfig, clip_arrays, prepare, refuse_duplicates, run_unit  # noqa: E402
+from hoibench.datasets.export import export  # noqa: E402
+from hoibench.core.ids import InvalidIdError  # noqa: E402
+from hoibench.core.skeleton import SMPL_REST_JOINTS  # noqa: E402
+from hoibench.datasets.splits import SplitFileError, split_assignment  # noqa: E402
+from hoibench.datasets.store import PrepareConfig, clip_arrays, prepare, refuse_duplicates, run_unit  # noqa: E402
 
 TRAIN_PKL, TEST_PKL = omomo.PICKLES["train"], omomo.PICKLES["test"]
 
@@ -347,7 +347,7 @@ def test_raw_special_files_and_deflate_bombs_are_refused_not_read(tmp_path):
 
     from hoibench.datasets import behave
     from hoibench.datasets.synthetic import write_behave_layout
-    from hoibench.store import PrepareConfig, prepare
+    from hoibench.datasets.store import PrepareConfig, prepare
     raw = tmp_path / "raw"
     write_behave_layout(raw, 4, seed=0, progress=False)
     seqs = sorted((raw / "sequences").iterdir())

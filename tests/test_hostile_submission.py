@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hoibench import submission as S
+from hoibench.scoring import submission as S
 
 HERE = Path(__file__).resolve().parent
 
@@ -351,7 +351,7 @@ def test_memory_cases_are_refused_under_an_address_space_limit(gt_sub, tmp_path)
     script = (
         "import resource, sys\n"
         "resource.setrlimit(resource.RLIMIT_AS, (1536 * 1024 ** 2, resource.RLIM_INFINITY))\n"
-        "from hoibench.submission import validation_report\n"
+        "from hoibench.scoring.submission import validation_report\n"
         "for p in sys.argv[2:]:\n"
         "    rep = validation_report(p, sys.argv[1])\n"
         "    print('REFUSED' if not rep.complete else 'ACCEPTED', [str(e) for e in rep.errors][:1])\n")
@@ -362,8 +362,8 @@ def test_memory_cases_are_refused_under_an_address_space_limit(gt_sub, tmp_path)
 
 
 def test_budgets_follow_the_test_split_and_the_protocol(gt_sub):
-    from hoibench.protocol import get_protocol
-    from hoibench.store import Store
+    from hoibench.tracks.protocol import get_protocol
+    from hoibench.datasets.store import Store
     data, _, ids = gt_sub
     st = Store(data)
     proto = get_protocol("synthetic-clean")

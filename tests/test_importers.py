@@ -11,13 +11,13 @@ import sys
 import numpy as np
 import pytest
 
-from hoibench.importers import ImportProblem, import_results, resample, z_up_to_y_up
+from hoibench.scoring.importers import ImportProblem, import_results, resample, z_up_to_y_up
 
 
 @pytest.fixture(scope="module")
 def gt(template_store):
     from hoibench.evaluator.text import read_captions
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     st = Store(template_store)
     ids = st.clip_ids("test")
     clips = {c: st.load(c) for c in ids}
@@ -34,7 +34,7 @@ def mdm_dict(ids, clips, caps, reps: int, with_obj: bool) -> tuple[dict, dict]:
     motion = np.zeros((n * reps, 22, 3, Tmax), np.float32)
     mobj = np.zeros((n * reps, 1, 6, Tmax), np.float32)
     expect = {}
-    from hoibench.geometry import matrix_to_axis_angle
+    from hoibench.core.geometry import matrix_to_axis_angle
     for i, c in enumerate(ids):
         T = len(clips[c]["joints"])
         js, os_ = [], []
@@ -59,7 +59,7 @@ def mdm_dict(ids, clips, caps, reps: int, with_obj: bool) -> tuple[dict, dict]:
 
 
 def direct(tmp_path, samples: dict, name: str):
-    from hoibench.submission import write_submission
+    from hoibench.scoring.submission import write_submission
     return write_submission(tmp_path / name, {"method": "direct"}, sorted(samples.items()))
 
 
@@ -102,7 +102,7 @@ def test_missing_prompts_are_reported_and_a_mapping_file_maps_entries(gt, templa
     mp.write_text(json.dumps({"0": ids[0], "1": ids[1], "2": ids[2]}))
     sub2, rep2 = import_results("mdm", path, template_store, tmp_path / "sub2", trust_pickle=True, mapping=mp)
     assert rep2["matched"] == 3 and rep2["conversions"]["match"] == "map"
-    from hoibench.submission import validation_report
+    from hoibench.scoring.submission import validation_report
     assert not validation_report(sub, template_store).complete
 
 
@@ -146,7 +146,7 @@ def test_chois_npz_and_normalised_feature_folders(gt, template_store, tmp_path):
         f = clips[c]["hoi269"].astype(np.float64)
         np.save(feats / f"{c}.npy", (f - stats.mean) / stats.std)
         jj, rot, tr = hoi269.decode(f[None])
-        from hoibench.geometry import matrix_to_axis_angle
+        from hoibench.core.geometry import matrix_to_axis_angle
         expect_f[c] = {"joints": jj.astype(np.float32), "obj_rotvec": matrix_to_axis_angle(rot).astype(np.float32),
                        "obj_trans": tr.astype(np.float32)}
     sub, _ = import_results("chois", chois, template_store, tmp_path / "sc")

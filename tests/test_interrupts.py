@@ -178,7 +178,7 @@ time.sleep(60)
 """
 _CHILD = """
 import os, time
-import hoibench.interrupts as it
+import hoibench.core.interrupts as it
 if {watcher}:
     it._set_pdeathsig = lambda: False
 print(it.die_with_parent(os.getppid(), poll_s=0.05), flush=True)
@@ -230,7 +230,7 @@ def test_strict_stops_at_the_first_failing_sequence(raw, tmp_path):
 def test_closing_map_units_stops_a_pool_without_running_the_queue():
     """What --strict relies on: closing the generator early cancels the queued units and
     terminates the workers at once instead of running the queue (5 s of work here)."""
-    from hoibench.parallel import map_units
+    from hoibench.core.parallel import map_units
     gen = map_units(time.sleep, [0.25] * 40, "processes:2")
     next(gen)
     workers = [p for p in psutil.Process().children() if "spawn_main" in " ".join(p.cmdline())]
@@ -243,7 +243,7 @@ def test_closing_map_units_stops_a_pool_without_running_the_queue():
 
 
 def test_serial_map_units_runs_each_unit_when_asked():
-    from hoibench.parallel import map_units
+    from hoibench.core.parallel import map_units
     calls: list[int] = []
     gen = map_units(calls.append, list(range(10)), "serial")
     next(gen)
@@ -252,7 +252,7 @@ def test_serial_map_units_runs_each_unit_when_asked():
 
 
 def test_terminate_as_interrupt_raises_keyboard_interrupt_and_restores_the_handler():
-    from hoibench.interrupts import terminate_as_interrupt
+    from hoibench.core.interrupts import terminate_as_interrupt
     before = signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
         with terminate_as_interrupt():
@@ -262,7 +262,7 @@ def test_terminate_as_interrupt_raises_keyboard_interrupt_and_restores_the_handl
 
 
 def test_clean_stale_tmp_removes_only_atomic_write_leftovers(tmp_path):
-    from hoibench.io import atomic_write_text, clean_stale_tmp
+    from hoibench.core.io import atomic_write_text, clean_stale_tmp
     keep = [tmp_path / "a.npz", tmp_path / "b.tmp", tmp_path / ".hidden"]
     for p in keep:
         p.write_text("x")
@@ -283,8 +283,8 @@ def test_a_swallowed_interrupt_still_stops_at_the_next_unit():
     by the handler stops map_units at the next unit boundary anyway."""
     import signal as sig
 
-    from hoibench.interrupts import terminate_as_interrupt
-    from hoibench.parallel import map_units
+    from hoibench.core.interrupts import terminate_as_interrupt
+    from hoibench.core.parallel import map_units
 
     def unit(i):
         if i == 1:

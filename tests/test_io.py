@@ -5,8 +5,8 @@ import shutil
 
 import pytest
 
-from hoibench.io import load_json_bytes
-from hoibench.store import Store
+from hoibench.core.io import load_json_bytes
+from hoibench.datasets.store import Store
 
 
 @pytest.mark.parametrize("raw", [b'{"guidance": 1e999}', b'[-1e400]', b'{"a": NaN}', b'{"a": Infinity}'])

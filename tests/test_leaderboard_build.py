@@ -10,8 +10,8 @@ import sys
 
 import pytest
 
-from hoibench import leaderboard as lb
-from hoibench.leaderboard_render import build, fmt
+from hoibench.publish import leaderboard as lb
+from hoibench.publish.pages import build, fmt
 
 EV = "a" * 64
 
@@ -116,7 +116,7 @@ def test_cli_add_build_and_one_line_errors(track, tmp_path):
 
 
 def test_evaluate_prints_groups_arrows_units_and_zero_for_tiny_negative_fid():
-    from hoibench.evaluate import format_result
+    from hoibench.scoring.evaluate import format_result
     res = result(-3e-7, 0.5)
     res.update({"protocol": "synthetic-clean", "protocol_version": "1.1", "notes": ["x"],
                 "undefined_metrics": {"ocd": "no group", "ps": "no group"}})

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from hoibench.leaderboard import entry_from_result, slug, write_entry
+from hoibench.publish.leaderboard import entry_from_result, slug, write_entry
 
 RESULT = {
     "metrics": {"fid": {"mean": 0.2, "ci95": 0.0, "n": 20}, "r_precision_top1": {"mean": 0.58, "ci95": 0.02, "n": 20}},

@@ -90,7 +90,7 @@ def test_diversity_and_multimodality_equal_reference_with_the_same_seed(ref):
 
 
 def test_confidence_interval_equals_reference_get_metric_statistics(ref):
-    from hoibench.protocol import summarize
+    from hoibench.tracks.protocol import summarize
     s = summarize(ref["ci_values"])
     assert (s["mean"], s["ci95"]) == pytest.approx(tuple(ref["ci_expected"]), rel=1e-14)
     v = summarize(ref["ci_values_vec"])
@@ -288,7 +288,7 @@ def test_jitter_of_a_cubic_trajectory_is_its_constant_jerk():
 
 
 # ====================================================================== contact metrics, analytic
-from hoibench import geometry as geo  # noqa: E402
+from hoibench.core import geometry as geo  # noqa: E402
 from hoibench.metrics import contact_metrics as cm  # noqa: E402
 from hoibench.metrics import physical as ph  # noqa: E402
 
@@ -350,7 +350,7 @@ def test_ocd_takes_the_best_group_map_within_8_frames():
 @needs_open3d
 def test_a_body_pushed_a_known_depth_into_a_box_gives_the_known_ps():
     from hoibench.bodies import ProxyBody
-    from hoibench.skeleton import SMPL_REST_JOINTS
+    from hoibench.core.skeleton import SMPL_REST_JOINTS
     from hoibench.metrics.body_surface import proxy_vertices_from_joints
 
     v_rest = ProxyBody().v_template
@@ -370,7 +370,7 @@ def test_a_body_pushed_a_known_depth_into_a_box_gives_the_known_ps():
     assert (neg, total) == (3 * expected, 3 * len(v_rest))
     mx, sm, n = cm.penetration_depth_stats(dv)
     assert mx == pytest.approx(depth, abs=1e-5) and n == 3 and sm == pytest.approx(3 * depth, abs=3e-5)
-    from hoibench.contact import signed_distance_field
+    from hoibench.bodies.contact import signed_distance_field
     sf = cm.surface_frames(signed_distance_field(big, BOX_F), verts)     # the fast path
     np.testing.assert_array_equal(sf.penetrating, [expected] * 3)
     np.testing.assert_allclose(sf.depth, depth, atol=1e-5)
@@ -408,7 +408,7 @@ def _exact_frames(d, contact_m=cm.VERTEX_CONTACT_M):
 @pytest.mark.parametrize("name", ["boxlarge", "yogaball", "stool", "chairwood"])
 def test_surface_frames_equal_exact_distances_of_every_vertex(name):
     """The bounded fast path (few exact queries) equals querying all 6,890 x T vertices."""
-    from hoibench.contact import signed_distance_field
+    from hoibench.bodies.contact import signed_distance_field
     from hoibench.datasets.synthetic import build_object
     obj = build_object(name)
     field = signed_distance_field(obj.vertices, obj.faces)
@@ -428,7 +428,7 @@ def test_surface_frames_equal_exact_distances_of_every_vertex(name):
 def test_culled_proxy_points_give_the_exact_surface_frames(clip):
     """proxy_template_points skips clusters that cannot come within the margin; the frames it
     yields equal the exact per-vertex computation on the whole posed proxy body."""
-    from hoibench.contact import signed_distance_field, to_template_frame
+    from hoibench.bodies.contact import signed_distance_field, to_template_frame
     from hoibench.datasets.synthetic import Defect, generate_clip, plan_clips
     from hoibench.metrics.body_surface import (PROXY_VERTICES, proxy_template_points,
                                                proxy_vertices_from_joints)

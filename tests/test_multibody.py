@@ -12,10 +12,10 @@ import pytest
 pytest.importorskip("open3d")
 pytest.importorskip("trimesh")
 
-from hoibench.multibody import representation as rep  # noqa: E402
-from hoibench.multibody import synthetic as syn  # noqa: E402
-from hoibench.multibody.clip import Body, MultiBodyClip, check_clip  # noqa: E402
-from hoibench.multibody.surfaces import ObjectField, pair_penetration, skeleton_object_distance  # noqa: E402
+from hoibench.representations import multibody as rep  # noqa: E402
+from hoibench.datasets import synthetic_multibody as syn  # noqa: E402
+from hoibench.bodies.multibody import Body, MultiBodyClip, check_clip  # noqa: E402
+from hoibench.bodies.capsules import ObjectField, pair_penetration, skeleton_object_distance  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +72,7 @@ def test_a_translation_of_the_scene_leaves_relative_blocks_unchanged(family_clip
 
 def test_a_single_body_store_clip_is_the_one_human_one_object_case(tmp_path):
     from hoibench.datasets.synthetic_store import build_synthetic_store
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     _, data, _ = build_synthetic_store(tmp_path, 3, seed=1)
     store = Store(data)
     cid = store.clip_ids()[0]
@@ -114,7 +114,7 @@ def test_two_boxes_overlapping_by_a_known_volume_give_that_iv():
 def _hand_above(top_y: float, gap: float) -> Body:
     """A straight proxy-sized hand lying flat whose lowest capsule surface is ``gap`` above
     ``top_y``: every joint on one horizontal line (capsule radius 12 mm palm, 9 mm fingers)."""
-    from hoibench.multibody.surfaces import bones
+    from hoibench.bodies.capsules import bones
     J = np.zeros((1, 21, 3))
     J[0, :, 0] = np.linspace(-0.03, 0.03, 21)
     pa, pb, r = bones("hand")
@@ -124,8 +124,8 @@ def _hand_above(top_y: float, gap: float) -> Body:
 
 def test_a_hand_at_a_known_distance_flips_contact_at_the_threshold():
     import trimesh
-    from hoibench.multibody.evaluate import _contacts
-    from hoibench.multibody.protocol import get
+    from hoibench.scoring.multibody import _contacts
+    from hoibench.tracks.multibody_protocol import get
     proto = get("multibody-synthetic")
     m = trimesh.creation.box(extents=(0.2, 0.1, 0.2))
     tmpl = {"box": (np.asarray(m.vertices), np.asarray(m.faces))}
@@ -143,9 +143,9 @@ def test_a_hand_at_a_known_distance_flips_contact_at_the_threshold():
 def track(tmp_path_factory):
     """The synthetic multi-body track: 54 clips (6 per action), a recognizer, GT and defects."""
     from hoibench.datasets import multibody as mbl
-    from hoibench.multibody.evaluate import write_multibody_submission
-    from hoibench.multibody.recognizer import train_recognizer
-    from hoibench.store import PrepareConfig, prepare
+    from hoibench.scoring.multibody import write_multibody_submission
+    from hoibench.evaluator.recognizer import train_recognizer
+    from hoibench.datasets.store import PrepareConfig, prepare
     base = tmp_path_factory.mktemp("mbtrack")
     mbl.write_synthetic_layout(base / "raw", 54, seed=0)
     cfg = PrepareConfig("multibody-synthetic", fps=syn.FPS)
@@ -158,7 +158,7 @@ def track(tmp_path_factory):
 
 
 def test_the_track_prepares_and_clips_equal_the_generator(track):
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     base, manifest, _, _ = track
     assert manifest["counts"]["failed"] == 0 and manifest["counts"]["by_split"] == {"test": 13, "train": 41}
     store = Store(base / "data")
@@ -176,7 +176,7 @@ def test_the_track_prepares_and_clips_equal_the_generator(track):
 
 
 def test_the_recognizer_is_far_above_chance_on_the_ground_truth_and_deterministic(track, tmp_path):
-    from hoibench.multibody.recognizer import train_recognizer
+    from hoibench.evaluator.recognizer import train_recognizer
     base, _, card, _ = track
     assert card["gt_accuracy"]["test"] >= 0.8 > 3 * card["chance_accuracy"]
     again = train_recognizer(base / "data", tmp_path / "rec", steps=200)
@@ -186,7 +186,7 @@ def test_the_recognizer_is_far_above_chance_on_the_ground_truth_and_deterministi
 
 
 def test_ground_truth_scores_best_and_defects_score_worse(track):
-    from hoibench.multibody.evaluate import evaluate
+    from hoibench.scoring.multibody import evaluate
     base, _, _, subs = track
     res = {k: evaluate(p, base / "data", base / "rec") for k, p in subs.items()}
     gt = res["gt"]["metrics"]
@@ -204,7 +204,7 @@ def test_ground_truth_scores_best_and_defects_score_worse(track):
 
 
 def test_serial_and_process_executors_give_identical_results(track):
-    from hoibench.multibody.evaluate import evaluate
+    from hoibench.scoring.multibody import evaluate
     base, _, _, subs = track
     a = evaluate(subs["desync"], base / "data", base / "rec", executor="serial")
     b = evaluate(subs["desync"], base / "data", base / "rec", executor="processes:2")
@@ -214,7 +214,7 @@ def test_serial_and_process_executors_give_identical_results(track):
 def test_bad_submissions_get_one_line_naming_the_id_and_field(track, tmp_path, capsys):
     import shutil
     from hoibench.cli import main
-    from hoibench.io import npz_bytes
+    from hoibench.core.io import npz_bytes
     base, _, _, subs = track
     bad = tmp_path / "bad"
     shutil.copytree(subs["gt"], bad)

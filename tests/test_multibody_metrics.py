@@ -1,4 +1,4 @@
-"""Multi-body metrics (hoibench.multibody.metrics): the claims.
+"""Multi-body metrics (hoibench.metrics.multibody): the claims.
 
 * Contact (CSR, CRR, CSIoU) follows the geometry: a hand box at a known gap from an object
   flips contact exactly across the threshold; CRR needs both roots; CSIoU of known frame sets
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from hoibench.metrics.state import Metric
-from hoibench.multibody import metrics as mb
+from hoibench.metrics import multibody as mb
 
 pytest.importorskip("open3d")
 

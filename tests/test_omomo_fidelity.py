@@ -20,7 +20,7 @@ from hoibench.bodies import build_proxy_arrays  # noqa: E402
 from hoibench.datasets import omomo  # noqa: E402
 from hoibench.datasets import synthetic_layouts as sl  # noqa: E402
 from hoibench.datasets.omomo import ZUP_TO_YUP  # noqa: E402
-from hoibench.store import PrepareConfig, Store, prepare  # noqa: E402
+from hoibench.datasets.store import PrepareConfig, Store, prepare  # noqa: E402
 
 TRAIN = "train_diffusion_manip_seq_joints24.p"
 

@@ -15,9 +15,9 @@ pytest.importorskip("trimesh")
 from hoibench.bodies.proxy import ProxyBody, build_proxy_arrays, write_proxy_model  # noqa: E402
 from hoibench.datasets import omomo, rich  # noqa: E402
 from hoibench.datasets import synthetic_layouts as sl  # noqa: E402
-from hoibench.skeleton import SMPL_REST_JOINTS, forward_kinematics  # noqa: E402
-from hoibench import geometry as geo  # noqa: E402
-from hoibench.store import PrepareConfig, Store, prepare  # noqa: E402
+from hoibench.core.skeleton import SMPL_REST_JOINTS, forward_kinematics  # noqa: E402
+from hoibench.core import geometry as geo  # noqa: E402
+from hoibench.datasets.store import PrepareConfig, Store, prepare  # noqa: E402
 
 TOL_M = 1e-4
 N_OMOMO, N_RICH = 6, 6

@@ -1,10 +1,10 @@
-"""Progress reporting of hoibench.parallel.map_units without a terminal."""
+"""Progress reporting of hoibench.core.parallel.map_units without a terminal."""
 from __future__ import annotations
 
 
 def test_line_progress_for_logs_and_silence_on_error(monkeypatch, capsys):
     import io
-    from hoibench import parallel
+    from hoibench.core import parallel
     buf = io.StringIO()
     bar = parallel.LineProgress("stage", 3, every_s=0.0, stream=buf)
     for _ in range(3):

@@ -9,11 +9,11 @@ import sys
 
 import numpy as np
 
-from hoibench.prompts import prompts, write_prompts
+from hoibench.scoring.prompts import prompts, write_prompts
 
 
 def test_prompts_carry_what_a_generator_needs(template_store, tmp_path):
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     st = Store(template_store)
     ps = prompts(template_store)
     assert [p["id"] for p in ps] == st.clip_ids("test")
@@ -28,9 +28,9 @@ def test_prompts_carry_what_a_generator_needs(template_store, tmp_path):
 
 
 def test_the_documented_loop_makes_a_valid_submission(template_store, tmp_path):
-    from hoibench import prompts as mod
-    from hoibench.store import Store
-    from hoibench.submission import validation_report
+    from hoibench.scoring import prompts as mod
+    from hoibench.datasets.store import Store
+    from hoibench.scoring.submission import validation_report
     write_prompts(template_store, tmp_path / "prompts.jsonl")
     loop = re.search(r"A ten-line generation loop.*?::\n\n(.*?)\n\"\"\"", mod.__doc__ + '\n"""', re.S).group(1)
     code = "\n".join(line[4:] for line in loop.splitlines())

@@ -1,4 +1,4 @@
-"""Protocols (hoibench.protocol) and submissions (hoibench.submission): the claims.
+"""Protocols (hoibench.tracks.protocol) and submissions (hoibench.scoring.submission): the claims.
 
 * Every shipped protocol parses, fixes the DESIGN numbers (20 replications, pools of 32,
   300 diversity pairs -- 200 on BEHAVE --, 100 x 30 x 10 MultiModality) and draws the same
@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hoibench import protocol as P
-from hoibench import submission as S
+from hoibench.tracks import protocol as P
+from hoibench.scoring import submission as S
 
 
 # ====================================================================== protocols
@@ -143,7 +143,7 @@ def test_ground_truth_submission_is_valid_as_folder_and_zip(gt_sub, tmp_path):
 def test_ground_truth_physical_metrics_from_a_submission(gt_sub):
     pytest.importorskip("open3d")
     from hoibench.metrics.physical import clip_inputs, evaluate_physical
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     data, sub, ids = gt_sub
     with S.Submission(sub) as s:
         motions = {i: {k: v[0] for k, v in s.load(i).items()} for i in s.ids}

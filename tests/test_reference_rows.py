@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from hoibench.reference_rows import derangement, write_reference
+from hoibench.scoring.reference_rows import derangement, write_reference
 
 
 def test_derangement_moves_every_clip_and_is_seeded():
@@ -22,7 +22,7 @@ def test_derangement_moves_every_clip_and_is_seeded():
 
 
 def test_rows_are_what_they_claim(template_store, tmp_path):
-    from hoibench.store import Store
+    from hoibench.datasets.store import Store
     st = Store(template_store)
     ids = st.clip_ids("test")
     noisy = write_reference("gt-noise", template_store, tmp_path / "n", sigma=0.02)
@@ -48,7 +48,7 @@ def test_rows_are_what_they_claim(template_store, tmp_path):
 def test_reference_rows_order_as_they_should(template_store, tmp_path):
     pytest.importorskip("transformers")
     pytest.importorskip("open3d")
-    from hoibench.evaluate import evaluate
+    from hoibench.scoring.evaluate import evaluate
     from hoibench.evaluator import main_train_evaluator
     main_train_evaluator(template_store, tmp_path / "ev", size="tiny", epochs=12, seed=0)
     res = {}
@@ -61,6 +61,6 @@ def test_reference_rows_order_as_they_should(template_store, tmp_path):
     assert abs(fid["gt"]) < 1e-4 and abs(fid["mism"]) < 1e-4      # the same motions: the same statistics
     assert fid["n3"] > fid["n1"] > 10 * max(abs(fid["gt"]), 1e-6) and fid["static"] > 0.01
     assert r1["mism"] < r1["gt"]
-    n = len(__import__("hoibench.store", fromlist=["Store"]).Store(template_store).clip_ids("test"))
+    n = len(__import__("hoibench.datasets.store", fromlist=["Store"]).Store(template_store).clip_ids("test"))
     assert r1["mism"] < 3.0 / n                                    # chance is 1 / n with one pool of n
     assert res["n3"]["fsr"]["mean"] > res["n1"]["fsr"]["mean"] > res["gt"]["fsr"]["mean"]

@@ -1,4 +1,4 @@
-"""Tests for hoibench.render: off-screen pyvista rendering to .png / .gif / .mp4.
+"""Tests for hoibench.publish.render: off-screen pyvista rendering to .png / .gif / .mp4.
 
 The rendering tests skip when pyvista or imageio is not installed (they are optional
 dependencies: ``pip install pyvista imageio``).
@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hoibench.io import atomic_save_npz
-from hoibench.render import MAX_GIF_FRAMES, camera_pose, select_frames
+from hoibench.core.io import atomic_save_npz
+from hoibench.publish.render import MAX_GIF_FRAMES, camera_pose, select_frames
 
 T = 12
 SIZE = (160, 120)
@@ -87,7 +87,7 @@ def _no_temp_files(folder: Path):
 
 # --------------------------------------------------------------------------- no pyvista needed
 def test_import_is_cheap():
-    code = "import sys, hoibench.render; assert 'pyvista' not in sys.modules and 'vtk' not in sys.modules"
+    code = "import sys, hoibench.publish.render; assert 'pyvista' not in sys.modules and 'vtk' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True, cwd=Path(__file__).resolve().parents[1])
 
 
@@ -117,7 +117,7 @@ def test_camera_sees_box_from_front_left():
 
 # --------------------------------------------------------------------------- rendering
 def test_png_size_and_object_changes_pixels(deps, tmp_path):
-    from hoibench.render import render_sequence
+    from hoibench.publish.render import render_sequence
 
     clip = _clip()
     v, f = _box()
@@ -137,7 +137,7 @@ def test_png_size_and_object_changes_pixels(deps, tmp_path):
 
 
 def test_gif_frame_count(deps, tmp_path):
-    from hoibench.render import render_sequence
+    from hoibench.publish.render import render_sequence
 
     clip = _clip()
     out = render_sequence(clip["joints"], None, None, None, tmp_path / "skel.gif", frames=2, size=SIZE,
@@ -148,7 +148,7 @@ def test_gif_frame_count(deps, tmp_path):
 
 
 def test_render_clip_png_and_gif(deps, store, tmp_path):
-    from hoibench.render import render_clip
+    from hoibench.publish.render import render_clip
 
     png = render_clip(store, "c0", tmp_path / "c0.png", size=SIZE)
     assert png.stat().st_size > 0 and deps.imread(png).shape[:2] == (SIZE[1], SIZE[0])
@@ -161,7 +161,7 @@ def test_render_clip_png_and_gif(deps, store, tmp_path):
 
 
 def test_render_clip_falls_back_to_skeleton(deps, store, tmp_path):
-    from hoibench.render import render_clip
+    from hoibench.publish.render import render_clip
 
     skel = deps.imread(render_clip(store, "c0", tmp_path / "skel.png", body="skeleton", size=SIZE))
     for cid in ("bare", "shifted"):
@@ -174,7 +174,7 @@ def test_render_clip_falls_back_to_skeleton(deps, store, tmp_path):
 
 
 def test_mp4_needs_imageio_ffmpeg(deps, store, tmp_path, monkeypatch):
-    from hoibench.render import render_clip
+    from hoibench.publish.render import render_clip
 
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # makes `import imageio_ffmpeg` fail
     with pytest.raises(ImportError, match="pip install imageio-ffmpeg"):
@@ -184,7 +184,7 @@ def test_mp4_needs_imageio_ffmpeg(deps, store, tmp_path, monkeypatch):
 
 def test_mp4(deps, store, tmp_path):
     pytest.importorskip("imageio_ffmpeg")
-    from hoibench.render import render_clip
+    from hoibench.publish.render import render_clip
 
     out = render_clip(store, "c0", tmp_path / "c0.mp4", size=SIZE, frames=slice(0, 8))
     reader = deps.get_reader(str(out))
@@ -197,7 +197,7 @@ def test_mp4(deps, store, tmp_path):
 
 
 def test_bad_suffix(deps, tmp_path):
-    from hoibench.render import render_sequence
+    from hoibench.publish.render import render_sequence
 
     with pytest.raises(ValueError, match="unsupported output format"):
         render_sequence(_clip()["joints"], out_path=tmp_path / "x.jpg")

@@ -11,9 +11,9 @@ pytest.importorskip("pyvista")
 
 
 def test_comparison_is_two_panels_and_bad_ids_are_one_line(template_store, tmp_path):
-    from hoibench.render import render_comparison
-    from hoibench.store import Store
-    from hoibench.submission import from_store
+    from hoibench.publish.render import render_comparison
+    from hoibench.datasets.store import Store
+    from hoibench.scoring.submission import from_store
     sub = from_store(template_store, tmp_path / "gt")
     cid = Store(template_store).clip_ids("test")[0]
     png = render_comparison(sub, template_store, cid, tmp_path / "c.png", size=(200, 160))

@@ -22,7 +22,7 @@ from hoibench.bodies.proxy import ProxyBody  # noqa: E402
 from hoibench.datasets import rich  # noqa: E402
 from hoibench.datasets import synthetic_layouts as sl  # noqa: E402
 from hoibench.datasets.omomo import ZUP_TO_YUP  # noqa: E402
-from hoibench.store import PrepareConfig, Store, prepare  # noqa: E402
+from hoibench.datasets.store import PrepareConfig, Store, prepare  # noqa: E402
 
 
 def _toolkit_like_smplx(folder):

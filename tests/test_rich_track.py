@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("smplx")
 pytest.importorskip("trimesh")
 
-from hoibench import annotate as an  # noqa: E402
+from hoibench.text import annotate as an  # noqa: E402
 
 N_SEQUENCES = 40           # -> 30 clips of 64 frames at 20 fps (19 train, 5 val, 6 test)
 #: scenes.yaml: the synthetic actions' scene objects, and the scene exception the layout hits
@@ -30,7 +30,7 @@ def rich_store(tmp_path_factory):
     """(base folder, store) of the synthetic RICH layout prepared at 20 fps and annotated."""
     from hoibench.datasets import rich
     from hoibench.datasets import synthetic_layouts as sl
-    from hoibench.store import PrepareConfig, prepare
+    from hoibench.datasets.store import PrepareConfig, prepare
 
     base = tmp_path_factory.mktemp("rich_track")
     raw, data = base / "raw", base / "data"
@@ -52,9 +52,9 @@ def scored(rich_store):
     override) and the ground-truth submission's result."""
     pytest.importorskip("transformers")
     pytest.importorskip("open3d")
-    from hoibench.evaluate import evaluate
+    from hoibench.scoring.evaluate import evaluate
     from hoibench.evaluator import main_train_evaluator
-    from hoibench.submission import from_store
+    from hoibench.scoring.submission import from_store
 
     base, data = rich_store
     main_train_evaluator(data, base / "ev", size="tiny", epochs=3, seed=0)
@@ -153,13 +153,13 @@ def test_hoi_evaluator_on_a_human_only_store_is_one_line(rich_store, tmp_path):
 
 
 def test_rich_store_is_scored_under_rich_cat_clean(rich_store):
-    from hoibench.protocol import default_protocol_id
-    from hoibench.store import Store
+    from hoibench.tracks.protocol import default_protocol_id
+    from hoibench.datasets.store import Store
     assert default_protocol_id(Store(rich_store[1]).manifest) == "rich-cat-clean"
 
 
 def test_joints_only_gt_submission_validates_and_scores_fid_zero_without_object_metrics(scored):
-    from hoibench.submission import validation_report
+    from hoibench.scoring.submission import validation_report
     base, res = scored
     rep = validation_report(base / "gt", base / "data")
     assert rep.complete and not rep.errors and not rep.warnings
@@ -179,7 +179,7 @@ def test_joints_only_gt_submission_validates_and_scores_fid_zero_without_object_
 
 
 def test_human_only_submission_missing_joints_is_refused_naming_id_and_field(scored, tmp_path, capsys):
-    from hoibench.submission import main_validate, validation_report
+    from hoibench.scoring.submission import main_validate, validation_report
     base, _ = scored
     sub = tmp_path / "sub"
     shutil.copytree(base / "gt", sub)
@@ -206,7 +206,7 @@ def test_catmo_trains_and_samples_a_human_only_store_into_a_joints_only_submissi
     from hoibench.baselines.catmo.config import preset
     from hoibench.baselines.catmo.trainer import train
     from hoibench.baselines.sampler import sample
-    from hoibench.submission import validation_report
+    from hoibench.scoring.submission import validation_report
 
     _, data = rich_store
     cfg = preset("tiny").replace(**{"train.vq_steps": 2, "train.contact_steps": 2, "text.movement_ae_steps": 1,

@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from hoibench import splits
+from hoibench.datasets import splits
 from hoibench.cli import main
 
 

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hoibench import geometry as geo
+from hoibench.core import geometry as geo
 from hoibench.bodies import proxy_rest_joints
 from hoibench.datasets import synthetic as syn
-from hoibench.skeleton import forward_kinematics
+from hoibench.core.skeleton import forward_kinematics
 
 N_CLIPS = 8
 WRISTS = (20, 21)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from hoibench import text_tokens
+from hoibench.text import tokens as text_tokens
 
 
 def test_fallback_tags_and_lemmatises_like_humanml3d():

@@ -9,8 +9,8 @@ import pytest
 
 from hoibench.baselines import trivial
 from hoibench.representations import hml263
-from hoibench.store import Store
-from hoibench.submission import Submission, validation_report
+from hoibench.datasets.store import Store
+from hoibench.scoring.submission import Submission, validation_report
 
 
 def _expected(data) -> tuple[np.ndarray, np.ndarray]:

@@ -20,12 +20,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..errors import HoibenchError
+from ..core.errors import HoibenchError
 # the same file names, size limits and id scheme as an evaluator folder
 from ..evaluator.card import (CARD, CURVE_PNG, MAX_CARD_BYTES, MAX_WEIGHTS_BYTES, TRAIN_LOG, WEIGHTS,  # noqa: F401
                               changed_parts, check_safetensors, compute_id, integrity_block, weights_bytes)
 from ..evaluator.errors import CorruptEvaluatorFile
-from ..io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
+from ..core.io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
 
 FORMAT = "hoibench-baseline-1"
 CHECKPOINT_DIR = "checkpoint"

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import skeleton as sk
-from ..store import Store
+from ..core import skeleton as sk
+from ..datasets.store import Store
 
 INTERACTION_JOINTS: tuple[int, ...] = sk.OBJECT_NODE_NEIGHBOURS     # 0, 10, 11, 12, 16, 17, 20, 21
 _WORD = re.compile(r"[a-z]+")
@@ -119,7 +119,7 @@ def recentre_window(rows: np.ndarray, start: int, length: int) -> np.ndarray:
     """Rows ``[start, start + length)`` of a joint_level clip in the window's own canonical
     frame: yaw - yaw_a; root and object translation ``R_y(yaw_a) (p - root_a)`` in x, z (y
     unchanged); object rotation ``R_y(yaw_a) R``. Relative channels are frame-free."""
-    from ..geometry import axis_angle_to_matrix, matrix_to_axis_angle
+    from ..core.geometry import axis_angle_to_matrix, matrix_to_axis_angle
 
     w = np.array(rows[start:start + length], dtype=np.float64)
     if start == 0:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import torch
 
-from ..geometry import axis_angle_to_matrix
+from ..core.geometry import axis_angle_to_matrix
 from . import joint_data as D
 from .diffusion import GaussianDiffusion, drop_condition, masked_mse
 

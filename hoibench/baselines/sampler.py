@@ -8,7 +8,7 @@ on which other clips are sampled, in what order or on how many workers. The rows
 de-normalised with the run's statistics, converted to hoi269 (:func:`joint_level.to_hoi269`)
 and decoded (:func:`hoi269.decode`) into joints (K, T, 22, 3), object rotations (K, T, 3, 3)
 and translations (K, T, 3) in the canonical frame (y up, metres), and written with
-:func:`hoibench.submission.write_submission`.
+:func:`hoibench.scoring.submission.write_submission`.
 
 Sampling refuses a store whose normalisation statistics or representation differ from the
 ones the run was trained with.
@@ -24,9 +24,9 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..interrupts import check_interrupted
+from ..core.interrupts import check_interrupted
 from ..representations import hoi269, joint_level
-from ..store import Store
+from ..datasets.store import Store
 from . import checkpoint as ckpt
 from . import joint_data as D
 from .config import RunConfig
@@ -185,8 +185,8 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     loaded = load_run(run, device, baseline)
     store = Store(data)
     loaded.check_store(store)
-    from ..protocol import default_protocol_id
-    from ..submission import submission_context
+    from ..tracks.protocol import default_protocol_id
+    from ..scoring.submission import submission_context
     cap = submission_context(store, None)[2]         # validation's K cap: the default protocol's
     if samples > cap:
         raise ValueError(f"--samples: {samples} samples per prompt; the {default_protocol_id(store.manifest)} protocol "
@@ -235,7 +235,7 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
             log(f"{tag} sampled {i + 1}/{len(ids)} {cid} (K={samples}, T={T}) {el:.1f} s")
             yield cid, arrays
 
-    from ..submission import write_submission
+    from ..scoring.submission import write_submission
     path = write_submission(out, meta, gen(), as_zip=as_zip)
     log(f"{tag} wrote {path}: {len(ids)} clips x {samples} samples in {time.perf_counter() - t0:.1f} s "
         f"(AIT {(time.perf_counter() - t0) / (len(ids) * samples):.3f} s per sample)")

@@ -23,10 +23,10 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..errors import HoibenchError
-from ..interrupts import check_interrupted
-from ..io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp, finished_output
-from ..store import Store
+from ..core.errors import HoibenchError
+from ..core.interrupts import check_interrupted
+from ..core.io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp, finished_output
+from ..datasets.store import Store
 from . import checkpoint as ckpt
 from . import joint_data as D
 from .config import RunConfig

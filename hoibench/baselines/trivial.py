@@ -31,8 +31,8 @@ import numpy as np
 
 from .. import __version__
 from ..representations import hml263, hoi269
-from ..store import Store
-from ..submission import write_submission
+from ..datasets.store import Store
+from ..scoring.submission import write_submission
 
 METHOD = "mean pose + static object"
 TRAIN_SPLIT = "train"

@@ -1,7 +1,7 @@
 """License-free proxy body model in the SMPL-H and SMPL-X file structures.
 
 The proxy is a closed surface of rigid, elliptic-section capsules around the bones of the
-22-joint skeleton (:data:`hoibench.skeleton.SMPL_REST_JOINTS`, metres, y-up, T-pose, the
+22-joint skeleton (:data:`hoibench.core.skeleton.SMPL_REST_JOINTS`, metres, y-up, T-pose, the
 SMPL family's mean-shape joint positions in the model frame) plus 30 finger joints, so the
 pose parameters and ``trans`` mean exactly what they mean for the real SMPL-H files.
 
@@ -70,9 +70,9 @@ from typing import Sequence
 
 import numpy as np
 
-from ..geometry import axis_angle_to_matrix
-from ..io import atomic_write_bytes, npz_bytes
-from ..skeleton import NUM_JOINTS, SMPL_REST_JOINTS, forward_kinematics
+from ..core.geometry import axis_angle_to_matrix
+from ..core.io import atomic_write_bytes, npz_bytes
+from ..core.skeleton import NUM_JOINTS, SMPL_REST_JOINTS, forward_kinematics
 
 __all__ = [
     "PROXY_SCALE_PER_BETA",
@@ -112,7 +112,7 @@ SMPLH_JOINT_NAMES: tuple[str, ...] = (
     "left_elbow", "right_elbow", "left_wrist", "right_wrist",
 ) + tuple(f"{side}_{f}{k}" for side in ("left", "right") for f in _FINGERS for k in (1, 2, 3))
 
-#: SMPL-H parents (52): body as :data:`hoibench.skeleton.PARENTS`; each finger is a chain
+#: SMPL-H parents (52): body as :data:`hoibench.core.skeleton.PARENTS`; each finger is a chain
 #: wrist -> 1 -> 2 -> 3 (left wrist 20, right wrist 21).
 SMPLH_PARENTS: tuple[int, ...] = (
     -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19,
@@ -546,7 +546,7 @@ class ProxyBody:
     ``forward`` reproduces ``smplx``'s SMPL-H (or, with ``model_type='smplx'``, SMPL-X with
     zero expression) forward pass on the proxy files (``use_pca=False``) in float64:
     ``v_shaped = v_template + shapedirs . betas``, rest joints ``(1 + 0.05 b_0) J``,
-    joints by :func:`hoibench.skeleton.forward_kinematics` (hands continue from the
+    joints by :func:`hoibench.core.skeleton.forward_kinematics` (hands continue from the
     wrists), and ``v = sum_j w_vj (G_j v_shaped + J_j - G_j rest_j)`` (``trans`` included
     in ``J_j``).
 

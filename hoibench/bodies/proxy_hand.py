@@ -67,8 +67,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..geometry import axis_angle_to_matrix
-from ..io import atomic_write_bytes, npz_bytes
+from ..core.geometry import axis_angle_to_matrix
+from ..core.io import atomic_write_bytes, npz_bytes
 from .proxy import (_FINGER_RADIUS, _FINGERS, _LEFT_FINGERS, PROXY_SCALE_PER_BETA, _assemble, _Part,
                     _reorder_and_skin, _split_faces)
 

@@ -64,7 +64,7 @@ def model_path(model_dir, model_type: str = "smplh", gender: str = "neutral",
     SMPL-H / SMPL-X: npz, then pkl). Raises FileNotFoundError naming every path tried.
     """
     mt = _check_type(model_type)
-    from ..plausibility import GENDERS     # the gender becomes part of a file name
+    from ..core.plausibility import GENDERS     # the gender becomes part of a file name
     if str(gender).lower() not in GENDERS:
         raise ValueError(f"gender: expected one of {GENDERS}, got {str(gender)[:40]!r}")
     folder = Path(model_dir).expanduser() / mt

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import geometry as geo
+from ..core import geometry as geo
 
 
 def rigid_transform_smpl(root_orient: np.ndarray, trans: np.ndarray, rest_pelvis: np.ndarray,

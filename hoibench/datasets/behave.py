@@ -36,12 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import MAX_RAW_MESH_BYTES, check_regular_file, load_raw_npz, read_json_file
+from ..core.io import MAX_RAW_MESH_BYTES, check_regular_file, load_raw_npz, read_json_file
 
-from .. import geometry as geo
-from .. import plausibility as pl
+from ..core import geometry as geo
+from ..core import plausibility as pl
 from ..bodies.transform import rigid_transform_smpl
-from ..ids import InvalidIdError, check_id
+from ..core.ids import InvalidIdError, check_id
 from .sequence import BodyParams, HOISequence
 
 SOURCE_FPS = 30.0
@@ -78,7 +78,7 @@ def official_split(name: str) -> str:
 
 def parse_frame_times(times, name: str, where: str = "smpl_fit_all.npz") -> np.ndarray:
     """'t0003.033' -> 3.033 seconds: finite, strictly increasing and spanning at most
-    :data:`hoibench.plausibility.MAX_DURATION_S`, or a SequenceError naming ``where``."""
+    :data:`hoibench.core.plausibility.MAX_DURATION_S`, or a SequenceError naming ``where``."""
     raw = np.asarray(times).ravel()
     try:
         secs = np.array([float(str(t).lstrip("t")) for t in raw], dtype=np.float64)
@@ -140,7 +140,7 @@ def _template(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def load_object_template(path: str, obj: str = "", name: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(centred vertices (V,3) float64, faces (F,3) int64, the subtracted mean (3,)) of a
-    template that passes :func:`hoibench.plausibility.check_template` (finite, >= 4
+    template that passes :func:`hoibench.core.plausibility.check_template` (finite, >= 4
     vertices, >= 1 face, indices in range, non-zero area, 1 cm..10 m); errors name the
     sequence ``name``, the object ``obj`` and the mesh file."""
     try:
@@ -339,19 +339,19 @@ def list_sequences(root: str | Path) -> list[Path]:
 
 def load_split_file(path: str | Path) -> dict[str, str]:
     """``{"train": [...], "test": [...]}`` -> {sequence: split}; a file with an invalid id
-    or an id in two splits is refused (:func:`hoibench.splits.read_split_file`)."""
-    from ..splits import read_split_file
+    or an id in two splits is refused (:func:`hoibench.datasets.splits.read_split_file`)."""
+    from .splits import read_split_file
     return read_split_file(path)
 
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None) -> list[tuple]:
-    """One :func:`hoibench.store.run_unit` job per sequence folder.
+    """One :func:`hoibench.datasets.store.run_unit` job per sequence folder.
 
     The split is the official one (test = Date03) unless ``split_file`` names another; a
     sequence the split file does not list is an error for that sequence.
     """
-    from ..store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, unlisted_split_jobs
+    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, unlisted_split_jobs
     root = Path(root)
     splits = load_split_file(split_file) if split_file else None
     jobs, sources = [], []

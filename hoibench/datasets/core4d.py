@@ -1,4 +1,4 @@
-"""CORE4D-Real -> :class:`~hoibench.multibody.clip.MultiBodyClip` (two humans, one object).
+"""CORE4D-Real -> :class:`~hoibench.bodies.multibody.MultiBodyClip` (two humans, one object).
 
 CORE4D (Liu, Zhang et al., "CORE4D: A 4D Human-Object-Human Interaction Dataset for
 Collaborative Object REarrangement", arXiv 2406.19353, CVPR 2025) captures two people
@@ -95,7 +95,7 @@ Conversion (per sequence):
    OMOMO; computed before resampling, so the shift does not depend on ``fps``); the shift
    is recorded (``floor_shift_m``).
 3. Object: the 3x3 block of each pose must be a rotation within
-   :data:`hoibench.plausibility.ROTATION_TOL` (it is replaced by the nearest rotation; the
+   :data:`hoibench.core.plausibility.ROTATION_TOL` (it is replaced by the nearest rotation; the
    largest correction is recorded) and the bottom row ``(0, 0, 0, 1)``; the template is
    centred on its vertex mean ``m`` and the translation becomes ``t + R m``, so
    ``R (v - m) + t + R m`` is exactly CORE4D's ``R v + t``.
@@ -110,7 +110,7 @@ Conversion (per sequence):
 Refused, naming the sequence, file and key: a missing file or key, a wrong shape, a
 non-real or non-finite value, frame counts that differ between the files, fewer than two
 frames, a pose that is not rigid, a missing or degenerate mesh, implausible tracks (see
-:mod:`hoibench.plausibility`), stored joints far from the model's, a sequence outside the
+:mod:`hoibench.core.plausibility`), stored joints far from the model's, a sequence outside the
 split.
 """
 from __future__ import annotations
@@ -123,10 +123,10 @@ from typing import Any
 
 import numpy as np
 
-from .. import geometry as geo
-from .. import plausibility as pl
-from ..ids import InvalidIdError, check_id
-from ..skeleton import NUM_JOINTS
+from ..core import geometry as geo
+from ..core import plausibility as pl
+from ..core.ids import InvalidIdError, check_id
+from ..core.skeleton import NUM_JOINTS
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_rigid, resample_times
 
 __all__ = ["SOURCE_FPS", "PERSONS", "POSE_FILE", "LEGACY_POSE_FILE", "STORED_JOINTS_TOL_M", "OFFICIAL_SPLIT",
@@ -253,7 +253,7 @@ def read_object_name(seq_dir: str | Path, where: str) -> str:
     rel = _rel(path, seq_dir)
     if not path.exists():
         raise SequenceError(f"{where}: missing file {rel}")
-    from ..io import read_json_file
+    from ..core.io import read_json_file
     try:
         meta = read_json_file(path, 1024 ** 2, METADATA_FILE)
     except ValueError as exc:
@@ -290,7 +290,7 @@ def object_pose_path(seq_dir: str | Path, obj_name: str = "") -> Path:
 
 
 def _size_checked(path: Path, rel: str, limit: int, where: str) -> None:
-    from ..io import check_regular_file
+    from ..core.io import check_regular_file
     if not path.exists():
         raise SequenceError(f"{where}: missing file {rel}")
     try:
@@ -413,7 +413,7 @@ def read_action_labels(path: str | Path) -> dict[str, Any]:
     """``action_labels.json`` -> {``<date>.<seq>``: value} (keys ``<date>/<seq>`` or
     ``<date>.<seq>``; values are checked per sequence by the loader). ValueError naming the
     file when it is not a JSON object."""
-    from ..io import read_json_file
+    from ..core.io import read_json_file
     data = read_json_file(path, 64 * 1024 ** 2, ACTION_FILE)
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a JSON object {{\"<date>/<seq>\": label}}, got {type(data).__name__}")
@@ -483,7 +483,7 @@ def _template(path: str, mtime_ns: int, size: int) -> tuple[np.ndarray, np.ndarr
 def load_template(path: str | Path, obj: str, where: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) float64 (as in the file, not centred) and faces (F, 3) of an object
     mesh loaded as CORE4D loads it (``trimesh.load``: vertices at equal positions merged)
-    that passes :func:`hoibench.plausibility.check_template`."""
+    that passes :func:`hoibench.core.plausibility.check_template`."""
     path = Path(path)
     if not path.exists():
         raise SequenceError(f"{where}: object {obj!r}: missing mesh {OBJECTS_DIR}/{path.parent.name}/{path.name}")
@@ -498,12 +498,12 @@ def load_template(path: str | Path, obj: str, where: str) -> tuple[np.ndarray, n
 def load_sequence(seq_dir: str | Path, objects_root: str | Path, body_models: str | Path,
                   fps: float = SOURCE_FPS, action: Any = None, split_list: str | None = None):
     """Read one CORE4D-Real sequence folder into a
-    :class:`~hoibench.multibody.clip.MultiBodyClip` at ``fps`` (see the module docstring).
+    :class:`~hoibench.bodies.multibody.MultiBodyClip` at ``fps`` (see the module docstring).
 
     ``action``: the sequence's entry of ``action_labels.json`` (None: none); ``split_list``:
     the official list holding it (recorded in the provenance). Raises
     :class:`SequenceError` naming the sequence, the file and the key."""
-    from ..multibody.clip import Body, MultiBodyClip
+    from ..bodies.multibody import Body, MultiBodyClip
     seq_dir = Path(seq_dir)
     date = check_id(seq_dir.parent.name, "date folder", seq_dir.parent.parent)
     seq = check_id(seq_dir.name, "sequence folder", seq_dir.parent)
@@ -626,7 +626,7 @@ def _safe_template(seq_dir: Path, objects_root: Path) -> tuple[str, Path]:
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None) -> list[tuple]:
-    """One :func:`hoibench.store.run_unit` job per sequence folder
+    """One :func:`hoibench.datasets.store.run_unit` job per sequence folder
     ``human_object_motions/<date>/<seq>``; clip id ``<date>.<seq>``.
 
     The split is CORE4D's official one (:data:`OFFICIAL_SPLIT`: train, and test = seen-
@@ -636,8 +636,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     must be valid ids. An unreadable ``action_labels.json`` is a failing "source" job (the
     manifest's ``incomplete``) and its sequences are prepared without labels.
     """
-    from ..store import (fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job,
-                         unlisted_split_jobs)
+    from .store import (fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job, unlisted_split_jobs)
     root = Path(root)
     real = _real_root(root)
     motions, objects_root = real / MOTIONS_DIR, real / OBJECTS_DIR

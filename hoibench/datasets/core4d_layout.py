@@ -50,9 +50,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import geometry as geo
+from ..core import geometry as geo
 from ..bodies.proxy import ProxyBody, write_proxy_model
-from ..io import atomic_write_bytes, atomic_write_text, npz_bytes
+from ..core.io import atomic_write_bytes, atomic_write_text, npz_bytes
 
 __all__ = ["SOURCE_FPS", "SEQUENCES", "BOXES", "person_file_bytes", "box_mesh", "sequence_params",
            "ground_truth", "write_sequence", "write_core4d_layout"]

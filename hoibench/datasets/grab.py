@@ -1,4 +1,4 @@
-"""GRAB (Taheri et al., ECCV 2020) -> :class:`~hoibench.multibody.clip.MultiBodyClip` clips.
+"""GRAB (Taheri et al., ECCV 2020) -> :class:`~hoibench.bodies.multibody.MultiBodyClip` clips.
 
 GRAB is whole-body grasping: one SMPL-X body, two MANO hands fitted on their own, one object
 and a table, captured with markers at 120 fps. Each sequence becomes one multi-body clip:
@@ -122,7 +122,7 @@ disagreeing; ``sbj_id`` not the folder's subject; a gender other than male / fem
 neutral; ``n_comps`` outside 1..45; a mesh path that is absolute-outside-``tools``, leaves
 ``ROOT`` or is not one of GRAB's conventional files for the sequence (the store's
 checksum covers those); a subject mesh without SMPL-X's 10475 / MANO's 778 vertices; an
-object mesh failing :func:`hoibench.plausibility.check_template`; contact arrays of the
+object mesh failing :func:`hoibench.core.plausibility.check_template`; contact arrays of the
 wrong shape. A missing subject folder ``grab/s<k>`` is one failing source (the manifest's
 ``incomplete``).
 """
@@ -137,10 +137,10 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from .. import geometry as geo
-from .. import plausibility as pl
-from ..ids import InvalidIdError, check_id
-from ..multibody.clip import Body, MultiBodyClip
+from ..core import geometry as geo
+from ..core import plausibility as pl
+from ..core.ids import InvalidIdError, check_id
+from ..bodies.multibody import Body, MultiBodyClip
 from .behave import SequenceError, _lerp, _slerp_resample, load_object_template, load_split_file, read_mesh, \
     resample_rigid, resample_times
 from .omomo import ZUP_TO_YUP
@@ -230,7 +230,7 @@ def read_sequence_npz(path: str | Path, max_bytes: int = MAX_NPZ_BYTES) -> dict:
     are rebuilt by an unpickler that allows numpy arrays only (see the module warning).
     The file must be a regular file of at most ``max_bytes``, its members inflating to at
     most that. ``ValueError`` naming the file otherwise."""
-    from ..io import read_regular_file
+    from ..core.io import read_regular_file
     raw = read_regular_file(path, max_bytes, "GRAB sequence")
     out: dict = {}
     try:
@@ -711,9 +711,9 @@ def _is_sequence_file(p: Path) -> bool:
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None, with_table: bool = False) -> list[tuple]:
-    """One :func:`hoibench.store.run_unit` job per GRAB sequence file (``grab/s<k>/*.npz``).
+    """One :func:`hoibench.datasets.store.run_unit` job per GRAB sequence file (``grab/s<k>/*.npz``).
 
-    Clip id ``<subject>_<stem>`` (must pass :func:`hoibench.ids.check_id`; a file whose id
+    Clip id ``<subject>_<stem>`` (must pass :func:`hoibench.core.ids.check_id`; a file whose id
     comes twice, e.g. names differing in case only, fails every copy). The split is IMoS's
     subject split (:data:`IMOS_SPLIT`) unless ``split_file`` (``{"train": [clip id, ...],
     "val": [...], "test": [...]}``) names another; a sequence it does not list, or a
@@ -723,8 +723,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     ``s1``..``s10`` is one failing source job (the manifest's ``incomplete``), except in
     hoibench's synthetic GRAB layout (``hoibench_synthetic.json``), which writes a few.
     """
-    from ..store import (fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job,
-                         unlisted_split_jobs)
+    from .store import (fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job, unlisted_split_jobs)
     data_root, asset_root = _roots(Path(root))
     splits = load_split_file(split_file) if split_file else None
     source_jobs = [source_failure_job(f"grab_{s}", f"grab/{s}: missing in {data_root}: the store has no sequences "

@@ -46,8 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import geometry as geo
-from ..io import atomic_write_bytes, atomic_write_text, npz_bytes
+from ..core import geometry as geo
+from ..core.io import atomic_write_bytes, atomic_write_text, npz_bytes
 
 __all__ = ["SOURCE_FPS", "N_COMPS", "GT_DIR", "BODY_MODELS", "SUBJECT_GENDER", "grab_npz_bytes", "ply_bytes",
            "subject_beta", "write_subject_meshes", "write_grab_sequence", "ground_truth", "write_grab_layout"]

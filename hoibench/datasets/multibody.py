@@ -3,7 +3,7 @@
 A folder any multi-body data can be written into (hoibench's synthetic multi-body data is,
 with :func:`write_synthetic_layout`; a user's own capture can be)::
 
-    ROOT/sequences/<id>.npz     one MultiBodyClip's arrays (hoibench.multibody.clip,
+    ROOT/sequences/<id>.npz     one MultiBodyClip's arrays (hoibench.bodies.multibody,
                                 MultiBodyClip.to_arrays: layout "multibody-1.0", body_names,
                                 body_kinds, body_sides, body_templates, body_owners,
                                 body<i>_trans / _rot / _joints, contact_pairs,
@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ids import InvalidIdError, check_id
-from ..multibody.clip import MultiBodyClip, check_clip, is_multibody_arrays
+from ..core.ids import InvalidIdError, check_id
+from ..bodies.multibody import MultiBodyClip, check_clip, is_multibody_arrays
 from .behave import SequenceError, _lerp, load_split_file, read_mesh, resample_rigid, resample_times
 
 __all__ = ["SequenceError", "load_sequence", "prepare_jobs", "write_synthetic_layout", "dataset_name"]
@@ -40,7 +40,7 @@ def dataset_name(root: str | Path) -> str:
 
 def _template(path: Path, name: str, seq: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(centred vertices, faces, the subtracted mean) of ``objects/<name>.obj``."""
-    from .. import plausibility as pl
+    from ..core import plausibility as pl
     if not path.is_file():
         raise SequenceError(f"{seq}: body template {name!r}: missing {path.parent.name}/{path.name}")
     try:
@@ -54,7 +54,7 @@ def _template(path: Path, name: str, seq: str) -> tuple[np.ndarray, np.ndarray, 
 def load_sequence(path: str | Path, objects: str | Path, fps: float, clip_id: str, dataset: str) -> MultiBodyClip:
     """One ``sequences/<id>.npz`` -> MultiBodyClip at ``fps`` (see the module docstring);
     SequenceError naming the file and field."""
-    from ..io import load_raw_npz
+    from ..core.io import load_raw_npz
     path = Path(path)
     try:
         z = load_raw_npz(path, what="multi-body sequence")
@@ -115,7 +115,7 @@ def prepare_jobs(root: str | Path, body_models, out: str | Path, config, split_f
                  ) -> list[tuple]:
     """One job per ``ROOT/sequences/<id>.npz`` (``body_models`` is not used: the layout
     holds joints). The split is ``split_file``, else ``ROOT/split.json``, else "train"."""
-    from ..store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates
+    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates
     root = Path(root)
     seq_dir = root / "sequences"
     if not seq_dir.is_dir():
@@ -144,10 +144,10 @@ def prepare_jobs(root: str | Path, body_models, out: str | Path, config, split_f
 
 
 def write_synthetic_layout(out: str | Path, n_clips: int, seed: int = 0) -> dict:
-    """hoibench's synthetic multi-body clips (:mod:`hoibench.multibody.synthetic`) in the
+    """hoibench's synthetic multi-body clips (:mod:`hoibench.datasets.synthetic_multibody`) in the
     layout above; every fourth clip is test. Byte-identical for the same arguments."""
-    from ..io import atomic_write_bytes, atomic_write_text, npz_bytes
-    from ..multibody import synthetic as syn
+    from ..core.io import atomic_write_bytes, atomic_write_text, npz_bytes
+    from . import synthetic_multibody as syn
     if int(n_clips) < 1:
         raise ValueError(f"--clips: expected at least 1, got {n_clips}")
     out = Path(out)

@@ -72,11 +72,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import geometry as geo
-from .. import plausibility as pl
+from ..core import geometry as geo
+from ..core import plausibility as pl
 from ..bodies.transform import rigid_transform_smpl
-from ..ids import InvalidIdError, check_id
-from ..skeleton import NUM_JOINTS, PARENTS, forward_kinematics
+from ..core.ids import InvalidIdError, check_id
+from ..core.skeleton import NUM_JOINTS, PARENTS, forward_kinematics
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file, read_mesh, resample_rigid, resample_times
 from .sequence import BodyParams, HOISequence, ObjectPart
 
@@ -134,7 +134,7 @@ def read_pickle(path: str | Path) -> Any:
         import joblib
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ImportError("reading OMOMO's pickles needs the 'joblib' package: pip install joblib") from exc
-    from ..io import check_regular_file
+    from ..core.io import check_regular_file
     check_regular_file(path, "OMOMO pickle")
     return joblib.load(str(path))
 
@@ -149,7 +149,7 @@ def _template(path: str) -> tuple[np.ndarray, np.ndarray, int]:
 def load_object_template(path: str, obj: str = "", name: str = "") -> tuple[np.ndarray, np.ndarray, int]:
     """Template vertices (V, 3) float64 (not centred, unscaled) and faces (F, 3) int64 as
     OMOMO and CHOIS load them (``trimesh.load_mesh``: vertices at equal positions merged),
-    of a mesh that passes :func:`hoibench.plausibility.check_mesh` (its extent is checked
+    of a mesh that passes :func:`hoibench.core.plausibility.check_mesh` (its extent is checked
     once scaled), and the file's own vertex count; errors name the sequence ``name``, the
     object ``obj`` and the file."""
     try:
@@ -239,7 +239,7 @@ def _gt_contacts(path: str | None, src_t: np.ndarray, dst_t: np.ndarray, name: s
     if not path or not Path(path).exists():
         return None
     try:
-        from ..io import load_raw_npz
+        from ..core.io import load_raw_npz
         z = load_raw_npz(path, what="ground-truth sidecar")
         if "contacts" not in z:
             return None
@@ -268,7 +268,7 @@ def _per_frame(seq: dict, where: str, prefixes: tuple[str, ...] = ("obj",)
                ) -> tuple[dict[str, np.ndarray], list[tuple[np.ndarray, np.ndarray, np.ndarray]], int]:
     """The body's per-frame arrays (trans, root_orient, pose_body), each object part's
     (rot (T, 3, 3), trans (T, 3), scale (T,)) and T, the frame count they share: a field
-    with another count is named (:func:`hoibench.plausibility.common_frame_count`), as is
+    with another count is named (:func:`hoibench.core.plausibility.common_frame_count`), as is
     an empty one. A scale given once is repeated over the frames."""
     arr = {k: _frames(_array(seq, k, where), k, tail, where) for k, tail in _SEQ_KEYS.items() if k != "obj_rot"}
     poses = [_object_pose(seq, p, where) for p in prefixes]
@@ -476,7 +476,7 @@ def _text_dir(root: Path, data_root: Path) -> Path | None:
 
 def _sequence_sha(seq: Any, files: list[Path], extra: str) -> str:
     """sha256 over a sequence dict's arrays (key, dtype, shape, bytes) and ``files``."""
-    from ..store import file_sha256
+    from .store import file_sha256
     h = hashlib.sha256()
     if isinstance(seq, dict):
         for k in sorted(seq, key=str):
@@ -508,9 +508,9 @@ def _seq_name(seq: Any) -> str | None:
 
 def _read_entries(data_root: Path, out, mode: str) -> tuple[list[tuple[str, Any, str]], list[tuple]]:
     """(clip id, sequence dict, "<pickle> entry <key>") per sequence of both pickles, and
-    :func:`hoibench.store.source_failure_job` jobs for a pickle that is missing (when the
+    :func:`hoibench.datasets.store.source_failure_job` jobs for a pickle that is missing (when the
     other exists: a store without its test or train split) or unreadable."""
-    from ..store import source_failure_job
+    from .store import source_failure_job
     entries: list[tuple[str, Any, str]] = []
     failed: list[tuple] = []
     for split, fname in PICKLES.items():
@@ -538,17 +538,17 @@ def _read_entries(data_root: Path, out, mode: str) -> tuple[list[tuple[str, Any,
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None) -> list[tuple]:
-    """One :func:`hoibench.store.run_unit` job per OMOMO sequence (both pickles).
+    """One :func:`hoibench.datasets.store.run_unit` job per OMOMO sequence (both pickles).
 
     Reads the pickles here (``joblib.load``: the user's own download only) and passes each
     sequence dict to its unit. The split is the official subject split unless
     ``split_file`` (``{"train": [seq_name, ...], "test": [...]}``) names another; a
     sequence it does not list is an error for that sequence. Clip id = ``seq_name``, which
-    must be a valid id (:func:`hoibench.ids.check_id`); a ``seq_name`` found twice fails
+    must be a valid id (:func:`hoibench.core.ids.check_id`); a ``seq_name`` found twice fails
     every copy. A missing or unreadable pickle is one failing "source" job (the manifest's
     ``incomplete``), never a silent store without that split.
     """
-    from ..store import fail_unit, invalid_id_job, refuse_duplicates, unlisted_split_jobs
+    from .store import fail_unit, invalid_id_job, refuse_duplicates, unlisted_split_jobs
     root = Path(root)
     data_root = _data_root(root)
     objects_root = data_root / "captured_objects"

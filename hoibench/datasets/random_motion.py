@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import geometry as geo
-from .. import skeleton as sk
+from ..core import geometry as geo
+from ..core import skeleton as sk
 
 
 def random_motion(num_frames: int, seed: int = 0, fps: float = 20.0, *,

@@ -78,10 +78,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import geometry as geo
-from .. import plausibility as pl
-from ..ids import InvalidIdError, check_id
-from ..skeleton import NUM_JOINTS
+from ..core import geometry as geo
+from ..core import plausibility as pl
+from ..core.ids import InvalidIdError, check_id
+from ..core.skeleton import NUM_JOINTS
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file
 from .omomo import ZUP_TO_YUP
 from .sequence import BodyParams, HOISequence
@@ -224,7 +224,7 @@ def read_deftrafo(path: str | Path) -> np.ndarray:
     (6890, 10475) matrix: SMPL vertex ``i`` = ``M[i] @`` SMPL-X vertices. The file is a
     pickle (the user's own download from the SMPL-X site) holding ``mtx`` (sparse, vertex
     columns then normal columns, of which the first half is kept) or ``matrix``."""
-    from ..io import check_regular_file
+    from ..core.io import check_regular_file
     path = Path(path)
     check_regular_file(path, "deformation transfer setup")
     try:
@@ -315,7 +315,7 @@ def _unpickle(path: Path, seq: str, data_root: Path):
     if not path.is_file():
         raise SequenceError(f"{seq}: missing file {rel}")
     try:
-        from ..io import check_regular_file
+        from ..core.io import check_regular_file
         check_regular_file(path, "RICH pickle")
         with open(path, "rb") as fh:
             return pickle.load(fh, encoding="latin1")
@@ -671,14 +671,14 @@ def transform_path(data_root: Path, seq: str, scan: str | None = None) -> Path:
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None) -> list[tuple]:
-    """One :func:`hoibench.store.run_unit` job per RICH-CAT clip (see the module docstring).
+    """One :func:`hoibench.datasets.store.run_unit` job per RICH-CAT clip (see the module docstring).
 
     The split is RICH's (the ``bodies/<split>`` folder: train, val, test) unless
     ``split_file`` (``{"train": [...], "val": [...], "test": [...]}`` of sequence names or
     clip ids) names another; a clip it does not list is an error for that clip. A subject
     of a sequence with no run long enough for one clip is reported as a failed unit.
     """
-    from ..store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job
+    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job
     root = Path(root)
     data_root = _data_root(root)
     resource = _resource_dir(root, data_root)

@@ -25,7 +25,7 @@ A clip is planned as per-frame targets -- pelvis position, heading ``psi``, spin
   ones, so the end joint lands on the target to rounding whenever ``d < l1 + l2``;
 * ankles keep the foot flat: ``G_ankle = R_y(foot yaw)``, so the foot joint lies exactly on
   its target and the proxy body's sole on the floor;
-* joints = :func:`hoibench.skeleton.forward_kinematics` (rotations, rest joints of the
+* joints = :func:`hoibench.core.skeleton.forward_kinematics` (rotations, rest joints of the
   subject, trans) -- the ground truth is always recomputed from the rotations.
 
 The rest joints are the proxy body's, ``SMPL_REST_JOINTS * (1 + 0.05 beta_0)``
@@ -113,10 +113,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .. import geometry as geo
-from .. import skeleton as sk
+from ..core import geometry as geo
+from ..core import skeleton as sk
 from ..bodies.transform import rigid_transform_smpl
-from ..io import atomic_write_bytes, atomic_write_text, npz_bytes
+from ..core.io import atomic_write_bytes, atomic_write_text, npz_bytes
 
 __all__ = [
     "FPS", "ACTIONS", "OBJECTS", "CATALOGUE", "SUBJECT_GENDER", "SUBJECT_BETA0",
@@ -1521,7 +1521,7 @@ def write_behave_layout(out_dir: str | Path, n_clips: int, seed: int = 0,
 
     ``defects`` maps a clip index or name to the defect(s) injected into it. Deterministic:
     the same arguments give byte-identical files whatever ``executor``
-    (:mod:`hoibench.parallel`: serial, processes[:N], dask://...). Returns the manifest.
+    (:mod:`hoibench.core.parallel`: serial, processes[:N], dask://...). Returns the manifest.
     """
     out = Path(out_dir)
     specs = plan_clips(n_clips, seed)
@@ -1531,7 +1531,7 @@ def write_behave_layout(out_dir: str | Path, n_clips: int, seed: int = 0,
         m = build_object(obj)
         atomic_write_bytes(out / "objects" / obj / f"{obj}_f1000.ply",
                            ply_bytes(m.vertices, m.faces, f"hoibench synthetic {obj}"))
-    from ..parallel import map_units
+    from ..core.parallel import map_units
     entries = list(map_units(_write_clip, units, executor, progress="synthetic" if progress else None))
     split = {"train": sorted(e["name"] for e in entries if e["split"] == "train"),
              "test": sorted(e["name"] for e in entries if e["split"] == "test")}

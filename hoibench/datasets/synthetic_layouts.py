@@ -64,10 +64,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import geometry as geo
+from ..core import geometry as geo
 from ..bodies.proxy import PROXY_SCALE_PER_BETA, ProxyBody, write_proxy_model
 from ..bodies.transform import rigid_transform_smpl
-from ..io import atomic_write_bytes, atomic_write_text, npz_bytes
+from ..core.io import atomic_write_bytes, atomic_write_text, npz_bytes
 from .omomo import PICKLES, ZUP_TO_YUP
 from .rich import SMPL_NUM_VERTICES, vertex_joint_map
 from .synthetic import FPS, GENERATOR_VERSION, OBJECTS, SyntheticClip, build_object, generate_clip, plan_clips

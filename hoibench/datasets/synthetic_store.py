@@ -16,7 +16,7 @@ def build_synthetic_store(base: str | Path, clips: int, seed: int = 0, fps: floa
                           executor: str = "serial"):
     """``hoibench synth`` (BEHAVE layout) + ``prepare`` into ``base/raw`` and ``base/data``.
     Returns ``(raw, data, manifest)``."""
-    from ..store import PrepareConfig, prepare
+    from .store import PrepareConfig, prepare
     from . import behave
     from .synthetic import write_behave_layout
     base = Path(base)
@@ -36,7 +36,7 @@ def template_captions(clip_id: str) -> list[str]:
 
 def write_template_texts(data: str | Path) -> None:
     """DATA/texts/<id>.txt with :func:`template_captions` (HumanML3D lines)."""
-    from ..store import Store
+    from .store import Store
     store = Store(data)
     (store.root / "texts").mkdir(exist_ok=True)
     for cid in store.clip_ids():

@@ -27,7 +27,7 @@ import json
 from dataclasses import fields
 from pathlib import Path
 
-from ..io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
+from ..core.io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
 from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError, StoreMismatchError
 
 FORMAT = "hoibench-evaluator-1"

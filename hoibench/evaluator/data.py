@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..store import Store
+from ..datasets.store import Store
 from .text import read_captions
 
 

@@ -1,9 +1,9 @@
 """Exceptions of the evaluator package: each message is one complete line naming the file
 (and, where known, the field) that is wrong. All are ``ValueError`` subclasses and
-:class:`hoibench.errors.HoibenchError`, so ``hoibench`` prints them as one line (exit 2)."""
+:class:`hoibench.core.errors.HoibenchError`, so ``hoibench`` prints them as one line (exit 2)."""
 from __future__ import annotations
 
-from ..errors import HoibenchError
+from ..core.errors import HoibenchError
 
 
 class EvaluatorError(HoibenchError, ValueError):

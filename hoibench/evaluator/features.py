@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import geometry as geo
+from ..core import geometry as geo
 from ..representations import hml263, hoi269
 
 OBJ_DIM = 15

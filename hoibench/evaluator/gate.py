@@ -238,19 +238,19 @@ def gate_from_embeddings(motion: np.ndarray, text_sets: Sequence[np.ndarray], id
 
 def recompute_gate(evaluator, store, protocol=None, split: str = "test") -> dict:
     """The sanity gate measured afresh from ``evaluator``'s weights on ``store``'s ``split``
-    (a :class:`hoibench.store.Store` or its folder): its items and captions
+    (a :class:`hoibench.datasets.store.Store` or its folder): its items and captions
     (``DATA/texts/``) as training scored them, embedded, then :func:`gate_from_embeddings`.
 
-    ``protocol``: a :class:`hoibench.protocol.Protocol`, a protocol id, or None for the
+    ``protocol``: a :class:`hoibench.tracks.protocol.Protocol`, a protocol id, or None for the
     store's default protocol (``<dataset>-<mode>``; the evaluator's own pools of 32 when none
     ships). On the store an evaluator was trained on this reproduces its card's gate.
     Returns the JSON-ready gate record, with ``measured_on`` (store, split, protocol)."""
-    from ..store import Store
+    from ..datasets.store import Store
     from .data import load_items
     from .train import store_protocol
     store = store if isinstance(store, Store) else Store(Path(store))
     if isinstance(protocol, str):
-        from ..protocol import get_protocol
+        from ..tracks.protocol import get_protocol
         protocol = get_protocol(protocol)
     elif protocol is None:
         protocol = store_protocol(store)

@@ -217,7 +217,7 @@ def gt_scores(evaluator, items, pool_size: int = 32, replications: int = 20, see
     """GT retrieval and GT-vs-GT FID of ``evaluator`` on ``items`` (:class:`data.Item`):
     :func:`embed_items` + :func:`embedding_scores`.
 
-    With ``protocol`` (a :class:`hoibench.protocol.Protocol`) and whole-clip items, the
+    With ``protocol`` (a :class:`hoibench.tracks.protocol.Protocol`) and whole-clip items, the
     retrieval uses the protocol's pools and caption draws (items sorted by clip id) and the
     FID halves the protocol's seed, instead of ``pool_size``/``replications``/``seed``
     (so :func:`hoibench.evaluator.gate.recompute_gate` reproduces these numbers)."""

@@ -34,8 +34,8 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp, finished_output
-from ..store import Store, manifest_sha256
+from ..core.io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp, finished_output
+from ..datasets.store import Store, manifest_sha256
 from . import card as card_mod
 from . import text as text_mod
 from .config import EvaluatorConfig, preset
@@ -158,9 +158,9 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
 
 def store_protocol(store):
     """The protocol ``hoibench evaluate`` uses by default for this store
-    (:func:`hoibench.protocol.default_protocol_id`: ``<dataset>-<mode>``, ``rich-cat-clean``
+    (:func:`hoibench.tracks.protocol.default_protocol_id`: ``<dataset>-<mode>``, ``rich-cat-clean``
     for a ``rich`` store), or None when none is shipped: GT scores then use the trainer's own pools."""
-    from ..protocol import default_protocol_id, get_protocol
+    from ..tracks.protocol import default_protocol_id, get_protocol
     try:
         return get_protocol(default_protocol_id(store.manifest))
     except KeyError:

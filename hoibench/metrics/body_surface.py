@@ -4,7 +4,7 @@ Submissions hold joints (T, 22, 3), not body-model parameters, so PS needs a sur
 to joints. The default is the license-free proxy body (:class:`hoibench.bodies.ProxyBody`,
 SMPL-H structure, 6,890 vertices of rigid capsules) posed by :func:`proxy_vertices_from_joints`:
 
-* scale ``s`` = :func:`hoibench.contact.body_scale` of the clip (summed bone lengths over
+* scale ``s`` = :func:`hoibench.bodies.contact.body_scale` of the clip (summed bone lengths over
   the SMPL mean skeleton's, median over frames);
 * a global rotation ``R_j`` per joint: joints with several children (pelvis 0 -> 1, 2, 3;
   spine3 9 -> 12, 13, 14) take the least-squares rotation (Kabsch) of their rest child
@@ -28,8 +28,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from .. import skeleton as sk
-from ..contact import body_scale
+from ..core import skeleton as sk
+from ..bodies.contact import body_scale
 
 PROXY_LABEL = "proxy (joint fit)"
 PROXY_VERTICES = 6890            # the SMPL-H vertex count of the proxy body
@@ -199,7 +199,7 @@ def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
     The vertices rigid to one joint are split into clusters of radius ``r`` <=
     ``CLUSTER_RADIUS_M`` (times the body scale). Each cluster's centre goes to the template
     frame first; when the field's guaranteed lower bound there
-    (:meth:`hoibench.contact.SignedDistance.bracket`) exceeds ``r + margin_m``, every vertex
+    (:meth:`hoibench.bodies.contact.SignedDistance.bracket`) exceeds ``r + margin_m``, every vertex
     of the cluster is farther than ``margin_m`` from the object and it is skipped. Near
     clusters go straight to the template frame:
     ``Ro^T (R_j v + J_j - t) = (Ro^T R_j) v + Ro^T (J_j - t)``.

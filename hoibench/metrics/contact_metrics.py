@@ -2,7 +2,7 @@
 hand-object contact ratio, object floating.
 
 Distances are signed distances (m, negative inside the object) from
-:mod:`hoibench.contact` (one raycasting scene per object template, points moved into the
+:mod:`hoibench.bodies.contact` (one raycasting scene per object template, points moved into the
 template frame, robust inside test named in the mesh report); nothing here re-implements a
 distance. The functions come in two layers:
 
@@ -20,8 +20,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .. import skeleton as sk
-from ..contact import signed_distance_frames
+from ..core import skeleton as sk
+from ..bodies.contact import signed_distance_frames
 
 HANDS: tuple[int, int] = (20, 21)          # wrists
 OCD_LENGTH_TOLERANCE_FRAMES = 8            # ChainHOI: group members within +-8 frames
@@ -80,7 +80,7 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
     """Exact :class:`SurfaceFrames` of body-surface points in the object's template frame, with
     as few exact distance queries as the answers need.
 
-    ``field``: the object's :class:`hoibench.contact.SignedDistance`. ``points``: (T, V, 3),
+    ``field``: the object's :class:`hoibench.bodies.contact.SignedDistance`. ``points``: (T, V, 3),
     or (N, 3) with ``index`` (N,) their flat indices ``frame * V + vertex`` and ``shape =
     (T, V)`` -- vertices not listed must be known to lie farther than ``contact_m`` from the
     object (e.g. culled body parts). Every point first gets guaranteed bounds ``lo <= d <=
@@ -238,7 +238,7 @@ def penetration_depth_stats(vertex_distances) -> tuple[float, float, int]:
     depth of penetrating frames; 0 when nothing penetrates). Per frame, not per vertex, so
     the value does not depend on how densely the body surface is sampled (the proxy's hands
     hold 25% of its vertices). Inside unions of overlapping parts the depth is a lower bound
-    (see :mod:`hoibench.contact`)."""
+    (see :mod:`hoibench.bodies.contact`)."""
     d = np.asarray(vertex_distances, dtype=np.float64)
     depth = np.where(d < 0, -d, 0.0).max(axis=1) if d.size else np.zeros(len(d))
     return frame_depth_stats(depth, (d < 0).any(axis=1) if d.size else np.zeros(len(d), bool))
@@ -255,7 +255,7 @@ def frame_depth_stats(depth, penetrating) -> tuple[float, float, int]:
 # ===================================================================== contact labels
 def predicted_contacts(distances, thresholds) -> np.ndarray:
     """Per-joint contact labels (T, 22) of a generated clip: ``d < tau_j`` (thresholds a float
-    or (22,) array, from :func:`hoibench.contact.joint_thresholds`)."""
+    or (22,) array, from :func:`hoibench.bodies.contact.joint_thresholds`)."""
     d = _dist(distances)
     tau = np.broadcast_to(np.asarray(thresholds, dtype=np.float64), (sk.NUM_JOINTS,))
     return d < tau

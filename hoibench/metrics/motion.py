@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import skeleton as sk
+from ..core import skeleton as sk
 
 FEET: tuple[int, int] = (10, 11)
 FSR_HEIGHT_M = 0.05

@@ -43,9 +43,9 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from .. import skeleton as sk
-from ..contact import joint_thresholds, signed_distance_field, to_template_frame
-from ..parallel import map_units
+from ..core import skeleton as sk
+from ..bodies.contact import joint_thresholds, signed_distance_field, to_template_frame
+from ..core.parallel import map_units
 from . import METRICS
 from . import contact_metrics as cm
 from . import motion as mo
@@ -69,7 +69,7 @@ class PhysicalConfig:
 
     ``mode``: ``legacy`` (ChainHOI's FSR on x only, its CD/OCD averaging and PS floor shift)
     or ``clean``. ``contact_mode``: thresholds of the predicted contact labels (contact IoU,
-    hand contact ratio), :func:`hoibench.contact.joint_thresholds` modes ``chainhoi`` or
+    hand contact ratio), :func:`hoibench.bodies.contact.joint_thresholds` modes ``chainhoi`` or
     ``surface``. ``body_surface``: ``"proxy"`` or ``"module:function"`` mapping joints
     (T, 22, 3) to vertices (T, V, 3).
     """
@@ -298,7 +298,7 @@ class PhysicalMetrics(Metric):
 def evaluate_physical(inputs: Sequence[ClipInput], config: PhysicalConfig = PhysicalConfig(),
                       executor: str = "serial", progress: str | None = None) -> PhysicalMetrics:
     """Map :func:`clip_physical_stats` over ``inputs`` on ``executor`` (``serial``,
-    ``processes[:N]``, ``dask://...``; :mod:`hoibench.parallel`) and pool the results."""
+    ``processes[:N]``, ``dask://...``; :mod:`hoibench.core.parallel`) and pool the results."""
     metric = PhysicalMetrics(config.mode, config.body_label)
     for key, stats in map_units(partial(_unit, config=config), list(inputs), executor, progress=progress):
         metric.update(key, stats)
@@ -317,12 +317,12 @@ def load_groups(data) -> dict[str, list[str]] | None:
 
 def gt_contact_labels(store, clip: Mapping[str, np.ndarray], mode: str = "chainhoi") -> np.ndarray | None:
     """Ground-truth joint contact labels (T, 22) of a store clip: its stored ``contacts``, else
-    :func:`hoibench.contact.joint_contact_labels` with ``mode`` thresholds; None without object."""
+    :func:`hoibench.bodies.contact.joint_contact_labels` with ``mode`` thresholds; None without object."""
     if "contacts" in clip:
         return np.asarray(clip["contacts"], dtype=bool)
     if "obj_rot" not in clip:
         return None
-    from ..contact import joint_contact_labels
+    from ..bodies.contact import joint_contact_labels
     v, f = store.object_template(str(clip["object_name"]))
     labels, _ = joint_contact_labels(clip["joints"], v, f, clip["obj_rot"], clip["obj_trans"],
                                      str(clip["object_name"]), mode=mode)
@@ -333,7 +333,7 @@ def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
     if "obj_rot" in m:
         return np.asarray(m["obj_rot"])
     if "obj_rotvec" in m:
-        from ..geometry import axis_angle_to_matrix
+        from ..core.geometry import axis_angle_to_matrix
         return axis_angle_to_matrix(np.asarray(m["obj_rotvec"], dtype=np.float64))
     return None
 

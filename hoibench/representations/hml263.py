@@ -19,7 +19,7 @@ Modes (see docs/representations.md for the measured difference):
 ``legacy``
     Reproduces HumanML3D's ``process_file`` (motion_representation.ipynb) including its
     quirks: retargeting to the reference skeleton (bone directions kept, lengths set to
-    :data:`~hoibench.skeleton.REFERENCE_TARGET_OFFSETS`, root scaled by the lower-leg
+    :data:`~hoibench.core.skeleton.REFERENCE_TARGET_OFFSETS`, root scaled by the lower-leg
     ratio), floor at the clip's global minimum y, first root xz to the origin, frame 0
     facing +Z, per-frame heading from the *swapped* hip pair (left - right hip plus right
     - left shoulder) smoothed by a Gaussian of sigma 20 frames, identity heading for frame
@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import skeleton as sk
+from ..core import skeleton as sk
 from ._checks import as_float_array
 
 DIM = 263
@@ -111,7 +111,7 @@ def _dtype(cfg: Hml263Config):
 # The encoder works on a component-first layout: positions P[j][c] are contiguous (B, T)
 # arrays (j joint, c = x, y, z), quaternions are (w, x, y, z) tuples of such arrays. Every
 # step is then a handful of elementwise ufuncs over B*T values per joint, which is what makes
-# batched encoding fast; the formulas are the textbook ones (see hoibench.geometry).
+# batched encoding fast; the formulas are the textbook ones (see hoibench.core.geometry).
 
 def _qmul(a, b):
     aw, ax, ay, az = a

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import geometry as geo
+from ..core import geometry as geo
 from . import hml263
 from ._checks import as_float_array
 

@@ -50,7 +50,7 @@ class NormStats:
 
     def to_npz_bytes(self) -> bytes:
         """Byte-reproducible .npz (``mean``, ``std``, ``count``) that :meth:`from_npz` reads."""
-        from ..io import npz_bytes
+        from ..core.io import npz_bytes
         return npz_bytes({"mean": self.mean, "std": self.std, "count": np.int64(self.count)})
 
     @classmethod

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ...representations import hml263, hoi269
-from ...store import Store
+from ...datasets.store import Store
 from .. import joint_data as D
 
 

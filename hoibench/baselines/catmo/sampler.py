@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from ...representations import hml263, hoi269
-from ...store import Store
+from ...datasets.store import Store
 from .. import checkpoint as ckpt
 from ..registry import get_spec
 from ..sampler import check_store_fits, load_model_tensors, run_text_conditioner

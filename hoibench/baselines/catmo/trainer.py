@@ -39,8 +39,8 @@ import torch
 import torch.nn.functional as F
 
 from ... import __version__
-from ...interrupts import check_interrupted
-from ...io import atomic_torch_save, atomic_write_json, clean_stale_tmp
+from ...core.interrupts import check_interrupted
+from ...core.io import atomic_torch_save, atomic_write_json, clean_stale_tmp
 from ...representations import hml263
 from .. import checkpoint as ckpt
 from ..text import TextConditioner

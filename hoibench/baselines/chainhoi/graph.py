@@ -2,7 +2,7 @@
 
 Graph (24 nodes): the 22 SMPL joints with their bones, a foot-contact node 22 linked to the
 ankles and feet (7, 8, 10, 11) and an object node 23 linked to the eight potential
-interaction joints (0, 10, 11, 12, 16, 17, 20, 21) -- :func:`hoibench.skeleton.hoi_graph_edges`.
+interaction joints (0, 10, 11, 12, 16, 17, 20, 21) -- :func:`hoibench.core.skeleton.hoi_graph_edges`.
 
 Spatial partitions (ST-GCN's "spatial configuration"): identity, inward (from a node's
 neighbours nearer the root: its parent joint; for node 22 the foot joints, for node 23 the
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import skeleton as sk
+from ...core import skeleton as sk
 
 NODES = sk.NUM_GRAPH_NODES
 

@@ -1,0 +1,1 @@
+"""Publishing: leaderboards (entries, pages, plots) and renders of clips and samples."""

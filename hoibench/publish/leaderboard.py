@@ -1,0 +1,186 @@
+"""Leaderboard entries (DESIGN section 11): one strict-JSON file per method and track.
+
+``leaderboards/<track>/entries/<slug>.json`` holds what a reader needs to compare a row:
+method, source (``reproduced`` by hoibench from a submission it scored, or ``reported`` in
+a paper), metrics with 95% CIs, evaluator id, protocol id and version, representation and
+toolkit versions, sample counts and missing ids, flags, whether the result was complete,
+which metrics were undefined, and where the submission came from (for a baseline: its
+checkpoint id and config). Rendering the tables (``hoibench leaderboard build``) reads these.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from ..core.io import atomic_write_json
+
+ENTRY_FORMAT = "hoibench-entry-1"
+SOURCES = ("reproduced", "reported")
+
+
+def slug(method: str) -> str:
+    """File name of an entry: lower-case letters, digits and '-' (``"ChainHOI (tiny)"`` ->
+    ``chainhoi-tiny``)."""
+    s = re.sub(r"[^a-z0-9]+", "-", method.lower()).strip("-")
+    if not s:
+        raise ValueError(f"method {method!r}: no letters or digits to name its entry")
+    return s[:100]
+
+
+def entry_from_result(result: dict, *, method: str, track: str, source: str = "reproduced",
+                      submission_meta: dict | None = None, notes: str = "") -> dict:
+    """An entry for a result of ``hoibench evaluate`` (``submission_meta``: the submission's
+    ``submission.json``, for its ``source`` block)."""
+    if source not in SOURCES:
+        raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
+    counts = result.get("counts", {})
+    metrics = {k: {"mean": v["mean"], "ci95": v["ci95"], "n": v.get("n")}
+               for k, v in sorted(result.get("metrics", {}).items())}
+    return {
+        "format": ENTRY_FORMAT, "track": track, "method": method, "source": source,
+        "metrics": metrics, "undefined_metrics": result.get("undefined_metrics", {}),
+        "evaluator_id": result.get("evaluator_id"), "protocol": result.get("protocol"),
+        "protocol_version": result.get("protocol_version"), "representation": result.get("representation"),
+        "toolkit_version": result.get("toolkit_version"), "replications": result.get("replications"),
+        "samples_per_prompt": counts.get("samples_per_prompt"), "scored_ids": counts.get("scored_ids"),
+        "test_ids": counts.get("test_ids"), "missing_ids": counts.get("missing_ids", []),
+        "flags": result.get("submission", {}).get("flags", {}), "complete": bool(result.get("complete")),
+        "overrides": result.get("overrides", []),
+        "submission_source": (submission_meta or {}).get("source", {}), "notes": notes,
+    }
+
+
+def write_entry(entry: dict, entries_dir: str | Path) -> Path:
+    """Write ``entries_dir/<slug(method)>.json`` atomically (strict JSON, sorted keys)."""
+    return atomic_write_json(Path(entries_dir) / f"{slug(entry['method'])}.json", entry)
+
+
+# =========================================================================== tracks
+ROLES = ("ground-truth", "reference", "baseline", "method")
+#: the columns a leaderboard shows, in order (every other metric stays in the CSV)
+TABLE_METRICS = ("r_precision_top1", "r_precision_top3", "fid", "mm_dist", "diversity", "multimodality",
+                 "cd", "ocd", "ps", "fsr")
+SHORT = {"r_precision_top1": "R@1", "r_precision_top2": "R@2", "r_precision_top3": "R@3", "fid": "FID",
+         "mm_dist": "MM-Dist", "diversity": "Diversity", "multimodality": "MModality", "cd": "CD", "ocd": "OCD",
+         "ps": "PS", "fsr": "FSR"}
+_REQUIRED = (("format", str), ("track", str), ("method", str), ("source", str), ("metrics", dict))
+
+
+class LeaderboardError(ValueError):
+    """A leaderboard entry or result that cannot be read, added or rendered (names file and field)."""
+
+
+def read_entry(path: str | Path) -> dict:
+    """One entry file, checked: strict JSON, format, required fields, metric blocks."""
+    from ..core.io import load_json_bytes, read_regular_file
+    path = Path(path)
+    try:
+        e = load_json_bytes(read_regular_file(path, 8 << 20, "leaderboard entry"), path)
+    except ValueError as exc:
+        raise LeaderboardError(str(exc)) from None
+    if not isinstance(e, dict):
+        raise LeaderboardError(f"{path}: expected a JSON object")
+    for key, t in _REQUIRED:
+        if not isinstance(e.get(key), t):
+            raise LeaderboardError(f"{path}: field {key}: expected a {t.__name__}, got {type(e.get(key)).__name__}")
+    if e["format"] != ENTRY_FORMAT:
+        raise LeaderboardError(f"{path}: field format: {e['format']!r} is not {ENTRY_FORMAT!r}")
+    if e["source"] not in SOURCES:
+        raise LeaderboardError(f"{path}: field source: expected one of {SOURCES}, got {e['source']!r}")
+    for name, m in e["metrics"].items():
+        if not (isinstance(m, dict) and isinstance(m.get("mean"), (int, float)) and not isinstance(m.get("mean"), bool)):
+            raise LeaderboardError(f"{path}: field metrics.{name}: expected {{\"mean\": number, \"ci95\": number}}")
+    if e["source"] == "reported" and not e.get("citation"):
+        raise LeaderboardError(f"{path}: field citation: a reported row needs the paper it is copied from")
+    e["role"] = role_of(e)
+    e["_file"] = path.name
+    return e
+
+
+def role_of(entry: dict) -> str:
+    """The entry's role (``role`` field; older entries: ``GT ...`` is the ground truth)."""
+    r = entry.get("role")
+    if r in ROLES:
+        return r
+    return "ground-truth" if str(entry.get("method", "")).startswith("GT") else "method"
+
+
+def load_track(track_dir: str | Path) -> list[dict]:
+    """Every entry of ``track_dir/entries`` (sorted by file name)."""
+    folder = Path(track_dir) / "entries"
+    if not folder.is_dir():
+        raise LeaderboardError(f"{track_dir}: no entries/ folder (not a leaderboard track)")
+    return [read_entry(p) for p in sorted(folder.glob("*.json"))]
+
+
+def _mean(e: dict, name: str) -> float | None:
+    m = e["metrics"].get(name)
+    return None if m is None else float(m["mean"])
+
+
+def order(entries: list[dict], key: str = "fid") -> list[dict]:
+    """Display order: hoibench's ground truth first, then reproduced rows by ``key`` (best
+    first, rows without it last), then reported rows (not comparable): a paper's own
+    ground-truth row first, then the others by ``key``."""
+    from ..metrics import METRICS
+    higher = METRICS[key].higher_is_better if key in METRICS else False
+
+    def k(e):
+        v = _mean(e, key)
+        reported = e["source"] == "reported"
+        rank = (2 if reported else 1) if e["role"] != "ground-truth" else (1.5 if reported else 0)
+        return (rank, v is None, (-v if higher else v) if v is not None else 0.0, e["method"])
+    return sorted(entries, key=k)
+
+
+def read_result(path: str | Path) -> dict:
+    """A result of ``hoibench evaluate`` (strict JSON with a ``metrics`` object), or
+    :class:`LeaderboardError` naming the file and field."""
+    from ..core.io import load_json_bytes, read_regular_file
+    path = Path(path)
+    try:
+        result = load_json_bytes(read_regular_file(path, 64 << 20, "result"), path)
+    except ValueError as exc:
+        raise LeaderboardError(str(exc)) from None
+    if not isinstance(result, dict) or not isinstance(result.get("metrics"), dict):
+        raise LeaderboardError(f"{path}: field metrics: not a result of `hoibench evaluate`")
+    return result
+
+
+def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, role: str = "method",
+               allow_incomplete: bool = False, replace: bool = False, notes: str = "",
+               submission_meta: dict | None = None) -> Path:
+    """Add a ``hoibench evaluate`` result to a track as a reproduced entry. Refused: another
+    evaluator id or protocol than the track's reproduced rows, an existing entry of the same
+    name (unless ``replace``), an incomplete result (unless ``allow_incomplete``: marked)."""
+    if role not in ROLES:
+        raise LeaderboardError(f"--role: expected one of {ROLES}, got {role!r}")
+    result_path, track_dir = Path(result_path), Path(track_dir)
+    result = read_result(result_path)
+    if "evaluator_id" not in result:
+        raise LeaderboardError(f"{result_path}: field evaluator_id: missing: not a result of `hoibench evaluate`")
+    track = track_dir.name
+    existing = load_track(track_dir) if (track_dir / "entries").is_dir() else []
+    ours = [e for e in existing if e["source"] == "reproduced"]
+    ids = sorted({str(e.get("evaluator_id")) for e in ours})
+    if ids and str(result["evaluator_id"]) not in ids:
+        raise LeaderboardError(f"{result_path}: field evaluator_id: {str(result['evaluator_id'])[:12]} is not the "
+                               f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): rescore with that "
+                               f"evaluator, or rescore every row with this one")
+    protos = sorted({f"{e.get('protocol')}@{e.get('protocol_version')}" for e in ours})
+    mine = f"{result.get('protocol')}@{result.get('protocol_version')}"
+    if protos and mine not in protos:
+        raise LeaderboardError(f"{result_path}: field protocol: {mine} is not the protocol of track {track!r} "
+                               f"({', '.join(protos)})")
+    if not result.get("complete") and not allow_incomplete:
+        why = "; ".join(str(o.get("override")) for o in result.get("overrides", [])) or \
+            f"{len(result.get('counts', {}).get('missing_ids', []))} missing id(s)"
+        raise LeaderboardError(f"{result_path}: field complete: false ({why}); pass --allow-incomplete to add it "
+                               f"marked as incomplete")
+    path = track_dir / "entries" / f"{slug(method)}.json"
+    if path.exists() and not replace:
+        raise LeaderboardError(f"{path}: an entry named {method!r} exists already; choose another --method or "
+                               f"pass --replace")
+    entry = entry_from_result(result, method=method, track=track, submission_meta=submission_meta, notes=notes)
+    entry["role"] = role
+    return write_entry(entry, track_dir / "entries")

@@ -1,0 +1,1 @@
+"""Scoring: submissions, the one evaluation pipeline over tracks, comparisons, importers, prompts and reference rows."""

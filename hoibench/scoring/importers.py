@@ -1,0 +1,337 @@
+"""``hoibench import FORMAT RESULTS --data DATA --out SUB``: the outputs existing generators
+already write, turned into a standard submission.
+
+=========  ==================================================================================
+format     what is read
+=========  ==================================================================================
+mdm        MDM's ``results.npy`` (``np.save`` of a dict -- a pickle): ``motion`` (N, 22, 3, T)
+           joint positions, ``text`` (N), ``lengths`` (N), ``num_samples``, ``num_repetitions``;
+           entry ``e = r * num_samples + i`` is repetition r of prompt i (repetition-major),
+           frames past ``lengths[e]`` are padding; 20 fps, HumanML3D's frame (y up, metres)
+hoidiff    HOI-Diff's ``results.npy``: the same plus ``motion_obj`` (N, 1, 6, T) = object
+           axis-angle (3) and translation (3) in the motion's frame, and ``obj_name``
+joints     a folder of ``<id>.npy`` or ``<id>_<r>.npy`` joint files (T, 22, 3) -- T2M-GPT's and
+           MoMask's per-sample dumps; ``--fps`` and ``--up`` say their rate and up axis
+chois      a folder of CHOIS ``.npz`` files ``<id>[_<r>].npz`` with ``global_jpos`` (T, 24, 3):
+           z up, 30 fps; the first 22 joints (SMPL-H body order) are kept
+features   a folder of ``<id>.npy`` hml263 (T, 263) or hoi269 (T, 269) rows, or (K, T, D);
+           ``--normalized``: de-normalised with the store's train statistics first
+=========  ==================================================================================
+
+Prompts are mapped to test ids by id (file names, ``--match id``), by text (``--match text``:
+the generator's prompt equals one of the clip's captions, case and surrounding spaces
+ignored; a text that several clips share goes to the first of them still without samples,
+in id order) or by a user mapping file (``--map FILE``: JSON ``{"<entry index or file
+stem>": "<test id>"}``). Frames are resampled by time to the store's fps (joints and object
+translation linearly, object rotations by quaternion slerp); a z-up source is turned y-up
+(``(x, y, z) -> (x, z, -y)``). Every conversion is recorded in ``submission.json``'s
+``source.import`` block; test ids without samples and entries that matched no id are
+reported (the submission is then incomplete, and ``hoibench validate`` says so).
+
+MDM's and HOI-Diff's files are pickles: loading one can run code. They are read only with
+``--trust-pickle``, for files you produced yourself.
+"""
+from __future__ import annotations
+
+import json
+import re
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..datasets.store import Store
+from .submission import write_submission
+
+FORMATS = ("mdm", "hoidiff", "joints", "chois", "features")
+SOURCE_FPS = {"mdm": 20.0, "hoidiff": 20.0, "chois": 30.0}
+_REP = re.compile(r"^(.*?)(?:_(\d+))?$")
+
+
+class ImportProblem(ValueError):
+    """An input that cannot be imported (names the file and the field)."""
+
+
+# ------------------------------------------------------------------------------ conversions
+def z_up_to_y_up(x: np.ndarray) -> np.ndarray:
+    """(..., 3) z-up points to y-up: ``(x, y, z) -> (x, z, -y)`` (a rotation by -90 deg about x)."""
+    return np.stack([x[..., 0], x[..., 2], -x[..., 1]], -1)
+
+
+def resample(x: np.ndarray, src_fps: float, dst_fps: float) -> np.ndarray:
+    """(T, ...) sampled at ``src_fps`` -> the frames at ``dst_fps`` over the same duration,
+    linear in time (the last frame held; no extrapolation)."""
+    if abs(src_fps - dst_fps) < 1e-9:
+        return x
+    T = x.shape[0]
+    n = int(np.floor((T - 1) * dst_fps / src_fps + 1e-9)) + 1
+    t = np.arange(n) * src_fps / dst_fps
+    i0 = np.clip(np.floor(t).astype(int), 0, T - 1)
+    i1 = np.clip(i0 + 1, 0, T - 1)
+    w = (t - i0).reshape((-1,) + (1,) * (x.ndim - 1))
+    return (1 - w) * x[i0] + w * x[i1]
+
+
+def resample_rotvec(r: np.ndarray, src_fps: float, dst_fps: float) -> np.ndarray:
+    """(T, 3) axis-angles resampled by quaternion slerp."""
+    if abs(src_fps - dst_fps) < 1e-9:
+        return r
+    from ..core.geometry import axis_angle_to_quaternion, quaternion_to_axis_angle
+    q = axis_angle_to_quaternion(np.asarray(r, np.float64))
+    T = len(q)
+    n = int(np.floor((T - 1) * dst_fps / src_fps + 1e-9)) + 1
+    t = np.arange(n) * src_fps / dst_fps
+    i0 = np.clip(np.floor(t).astype(int), 0, T - 1)
+    i1 = np.clip(i0 + 1, 0, T - 1)
+    w = (t - i0)[:, None]
+    a, b = q[i0], q[i1]
+    b = np.where((a * b).sum(-1, keepdims=True) < 0, -b, b)
+    dot = np.clip((a * b).sum(-1, keepdims=True), -1.0, 1.0)
+    theta = np.arccos(dot)
+    s = np.sin(theta)
+    small = s < 1e-8
+    wa = np.where(small, 1 - w, np.sin((1 - w) * theta) / np.where(small, 1, s))
+    wb = np.where(small, w, np.sin(w * theta) / np.where(small, 1, s))
+    out = wa * a + wb * b
+    return quaternion_to_axis_angle(out / np.linalg.norm(out, axis=-1, keepdims=True))
+
+
+# ------------------------------------------------------------------------------ matching
+def _norm(text: str) -> str:
+    return " ".join(str(text).lower().split())
+
+
+class Matcher:
+    """Maps an entry (index, stem or text) to a test id, recording what did not match."""
+
+    def __init__(self, store: Store, how: str, mapping: dict | None):
+        from ..evaluator.text import read_captions
+        self.ids = store.clip_ids("test")
+        self.how, self.mapping = how, mapping or {}
+        self.by_text: dict[str, list[str]] = defaultdict(list)
+        if how == "text":
+            for cid in self.ids:
+                for c in read_captions(store.root, cid) or []:
+                    if cid not in self.by_text[_norm(c.text)]:
+                        self.by_text[_norm(c.text)].append(cid)
+        self.taken: set[str] = set()
+        self.unmatched: list[str] = []
+        self.ambiguous: list[str] = []
+
+    def __call__(self, key: str, text: str | None = None) -> str | None:
+        if self.how == "map":
+            cid = self.mapping.get(str(key))
+        elif self.how == "id":
+            cid = key if key in self.ids else None
+        else:
+            cands = self.by_text.get(_norm(text or ""), [])
+            free = [c for c in cands if c not in self.taken]
+            if len(cands) > 1:
+                self.ambiguous.append(str(text))
+            cid = (free or cands or [None])[0]
+        if cid is None or cid not in self.ids:
+            self.unmatched.append(str(key if self.how != "text" else text))
+            return None
+        self.taken.add(cid)
+        return cid
+
+
+# ------------------------------------------------------------------------------ readers
+def _load_pickled_results(path: Path, trust_pickle: bool, fmt: str) -> dict:
+    if not trust_pickle:
+        raise ImportProblem(f"{path}: {fmt}'s results.npy is a pickle (np.save of a dict): loading it can run code; "
+                            f"pass --trust-pickle if you produced this file yourself")
+    try:
+        d = np.load(path, allow_pickle=True)
+        d = d.item() if isinstance(d, np.ndarray) and d.dtype == object and d.shape == () else d
+    except Exception as exc:                   # numpy raises many types for a bad file
+        raise ImportProblem(f"{path}: not a readable results.npy ({type(exc).__name__})") from None
+    if not isinstance(d, dict):
+        raise ImportProblem(f"{path}: expected a dict saved with np.save, got {type(d).__name__}")
+    for key in ("motion", "text", "lengths", "num_samples", "num_repetitions"):
+        if key not in d:
+            raise ImportProblem(f"{path}: field {key} missing (MDM's results.npy has motion, text, lengths, "
+                                f"num_samples, num_repetitions)")
+    return d
+
+
+def read_mdm(path: Path, trust_pickle: bool, with_object: bool) -> list[tuple[str, str, dict]]:
+    """(key, text, arrays) per prompt: K = num_repetitions samples (repetition-major entries)."""
+    d = _load_pickled_results(path, trust_pickle, "HOI-Diff" if with_object else "MDM")
+    motion = np.asarray(d["motion"])
+    n, reps = int(d["num_samples"]), int(d["num_repetitions"])
+    if motion.ndim != 4 or motion.shape[1:3] != (22, 3):
+        raise ImportProblem(f"{path}: field motion: expected (N, 22, 3, T), got {motion.shape}")
+    if motion.shape[0] != n * reps or len(d["text"]) != n * reps or len(d["lengths"]) != n * reps:
+        raise ImportProblem(f"{path}: fields motion/text/lengths: expected num_samples x num_repetitions = "
+                            f"{n * reps} entries, got {motion.shape[0]}, {len(d['text'])}, {len(d['lengths'])}")
+    obj = None
+    if with_object:
+        if "motion_obj" not in d:
+            raise ImportProblem(f"{path}: field motion_obj missing (HOI-Diff's (N, 1, 6, T) object motion)")
+        obj = np.asarray(d["motion_obj"])
+        if obj.shape[0] != n * reps or obj.shape[-2] != 6:
+            raise ImportProblem(f"{path}: field motion_obj: expected (N, 1, 6, T), got {obj.shape}")
+        obj = obj.reshape(obj.shape[0], 6, obj.shape[-1])
+    out = []
+    for i in range(n):
+        entries = [r * n + i for r in range(reps)]
+        lengths = {int(d["lengths"][e]) for e in entries}
+        T = min(lengths)
+        joints = np.stack([motion[e].transpose(2, 0, 1)[:T] for e in entries])
+        arrays = {"joints": joints}
+        if obj is not None:
+            o = np.stack([obj[e].T[:T] for e in entries])
+            arrays.update(obj_rotvec=o[..., :3], obj_trans=o[..., 3:])
+        out.append((str(i), str(d["text"][entries[0]]), arrays))
+    return out
+
+
+def _group_files(folder: Path, ext: str, ids: list[str]) -> dict[str, list[Path]]:
+    """``<id>.ext`` / ``<id>_<r>.ext`` files grouped by stem (the id when it is a test id)."""
+    if not folder.is_dir():
+        raise ImportProblem(f"{folder}: not a folder of {ext} files")
+    idset = set(ids)
+    groups: dict[str, list[tuple[int, Path]]] = defaultdict(list)
+    for p in sorted(folder.glob(f"*{ext}")):
+        stem = p.name[:-len(ext)]
+        if stem in idset:
+            groups[stem].append((0, p))
+            continue
+        m = _REP.match(stem)
+        base, rep = m.group(1), m.group(2)
+        groups[base if rep is not None else stem].append((int(rep or 0), p))
+    return {k: [p for _, p in sorted(v)] for k, v in groups.items()}
+
+
+def read_joint_files(folder: Path, ids: list[str], up: str, chois: bool) -> list[tuple[str, str, dict]]:
+    out = []
+    for key, files in _group_files(folder, ".npz" if chois else ".npy", ids).items():
+        samples = []
+        for p in files:
+            try:
+                if chois:
+                    with np.load(p, allow_pickle=False) as z:
+                        if "global_jpos" not in z.files:
+                            raise ImportProblem(f"{p}: field global_jpos missing (CHOIS's (T, 24, 3) joints)")
+                        j = np.asarray(z["global_jpos"])[:, :22]
+                else:
+                    j = np.load(p, allow_pickle=False)
+            except ImportProblem:
+                raise
+            except Exception as exc:
+                raise ImportProblem(f"{p}: not a readable array ({type(exc).__name__})") from None
+            if j.ndim != 3 or j.shape[1:] != (22, 3):
+                raise ImportProblem(f"{p}: joints: expected (T, 22, 3), got {j.shape}")
+            samples.append(z_up_to_y_up(j) if up == "z" else j)
+        T = min(len(s) for s in samples)
+        out.append((key, "", {"joints": np.stack([s[:T] for s in samples])}))
+    return out
+
+
+def read_features(folder: Path, ids: list[str], store: Store, normalized: bool) -> list[tuple[str, str, dict]]:
+    from ..representations import hml263, hoi269
+    out = []
+    for key, files in _group_files(folder, ".npy", ids).items():
+        samples = []
+        for p in files:
+            try:
+                f = np.load(p, allow_pickle=False).astype(np.float64)
+            except Exception as exc:
+                raise ImportProblem(f"{p}: not a readable array ({type(exc).__name__})") from None
+            if f.shape[-1] not in (hml263.DIM, hoi269.DIM) or f.ndim not in (2, 3):
+                raise ImportProblem(f"{p}: features: expected (T, 263), (T, 269) or (K, T, D), got {f.shape}")
+            if normalized:
+                try:
+                    st = store.stats("hoi269" if f.shape[-1] == hoi269.DIM else "hml263")
+                except FileNotFoundError:
+                    raise ImportProblem(f"{store.root}/stats: no statistics to de-normalise {p.name} with") from None
+                f = f * st.std + st.mean
+            samples.extend(list(f) if f.ndim == 3 else [f])
+        T = min(len(s) for s in samples)
+        f = np.stack([s[:T] for s in samples])
+        if f.shape[-1] == hoi269.DIM:
+            j, rot, trans = hoi269.decode(f)
+            out.append((key, "", {"joints": j, "obj_rot": rot, "obj_trans": trans}))
+        else:
+            out.append((key, "", {"joints": hml263.decode(f)}))
+    return out
+
+
+# ------------------------------------------------------------------------------ import
+def import_results(fmt: str, results: str | Path, data: str | Path, out: str | Path, *, match: str | None = None,
+                   mapping: str | Path | None = None, trust_pickle: bool = False, fps: float | None = None,
+                   up: str = "y", normalized: bool = False, method: str | None = None,
+                   as_zip: bool = False) -> tuple[Path, dict]:
+    """Write the submission; return (path, report: matched, missing ids, unmatched entries,
+    ambiguous texts, conversions)."""
+    if fmt not in FORMATS:
+        raise ImportProblem(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
+    if up not in ("y", "z"):
+        raise ImportProblem(f"--up: expected y or z, got {up!r}")
+    results, store = Path(results), Store(data)
+    store_fps = float(store.manifest["config"]["fps"])
+    ids = store.clip_ids("test")
+    how = "map" if mapping else (match or ("text" if fmt in ("mdm", "hoidiff") else "id"))
+    if how not in ("id", "text", "map"):
+        raise ImportProblem(f"--match: expected id or text, got {how!r}")
+    table = None
+    if mapping:
+        try:
+            table = json.loads(Path(mapping).read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ImportProblem(f"{mapping}: not a JSON mapping file ({type(exc).__name__})") from None
+        if not isinstance(table, dict):
+            raise ImportProblem(f"{mapping}: expected a JSON object {{entry: test id}}")
+    if fmt in ("mdm", "hoidiff"):
+        entries = read_mdm(results, trust_pickle, fmt == "hoidiff")
+    elif fmt in ("joints", "chois"):
+        entries = read_joint_files(results, ids, "z" if fmt == "chois" else up, fmt == "chois")
+    else:
+        entries = read_features(results, ids, store, normalized)
+    if not entries:
+        raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt == 'chois' else '.npy'} sample files "
+                            f"or entries found)")
+    src_fps = float(fps) if fps is not None else SOURCE_FPS.get(fmt, store_fps)
+    if not (np.isfinite(src_fps) and 1 <= src_fps <= 1000):
+        raise ImportProblem(f"--fps: expected 1..1000 frames per second, got {fps!r}")
+    matcher = Matcher(store, how, table)
+    samples: dict[str, dict] = {}
+    for key, text, arrays in entries:
+        cid = matcher(key, text)
+        if cid is None:
+            continue
+        a = {"joints": np.stack([resample(s, src_fps, store_fps) for s in arrays["joints"]]).astype(np.float32)}
+        if "obj_trans" in arrays:
+            rv = arrays.get("obj_rotvec")
+            if rv is not None:
+                a["obj_rotvec"] = np.stack([resample_rotvec(r, src_fps, store_fps) for r in rv]).astype(np.float32)
+            else:
+                from ..core.geometry import matrix_to_axis_angle
+                a["obj_rotvec"] = np.stack([resample_rotvec(matrix_to_axis_angle(r), src_fps, store_fps)
+                                            for r in arrays["obj_rot"]]).astype(np.float32)
+            a["obj_trans"] = np.stack([resample(t, src_fps, store_fps) for t in arrays["obj_trans"]]).astype(np.float32)
+        samples[cid] = a
+    if not samples:
+        raise ImportProblem(f"{results}: no entry matched a test id of {data} (by {how}; e.g. "
+                            f"{(matcher.unmatched or ['-'])[0]!r})")
+    K = {len(a["joints"]) for a in samples.values()}
+    conversions = {"format": fmt, "match": how, "source_fps": src_fps, "store_fps": store_fps,
+                   "resampled": abs(src_fps - store_fps) > 1e-9, "up_axis": "z -> y" if (fmt == "chois" or up == "z")
+                   else "y", "normalized_features": bool(normalized) if fmt == "features" else None}
+    report = {"matched": len(samples), "test_ids": len(ids), "missing_ids": sorted(set(ids) - set(samples)),
+              "unmatched_entries": matcher.unmatched, "ambiguous_texts": sorted(set(matcher.ambiguous)),
+              "samples_per_prompt": sorted(K), "conversions": conversions}
+    gt_len = {cid: len(store.load(cid, keys=("joints",))["joints"]) for cid in samples}
+    meta = {"method": method or f"imported {fmt} results", "version": "", "url": "",
+            "representation": store.manifest.get("representations", {}).get("hml263", ""), "fps": store_fps,
+            "flags": {"uses_gt_length": all(len(a["joints"][0]) == gt_len[c] for c, a in samples.items()),
+                      "samples_per_prompt": max(K), "checkpoint_selection": "unknown"},
+            "source": {"import": {**conversions, "results": str(results), "missing_ids": len(report["missing_ids"]),
+                                  "unmatched_entries": len(matcher.unmatched)}, "toolkit_version": __version__}}
+    if len(K) > 1:
+        raise ImportProblem(f"{results}: prompts have different numbers of samples ({sorted(K)}); a submission "
+                            f"has one K")
+    path = write_submission(out, meta, sorted(samples.items()), as_zip=as_zip)
+    return path, report

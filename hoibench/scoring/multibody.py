@@ -1,0 +1,366 @@
+"""Score a multi-body submission: SyncDiff's metrics (paper 004, section 4.2) under a
+multi-body protocol.
+
+Submission (the same container as single-body ones: ``submission.json`` +
+``samples/<test id>.npz``, read without pickles), one array per body of the store's clip,
+named by the body:
+
+    <body>__joints   (K, T, J, 3)  humans (J = 22) and hands (J = 21), metres, y-up
+    <body>__rot      (K, T, 3, 3)  objects: v = rot @ template + trans
+    <body>__trans    (K, T, 3)
+
+T equals the ground truth's (the protocol's fps). Per clip and sample (a unit, run on any
+executor; results are keyed by clip id and reduced in sorted order, so serial and process
+runs give identical numbers):
+
+* contact frames per hand (capsule surface within ``csr_threshold_m`` of an object) and per
+  human (both hand roots within ``crr_threshold_m`` of one object); CSR and CRR are their
+  ratios (mean over hands / humans, then clips), CSIoU their IoU with the ground truth's
+  frames computed by the same rule;
+* IV (cm^3) and ID (mm) per frame over every pair of bodies (a hand and its own human
+  excluded), reduced over pairs by the protocol (sum), then averaged over frames and clips;
+* wrist trajectories (hands: the wrist; humans: both wrists) for SD (between the K samples
+  of a prompt; undefined for K = 1) and OD (between all samples of the split);
+* RA and FID from the recognizer (:mod:`hoibench.evaluator.recognizer`): accuracy of its
+  predicted action on the generated clips, Frechet distance between its features of the
+  ground-truth and generated clips.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .. import __version__
+from ..bodies.multibody import Body, MultiBodyClip, is_multibody_arrays
+from ..bodies.capsules import object_fields, pair_contact_frames, pair_penetration
+
+__all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "main_evaluate",
+           "format_result", "is_multibody_store", "REFERENCE_KINDS"]
+
+REFERENCE_KINDS = ("gt", "gt-noise", "desync", "lost_contact", "interpenetration", "static")
+
+
+def is_multibody_store(store) -> bool:
+    ids = store.clip_ids()
+    if not ids:
+        return False
+    return is_multibody_arrays(store.load(ids[0], keys=("layout",)))
+
+
+# --------------------------------------------------------------------------- submissions
+def sample_arrays(clips: list[MultiBodyClip]) -> dict[str, np.ndarray]:
+    """The ``samples/<id>.npz`` arrays of K generated versions of one clip."""
+    out: dict[str, np.ndarray] = {}
+    for i, b in enumerate(clips[0].bodies):
+        group = [c.bodies[i] for c in clips]
+        if b.is_rigid:
+            out[f"{b.name}__rot"] = np.stack([g.rot for g in group]).astype(np.float32)
+            out[f"{b.name}__trans"] = np.stack([g.trans for g in group]).astype(np.float32)
+        else:
+            out[f"{b.name}__joints"] = np.stack([g.joints for g in group]).astype(np.float32)
+    return out
+
+
+def clip_from_sample(gt: MultiBodyClip, arrays: Mapping[str, np.ndarray], k: int, sid: str) -> MultiBodyClip:
+    """Sample ``k`` of a submission file as a clip shaped like ``gt``; ValueError naming the
+    id and field for a missing, misshapen or non-finite array."""
+    T = gt.num_frames
+    bodies = []
+    for b in gt.bodies:
+        if b.is_rigid:
+            R = _field(arrays, sid, f"{b.name}__rot", (T, 3, 3), k)
+            t = _field(arrays, sid, f"{b.name}__trans", (T, 3), k)
+            det = np.linalg.det(R)
+            ortho = np.abs(R @ R.swapaxes(-1, -2) - np.eye(3)).max((-2, -1))
+            bad = np.flatnonzero((ortho > 1e-3) | (det < 0))
+            if len(bad):
+                raise ValueError(f"{sid}: {b.name}__rot: not a rotation matrix at sample {k}, frame {int(bad[0])}")
+            bodies.append(Body(b.name, b.kind, t, R, None, b.template, b.side, b.owner))
+        else:
+            J = _field(arrays, sid, f"{b.name}__joints", (T, b.joints.shape[1], 3), k)
+            bodies.append(Body(b.name, b.kind, J[:, 0].copy(), None, J, None, b.side, b.owner))
+    return replace(gt, bodies=bodies, contacts={})
+
+
+def _field(arrays, sid: str, key: str, tail: tuple, k: int) -> np.ndarray:
+    if key not in arrays:
+        raise ValueError(f"{sid}: missing array {key!r} (one per body of the clip: <body>__joints, or "
+                         f"<body>__rot and <body>__trans for objects)")
+    a = np.asarray(arrays[key])
+    if a.ndim != len(tail) + 1 or a.shape[1:] != tail:
+        raise ValueError(f"{sid}: {key}: expected shape (K, {', '.join(map(str, tail))}), got {a.shape}")
+    if k >= len(a):
+        raise ValueError(f"{sid}: {key}: {len(a)} sample(s), sample {k} asked for")
+    x = a[k].astype(np.float64)
+    if not np.isfinite(x).all():
+        raise ValueError(f"{sid}: {key}: non-finite values in sample {k}")
+    return x
+
+
+def write_multibody_submission(data, out, kind: str = "gt", samples: int = 1, method: str | None = None,
+                               as_zip: bool = False, sigma: float = 0.01, seed: int = 0) -> Path:
+    """A reference submission from a multi-body store's test split: ``gt`` (the ground
+    truth), ``gt-noise`` (each of ``samples`` samples: every position plus i.i.d. Gaussian
+    noise of ``sigma`` metres, seeded), ``desync`` / ``lost_contact`` / ``interpenetration``
+    (its defective copies, :func:`hoibench.datasets.synthetic_multibody.inject`) or ``static``
+    (every body held at its first frame)."""
+    from ..datasets.store import Store
+    from .submission import write_submission
+    from ..datasets import synthetic_multibody as syn
+    if kind not in REFERENCE_KINDS:
+        raise ValueError(f"--kind: expected one of {REFERENCE_KINDS}, got {kind!r}")
+    store = Store(data)
+    items = []
+    for cid in store.clip_ids("test"):
+        gt = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
+        if kind == "gt":
+            clip = gt
+        elif kind == "static":
+            clip = replace(gt, bodies=[replace(b, trans=np.repeat(b.trans[:1], gt.num_frames, 0),
+                                               rot=None if b.rot is None else np.repeat(b.rot[:1], gt.num_frames, 0),
+                                               joints=None if b.joints is None else
+                                               np.repeat(b.joints[:1], gt.num_frames, 0)) for b in gt.bodies])
+        elif kind == "gt-noise":
+            rng = np.random.default_rng([int(seed), int.from_bytes(cid.encode()[:8].ljust(8, b"\0"), "little")])
+            versions = []
+            for _ in range(int(samples)):
+                versions.append(replace(gt, bodies=[replace(
+                    b, trans=b.trans + rng.normal(0, sigma, b.trans.shape),
+                    joints=None if b.joints is None else b.joints + rng.normal(0, sigma, b.joints.shape))
+                    for b in gt.bodies]))
+            items.append((cid, sample_arrays(versions)))
+            continue
+        else:
+            clip = syn.inject(gt, kind)
+        items.append((cid, sample_arrays([clip] * int(samples))))
+    label = f"reference: {kind}" + (f" ({sigma * 100:g} cm, K = {samples})" if kind == "gt-noise" else "")
+    meta = {"method": method or label, "version": __version__, "representation": "multibody-joints",
+            "fps": float(store.manifest["config"]["fps"]),
+            "flags": {"uses_gt_length": True, "samples_per_prompt": int(samples), "checkpoint_selection": "none"}}
+    return write_submission(out, meta, items, as_zip=as_zip)
+
+
+# --------------------------------------------------------------------------- per clip
+def _contacts(clip: MultiBodyClip, fields, proto) -> dict[str, np.ndarray]:
+    """Contact frames per skeleton, keyed by body name: in contact with any object by the
+    protocol's thresholds (:func:`hoibench.bodies.capsules.pair_contact_frames`)."""
+    out: dict[str, np.ndarray] = {}
+    for (skel, _), frames in pair_contact_frames(clip, fields, proto.csr_threshold_m, proto.crr_threshold_m).items():
+        out[skel] = out[skel] | frames if skel in out else frames
+    return out
+
+
+def _pairs(clip: MultiBodyClip) -> list[tuple[int, int]]:
+    out = []
+    for i in range(len(clip.bodies)):
+        for j in range(i + 1, len(clip.bodies)):
+            a, b = clip.bodies[i], clip.bodies[j]
+            if a.owner == b.name or b.owner == a.name:
+                continue
+            out.append((i, j))
+    return out
+
+
+def _wrists(clip: MultiBodyClip) -> np.ndarray:
+    """(T, W, 3) wrist trajectories: hands' wrists, humans' two wrists."""
+    parts = []
+    for b in clip.bodies:
+        if b.kind == "hand":
+            parts.append(b.joints[:, :1])
+        elif b.kind == "human":
+            parts.append(b.joints[:, [20, 21]])
+    return np.concatenate(parts, 1) if parts else np.zeros((clip.num_frames, 0, 3))
+
+
+def _clip_unit(job: tuple) -> dict:
+    """One test clip: GT and every sample's contact frames, penetration per frame, wrists."""
+    cid, gt_arrays, sample, proto_dict, templates, K = job
+    from ..tracks.multibody_protocol import from_dict_plain
+    proto = from_dict_plain(proto_dict)
+    gt = MultiBodyClip.from_arrays(gt_arrays)
+    gt.templates = templates
+    fields = object_fields(gt)
+    pairs = _pairs(gt)
+    red = {"sum": np.sum, "max": np.max, "mean": np.mean}[proto.pair_reduction]
+
+    def measure(clip):
+        pen_v = np.zeros((clip.num_frames, max(1, len(pairs))))
+        pen_d = np.zeros_like(pen_v)
+        for n, (i, j) in enumerate(pairs):
+            pen_v[:, n], pen_d[:, n] = pair_penetration(clip, i, j, fields, voxel_m=proto.voxel_m)
+        return {"contacts": _contacts(clip, fields, proto),
+                "iv_cm3": float(red(pen_v, axis=1).mean() * 1e6), "id_mm": float(red(pen_d, axis=1).mean() * 1e3),
+                "wrists": _wrists(clip)}
+
+    out = {"id": cid, "gt": measure(gt), "samples": []}
+    for k in range(K):
+        out["samples"].append(measure(clip_from_sample(gt, sample, k, cid)))
+    return out
+
+
+# --------------------------------------------------------------------------- evaluate
+def evaluate(submission, data, recognizer, protocol=None, executor: str = "serial") -> dict:
+    """Score ``submission`` on the multi-body store ``data`` with ``recognizer`` (a folder);
+    the result dict records every version (see the module docstring)."""
+    from ..metrics.embedding import fid as fid_of
+    from ..core.parallel import map_units
+    from ..datasets.store import Store
+    from .submission import Submission
+    from ..metrics import multibody as mbm
+    from ..tracks.multibody_protocol import get
+    from ..evaluator.recognizer import load_recognizer
+    store = Store(data)
+    proto = get(protocol, str(store.manifest.get("dataset", "")))
+    rec = load_recognizer(recognizer)
+    notes = []
+    if rec.card.get("trained_on_split") != proto.recognizer_split:
+        notes.append(f"the recognizer was trained on split {rec.card.get('trained_on_split')!r}, the protocol names "
+                     f"{proto.recognizer_split!r}")
+    if rec.card.get("store_manifest_sha256") != store.manifest_sha256():
+        notes.append("the recognizer was trained on another store (manifest sha256 differs)")
+    ids = store.clip_ids(proto.split)
+    with Submission(submission) as sub:
+        if sub.problems:
+            raise ValueError(f"{submission}: {sub.problems[0]}")
+        meta = sub.meta or {}
+        missing = [i for i in ids if i not in set(sub.ids)]
+        if missing:
+            raise ValueError(f"{submission}: samples/{missing[0]}.npz: missing ({len(missing)} of {len(ids)} test ids "
+                             f"missing); a multi-body result is scored complete only")
+        jobs = []
+        for cid in ids:
+            arrays = store.load(cid)
+            sample = sub.load(cid, keys=None)
+            first = next(iter(sample.values()), None)
+            K = int(len(first)) if first is not None else 0
+            if K < 1:
+                raise ValueError(f"{submission}: samples/{cid}.npz: no arrays")
+            names = [str(t) for t in arrays["body_templates"] if str(t)]
+            templates = {n: store.object_template(n) for n in names}
+            jobs.append((cid, arrays, sample, proto.to_dict(), templates, K))
+    units = list(map_units(_clip_unit, jobs, executor, progress="evaluate multibody"))
+
+    csr, crr, csiou = mbm.CSR(threshold_m=proto.csr_threshold_m), mbm.CRR(threshold_m=proto.crr_threshold_m), \
+        mbm.CSIoU(threshold_m=proto.csr_threshold_m, empty_union=proto.csiou_empty_union)
+    gt_csr, gt_crr = mbm.CSR(threshold_m=proto.csr_threshold_m), mbm.CRR(threshold_m=proto.crr_threshold_m)
+    iv, idm, gt_iv, gt_id = [], [], [], []
+    sd = mbm.SampleDiversity(num_frames=proto.diversity_frames)
+    od: dict[str, mbm.OverallDiversity] = {}         # per body layout: wrists compare within one
+    gt_od: dict[str, mbm.OverallDiversity] = {}
+    gens, gts = [], []
+    jobs_by_id = {j[0]: j for j in jobs}
+    for u in sorted(units, key=lambda x: x["id"]):
+        cid = u["id"]
+        _, arrays, sample, _, templates, K = jobs_by_id[cid]
+        gt = MultiBodyClip.from_arrays(arrays)
+        gt.templates = templates
+        gts.append(gt)
+        # every generated sample, for the recognizer
+        gens += [(gt, clip_from_sample(gt, sample, k, cid)) for k in range(K)]
+        g = u["gt"]
+        hands = [b.name for b in gt.bodies if b.kind == "hand"]
+        humans = [b.name for b in gt.bodies if b.kind == "human"]
+        if hands:
+            gt_csr.update_frames(cid, [g["contacts"][h] for h in hands])
+        if humans:
+            gt_crr.update_frames(cid, [g["contacts"][h] for h in humans])
+        gt_iv.append(g["iv_cm3"])
+        gt_id.append(g["id_mm"])
+        sig = gt.signature()
+        gt_od.setdefault(sig, mbm.OverallDiversity(num_frames=proto.diversity_frames)).update(cid, g["wrists"])
+        for k, s in enumerate(u["samples"]):
+            key = f"{cid}#{k}"
+            if hands:
+                csr.update_frames(key, [s["contacts"][h] for h in hands])
+            if humans:
+                crr.update_frames(key, [s["contacts"][h] for h in humans])
+            skel = hands + humans
+            if skel:
+                csiou.update_frames(key, [s["contacts"][n] for n in skel], [g["contacts"][n] for n in skel])
+            iv.append(s["iv_cm3"])
+            idm.append(s["id_mm"])
+            od.setdefault(sig, mbm.OverallDiversity(num_frames=proto.diversity_frames)).update(key, s["wrists"])
+        if len(u["samples"]) > 1:
+            sd.update(cid, np.stack([s["wrists"] for s in u["samples"]]))
+    # the recognizer on every generated sample and on the ground truth (one pass each)
+    gen_feats, pred = rec.run([c for _, c in gens])
+    gt_feats, gt_pred = rec.run(gts)
+    ra = float(np.mean([p == g.action for p, (g, _) in zip(pred, gens)]))
+    gt_ra = float(np.mean([p == g.action for p, g in zip(gt_pred, gts)]))
+
+    def computed(m):
+        try:
+            return float(m.compute())
+        except ValueError:
+            return None
+
+    def grouped(groups: dict) -> float | None:
+        """OD over body layouts: each layout's OD weighted by its trajectories (layouts with
+        one trajectory have none)."""
+        vals = [(len(m.trajectories), computed(m)) for _, m in sorted(groups.items())]
+        vals = [(n, v) for n, v in vals if v is not None]
+        return float(sum(n * v for n, v in vals) / sum(n for n, _ in vals)) if vals else None
+
+    metrics = {"csr": computed(csr), "crr": computed(crr), "csiou": computed(csiou),
+               "iv_cm3": float(np.mean(iv)), "id_mm": float(np.mean(idm)),
+               "sd": computed(sd), "od": grouped(od), "ra": ra,
+               "fid": float(fid_of(gt_feats, gen_feats)) if len(gts) > 1 else None}
+    reference = {"csr": computed(gt_csr), "crr": computed(gt_crr), "csiou": 1.0, "iv_cm3": float(np.mean(gt_iv)),
+                 "id_mm": float(np.mean(gt_id)), "od": grouped(gt_od), "ra": gt_ra, "fid": 0.0}
+    undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
+                     "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
+                 for k, v in metrics.items() if v is None}
+    return {
+        "toolkit": "hoibench", "toolkit_version": __version__, "kind": "multibody",
+        "protocol": proto.id, "protocol_version": proto.version, "protocol_sha256": proto.sha256(),
+        "protocol_settings": proto.to_dict(),
+        "recognizer_id": rec.id, "recognizer_trained_on_split": rec.card.get("trained_on_split"),
+        "store": str(store.manifest.get("dataset", "")), "store_manifest_sha256": store.manifest_sha256(),
+        "submission": {"path": str(submission), "method": meta.get("method"), "version": meta.get("version")},
+        "counts": {"clips": len(ids), "samples": len(gens)}, "complete": True,
+        "metrics": {k: v for k, v in metrics.items() if v is not None},
+        "ground_truth": reference, "undefined_metrics": undefined, "notes": notes,
+    }
+
+
+_ROWS = (("csr", "CSR", "fraction of frames, hands", "~GT"), ("crr", "CRR", "fraction of frames, humans", "~GT"),
+         ("csiou", "CSIoU", "IoU with GT contact frames", "higher"), ("iv_cm3", "IV", "cm^3 per frame", "lower"),
+         ("id_mm", "ID", "mm per frame", "lower"), ("sd", "SD", "m, between samples", "higher"),
+         ("od", "OD", "m, across the split", "~GT"), ("ra", "RA", "recognizer accuracy", "higher"),
+         ("fid", "FID", "recognizer features", "lower"))
+
+
+def format_result(result: dict) -> str:
+    lines = [f"{result['submission'].get('method') or result['submission']['path']}  on {result['store']}  "
+             f"({result['protocol']}@{result['protocol_version']}, recognizer {result['recognizer_id']} trained on "
+             f"{result['recognizer_trained_on_split']})",
+             f"{'metric':8s} {'value':>10s} {'GT':>10s}  better   unit"]
+    for key, name, unit, better in _ROWS:
+        v = result["metrics"].get(key)
+        g = result["ground_truth"].get(key)
+        if v is None:
+            lines.append(f"{name:8s} {'--':>10s} {'' if g is None else f'{g:10.4f}':>10s}  {better:7s}  "
+                         f"{result['undefined_metrics'].get(key, '')}")
+            continue
+        if key == "fid" and -1e-2 < v < 0:          # rounding below zero (the JSON keeps the raw value)
+            v = 0.0
+        lines.append(f"{name:8s} {v:10.4f} {'' if g is None else f'{g:10.4f}':>10s}  {better:7s}  {unit}")
+    lines.append(f"clips {result['counts']['clips']}, samples {result['counts']['samples']}")
+    for n in result.get("notes", []):
+        lines.append(f"note: {n}")
+    return "\n".join(lines)
+
+
+def main_evaluate(submission, data, recognizer, out=None, protocol=None, executor="serial") -> int:
+    from ..core.io import atomic_write_json
+    result = evaluate(submission, data, recognizer, protocol=protocol, executor=executor)
+    if out is not None:
+        atomic_write_json(out, result)
+    print(format_result(result))
+    if out is not None:
+        print(f"wrote {out}")
+    return 0
+

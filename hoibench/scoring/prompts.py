@@ -1,0 +1,67 @@
+"""``hoibench submission prompts``: what a generator needs to produce a submission, without
+reading hoibench's code -- one JSON line per test clip.
+
+Fields: ``id`` (the submission's sample name: ``samples/<id>.npz``), ``captions`` (every
+caption of the clip; the evaluator draws one per replication, baselines condition on the
+first), ``frames`` (the ground truth's length T at ``fps``: submit (K, T, 22, 3) joints to
+use the GT length), ``fps``, ``object`` (name, or null on a human-only store), ``object_mesh``
+(path of the centred template ``.npz`` with ``vertices`` (V, 3) metres and ``faces`` (F, 3);
+the submission's object pose maps it as ``R v + t``), ``group`` (semantic group id),
+``representation`` (the store's representation version, for ``submission.json``) and the
+store's frame conventions (``up`` y, metres, canonical frame of frame 0).
+
+A ten-line generation loop (docs/leaderboards.md has it with the zip step)::
+
+    import json, numpy as np, pathlib
+    out = pathlib.Path("my_sub/samples"); out.mkdir(parents=True, exist_ok=True)
+    for line in open("prompts.jsonl"):
+        p = json.loads(line)
+        joints, obj_rot, obj_trans = my_model(p["captions"][0], p["object_mesh"], p["frames"])
+        np.savez(out / f"{p['id']}.npz", joints=joints[None].astype("float32"),
+                 obj_rot=obj_rot[None].astype("float32"), obj_trans=obj_trans[None].astype("float32"))
+    json.dump({"method": "my model", "version": "1.0", "representation": p["representation"], "fps": p["fps"],
+               "flags": {"samples_per_prompt": 1}}, open("my_sub/submission.json", "w"))
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..core.io import atomic_write_text
+from ..datasets.store import Store
+
+
+def prompts(data: str | Path, split: str = "test") -> list[dict]:
+    """One dict per clip of ``split`` (fields above); ValueError naming the clip and file when
+    a clip has no captions."""
+    from ..evaluator.text import read_captions
+    st = Store(data)
+    fps = float(st.manifest["config"]["fps"])
+    rep = st.manifest.get("representations", {}).get("hml263", "")
+    ids = st.clip_ids(split)
+    if not ids:
+        raise ValueError(f"{data}: split {split!r} has no clips")
+    out = []
+    for cid in ids:
+        caps = read_captions(st.root, cid)
+        if not caps:
+            raise ValueError(f"{st.root}/texts/{cid}.txt: missing or empty: clip {cid} has no caption "
+                             f"(run `hoibench annotate {data}` first)")
+        clip = st.load(cid, keys=("joints", "object_name"))
+        name = str(clip["object_name"]) if "object_name" in clip else None
+        ann = st.root / "annotations" / f"{cid}.json"
+        group = json.loads(ann.read_text()).get("group_id") if ann.exists() else None
+        out.append({"id": cid, "captions": [c.text for c in caps], "frames": int(clip["joints"].shape[0]),
+                    "fps": fps, "object": name,
+                    "object_mesh": str((st.root / "objects" / f"{name}.npz").resolve()) if name else None,
+                    "group": group, "representation": rep, "up": "y", "units": "m", "frame": "canonical (frame 0: root at x = z = 0, "
+                                                                     "facing +z, floor y = 0)"})
+    return out
+
+
+def write_prompts(data: str | Path, out: str | Path | None = None, split: str = "test") -> str:
+    """The JSON lines of :func:`prompts`; written atomically to ``out`` when given."""
+    text = "".join(json.dumps(p, sort_keys=True, allow_nan=False) + "\n" for p in prompts(data, split))
+    if out is not None:
+        atomic_write_text(out, text)
+    return text

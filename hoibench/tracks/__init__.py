@@ -1,0 +1,1 @@
+"""Tracks and protocols: what a benchmark scores (store kind, representation, submission schema, metrics, evaluator kind, leaderboard columns) and the versioned YAML protocols that fix its settings."""

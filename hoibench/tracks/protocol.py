@@ -1,0 +1,368 @@
+"""Evaluation protocols: versioned YAML files that fix everything a number depends on.
+
+A protocol (``hoibench/protocols/<id>.yaml``, shipped with the package) fixes the dataset and
+split, ``legacy|clean`` mode, frame rate, representation version, replications (20), seeds,
+R-precision pools (32, drawn from a seeded permutation of the sorted test ids, independent
+of compute batch size), diversity pairs (300; 200 on BEHAVE as HOI-Diff), MultiModality
+(100 texts x 30 samples x 10 pairs) and the physical metrics' settings (body surface for
+PS, contact-threshold mode, FSR thresholds). Results carry the protocol id, version and
+sha256, and report every metric as the mean over replications with the 95% confidence
+interval ``1.96 * std / sqrt(replications)`` (population std, as text-to-motion's
+``get_metric_statistics``) -- see :func:`summarize`.
+
+Registry: :func:`list_protocols`, :func:`get_protocol` (``"behave-clean"``,
+``"behave-clean@1.1"`` or a path to a YAML file). CLI: :func:`main_protocols`
+(``hoibench protocols ls`` / ``hoibench protocols show behave-clean``).
+
+Seeds are derived, never taken from worker rank: :meth:`Protocol.seed_for` hashes
+(protocol seed, purpose, replication) with ``numpy.random.SeedSequence``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Hashable, Iterable, Sequence
+
+import numpy as np
+
+from ..metrics import METRICS, make_pools
+from ..metrics.physical import PhysicalConfig
+
+PROTOCOLS_DIR = Path(__file__).resolve().parent / "protocols"
+MODES: tuple[str, ...] = ("legacy", "clean")
+CI_Z = 1.96
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """A parsed, validated protocol file (see the module docstring and docs/protocol.md)."""
+
+    id: str
+    version: str
+    dataset: str
+    split: str
+    mode: str
+    fps: float
+    representation: str
+    replications: int
+    seed: int
+    r_precision_pool_size: int
+    r_precision_top_k: int
+    r_precision_drop_last: bool
+    diversity_pairs: int
+    mm_texts: int
+    mm_samples: int
+    mm_pairs: int
+    physical: dict
+    metrics: tuple
+    description: str = ""
+    changelog: tuple = ()
+    source: str = field(default="", compare=False)
+
+    # ------------------------------------------------------------------ identity
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("source")
+        d["metrics"] = list(self.metrics)
+        d["changelog"] = list(self.changelog)
+        return d
+
+    @property
+    def sha256(self) -> str:
+        """sha256 of the canonical JSON of every field (the protocol's content hash)."""
+        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()
+
+    @property
+    def ref(self) -> str:
+        return f"{self.id}@{self.version}"
+
+    def result_header(self) -> dict:
+        """What a result records about its protocol."""
+        return {"protocol": self.id, "protocol_version": self.version, "protocol_sha256": self.sha256,
+                "mode": self.mode, "representation": self.representation, "fps": self.fps,
+                "replications": self.replications}
+
+    # ------------------------------------------------------------------ seeds and draws
+    def seed_for(self, purpose: str, replication: int = 0) -> int:
+        """A 32-bit seed for ``purpose`` ("r_precision", "diversity", "multimodality", ...) in
+        ``replication``: ``SeedSequence([seed, sha256(purpose)[:4], replication])``."""
+        tag = int.from_bytes(hashlib.sha256(purpose.encode()).digest()[:4], "little")
+        return int(np.random.SeedSequence([int(self.seed), tag, int(replication)]).generate_state(1)[0])
+
+    def pools(self, ids: Sequence[Hashable], replication: int = 0) -> list[list]:
+        """R-precision pools of ``replication`` (:func:`hoibench.metrics.make_pools`)."""
+        return make_pools(ids, self.r_precision_pool_size, self.seed_for("r_precision", replication),
+                          self.r_precision_drop_last)
+
+    def multimodality_ids(self, ids: Sequence[Hashable], replication: int = 0) -> list:
+        """The ``mm_texts`` test ids whose samples MultiModality uses (sorted; all ids when
+        there are fewer)."""
+        items = sorted(ids, key=lambda x: (type(x).__name__, x))
+        if len(items) <= self.mm_texts:
+            return items
+        rng = np.random.default_rng(self.seed_for("multimodality_ids", replication))
+        return sorted((items[i] for i in rng.choice(len(items), self.mm_texts, replace=False)),
+                      key=lambda x: (type(x).__name__, x))
+
+    def effective_diversity_pairs(self, n: int) -> int:
+        """Pairs actually drawn from ``n`` motions: ``min(pairs, n - 1)`` (Diversity needs
+        more motions than pairs); results record it next to the value."""
+        return max(0, min(self.diversity_pairs, int(n) - 1))
+
+    @property
+    def max_samples_per_prompt(self) -> int:
+        """K cap for submissions: ``max(replications, mm_samples)``. Replication r uses
+        sample ``r mod K`` and MultiModality the first ``mm_samples``, so no metric reads a
+        sample beyond this; larger files are refused before loading (docs/security.md)."""
+        return max(int(self.replications), int(self.mm_samples))
+
+    @staticmethod
+    def sample_index(replication: int, samples_per_prompt: int) -> int:
+        """Which of a submission's K samples per prompt replication r uses: ``r mod K``.
+        With K = 1 every replication sees the same motions (only the pools and pairs vary)."""
+        if samples_per_prompt < 1:
+            raise ValueError(f"samples_per_prompt: expected >= 1, got {samples_per_prompt}")
+        return int(replication) % int(samples_per_prompt)
+
+    def physical_config(self) -> PhysicalConfig:
+        p = self.physical
+        return PhysicalConfig(
+            mode=self.mode, contact_mode=p["contact_thresholds"], body_surface=p["body_surface"],
+            ocd_length_tolerance=int(p["ocd_length_tolerance_frames"]),
+            fsr_height_m=float(p["fsr"]["height_m"]), fsr_displacement_m=float(p["fsr"]["displacement_m"]),
+            gmd_height_m=float(p["fsr_gmd"]["height_m"]), gmd_speed_mps=float(p["fsr_gmd"]["speed_mps"]),
+            gmd_window_frames=int(p["fsr_gmd"]["window_frames"]),
+            vertex_contact_m=float(p["vertex_contact_m"]), floor_tolerance_m=float(p["floor_tolerance_m"]),
+            floor_shift=bool(p["floor_shift"]))
+
+
+# ====================================================================== loading
+def _need(d: dict, key: str, kind, where: str):
+    if key not in d:
+        raise ValueError(f"{where}: missing field {key!r}")
+    v = d[key]
+    if kind is float and isinstance(v, int) and not isinstance(v, bool):
+        v = float(v)
+    if kind is str and isinstance(v, (int, float)) and not isinstance(v, bool):
+        v = str(v)
+    if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+        raise ValueError(f"{where}: field {key!r} must be {getattr(kind, '__name__', kind)}, got {v!r}")
+    return v
+
+
+def _positive(v, key: str, where: str):
+    if not v > 0:
+        raise ValueError(f"{where}: field {key!r} must be positive, got {v!r}")
+    return v
+
+
+def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
+    """Validate a parsed protocol; ``ValueError`` naming the file and the field otherwise."""
+    w = str(source)
+    if not isinstance(d, dict):
+        raise ValueError(f"{w}: expected a mapping at the top level")
+    mode = _need(d, "mode", str, w)
+    if mode not in MODES:
+        raise ValueError(f"{w}: field 'mode' must be one of {MODES}, got {mode!r}")
+    rp = _need(d, "r_precision", dict, w)
+    div = _need(d, "diversity", dict, w)
+    mm = _need(d, "multimodality", dict, w)
+    phys = _need(d, "physical", dict, w)
+    for key, kind in (("body_surface", str), ("contact_thresholds", str), ("ocd_length_tolerance_frames", int),
+                      ("fsr", dict), ("fsr_gmd", dict), ("vertex_contact_m", float),
+                      ("floor_tolerance_m", float), ("floor_shift", bool)):
+        _need(phys, key, kind, f"{w}: physical")
+    for key in ("height_m", "displacement_m"):
+        _need(phys["fsr"], key, float, f"{w}: physical.fsr")
+    for key, kind in (("height_m", float), ("speed_mps", float), ("window_frames", int)):
+        _need(phys["fsr_gmd"], key, kind, f"{w}: physical.fsr_gmd")
+    metrics = tuple(_need(d, "metrics", list, w))
+    unknown = [m for m in metrics if m not in METRICS]
+    if unknown:
+        raise ValueError(f"{w}: field 'metrics' names unknown metrics {unknown}; known: {sorted(METRICS)}")
+    proto = Protocol(
+        id=_need(d, "id", str, w), version=_need(d, "version", str, w), dataset=_need(d, "dataset", str, w),
+        split=_need(d, "split", str, w), mode=mode, fps=_positive(_need(d, "fps", float, w), "fps", w),
+        representation=_need(d, "representation", str, w),
+        replications=_positive(_need(d, "replications", int, w), "replications", w),
+        seed=_need(d, "seed", int, w),
+        r_precision_pool_size=_positive(_need(rp, "pool_size", int, f"{w}: r_precision"), "pool_size", w),
+        r_precision_top_k=_positive(_need(rp, "top_k", int, f"{w}: r_precision"), "top_k", w),
+        r_precision_drop_last=_need(rp, "drop_last", bool, f"{w}: r_precision"),
+        diversity_pairs=_positive(_need(div, "pairs", int, f"{w}: diversity"), "pairs", w),
+        mm_texts=_positive(_need(mm, "texts", int, f"{w}: multimodality"), "texts", w),
+        mm_samples=_positive(_need(mm, "samples", int, f"{w}: multimodality"), "samples", w),
+        mm_pairs=_positive(_need(mm, "pairs", int, f"{w}: multimodality"), "pairs", w),
+        physical=phys, metrics=metrics, description=str(d.get("description", "")).strip(),
+        changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w)
+    if proto.mm_samples <= proto.mm_pairs:
+        raise ValueError(f"{w}: multimodality.samples must exceed multimodality.pairs")
+    proto.physical_config()          # the physical settings must be valid too
+    return proto
+
+
+def read_protocol_yaml(path: str | Path):
+    """The parsed content of a protocol YAML file (single-body or multi-body); errors name
+    the file."""
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"protocol: no file at {p}")
+    try:
+        return yaml.safe_load(p.read_text())
+    except yaml.YAMLError as e:
+        raise ValueError(f"{p}: not valid YAML: {e}") from None
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Read and validate one protocol YAML file."""
+    return protocol_from_dict(read_protocol_yaml(path), str(path))
+
+
+def list_protocols() -> list[Protocol]:
+    """Every protocol shipped with the package, sorted by id."""
+    return sorted((load_protocol(p) for p in PROTOCOLS_DIR.glob("*.yaml")), key=lambda x: (x.id, x.version))
+
+
+def get_protocol(name: str | Path | Protocol) -> Protocol:
+    """A protocol by id (``"behave-clean"``), id and version (``"behave-clean@1.1"``) or path
+    to a YAML file. ``KeyError`` listing the known ids otherwise."""
+    if isinstance(name, Protocol):
+        return name
+    s = str(name)
+    if s.endswith((".yaml", ".yml")) or Path(s).is_file():
+        return load_protocol(s)
+    pid, _, version = s.partition("@")
+    found = [p for p in list_protocols() if p.id == pid and (not version or p.version == version)]
+    if not found:
+        known = ", ".join(p.ref for p in list_protocols())
+        raise KeyError(f"unknown protocol {s!r}; known: {known}")
+    return found[-1]
+
+
+def default_protocol_id(manifest: dict) -> str:
+    """The protocol a store is scored under by default: ``<dataset>-<legacy|clean>`` when one
+    ships under that id, else the one shipped protocol for the store's dataset and mode
+    (a ``rich`` store: ``rich-cat-clean``), else ``<dataset>-<legacy|clean>`` (not shipped)."""
+    mode = "legacy" if str(manifest.get("config", {}).get("mode", "clean")).startswith("legacy") else "clean"
+    dataset = manifest.get("dataset", "?")
+    pid = f"{dataset}-{mode}"
+    shipped = list_protocols()
+    if any(p.id == pid for p in shipped):
+        return pid
+    ids = sorted({p.id for p in shipped if p.dataset == dataset and p.mode == mode})
+    return ids[0] if len(ids) == 1 else pid
+
+
+def default_protocol(manifest: dict) -> Protocol | None:
+    """The shipped protocol a store is scored under by default (:func:`default_protocol_id`),
+    or None when none ships for it."""
+    try:
+        return get_protocol(default_protocol_id(manifest))
+    except (KeyError, ValueError, FileNotFoundError):
+        return None
+
+
+def protocol_mismatches(protocol: Protocol, manifest: dict) -> list[str]:
+    """Why ``protocol`` does not fit the store ``manifest`` (dataset, mode, fps,
+    representation); empty when it fits."""
+    mode = "legacy" if str(manifest.get("config", {}).get("mode", "clean")).startswith("legacy") else "clean"
+    out = []
+    if protocol.dataset != manifest.get("dataset"):
+        out.append(f"protocol {protocol.ref} is for dataset {protocol.dataset!r}, the store holds "
+                   f"{manifest.get('dataset')!r}")
+    if protocol.mode != mode:
+        out.append(f"protocol {protocol.ref} is a {protocol.mode} protocol, the store was prepared in {mode} mode")
+    fps = manifest.get("config", {}).get("fps")
+    if isinstance(fps, (int, float)) and abs(protocol.fps - float(fps)) > 1e-6:
+        out.append(f"protocol {protocol.ref} evaluates at {protocol.fps:g} fps, the store holds {fps:g} fps clips")
+    rep = manifest.get("representations", {}).get("hml263")
+    if rep and protocol.representation != rep:
+        out.append(f"protocol {protocol.ref} names representation {protocol.representation}, the store holds {rep}")
+    return out
+
+
+# ====================================================================== results
+def summarize(values: Iterable, replications: int | None = None) -> dict:
+    """Mean and 95% CI over replications: ``ci95 = 1.96 * std / sqrt(n)``, ``std`` the
+    population standard deviation (``np.std``, ddof 0), ``n`` = ``replications`` (default:
+    the number of values); equal values (the physical metrics, computed once) give exactly 0.
+    Works per component for vector values (R-precision top-1..3).
+    Returns ``{"mean", "ci95", "std", "n"}`` (floats or lists)."""
+    v = np.asarray(list(values), dtype=np.float64)
+    if v.size == 0:
+        raise ValueError("values: need at least one replication")
+    n = len(v) if replications is None else int(replications)
+    mean, std = v.mean(axis=0), v.std(axis=0)
+    std = np.where(np.all(v == v[0], axis=0), 0.0, std)    # equal values: exactly 0, not 1e-17
+    ci = CI_Z * std / np.sqrt(n)
+    tolist = (lambda x: x.tolist()) if v.ndim > 1 else float
+    return {"mean": tolist(mean), "ci95": tolist(ci), "std": tolist(std), "n": int(n)}
+
+
+def summarize_replications(per_replication: Sequence[dict], replications: int | None = None) -> dict:
+    """``[{metric: value}, ...]`` (one dict per replication) -> ``{metric: summarize(...)}``;
+    a metric missing (or NaN) in some replication is summarised over the others and records
+    its own ``n``."""
+    names = sorted({k for r in per_replication for k in r})
+    out = {}
+    for k in names:
+        vals = [r[k] for r in per_replication if k in r and r[k] is not None
+                and not np.any(np.isnan(np.asarray(r[k], dtype=np.float64)))]
+        if vals:
+            out[k] = summarize(vals, replications if len(vals) == len(per_replication) else None)
+    return out
+
+
+# ====================================================================== CLI
+def format_table(protocols: Sequence[Protocol]) -> str:
+    head = (f"{'id':18s} {'version':>7s} {'dataset':10s} {'mode':6s} {'fps':>4s} {'reps':>4s} "
+            f"{'pool':>4s} {'div':>4s} {'mm':>10s} {'contact':8s} body")
+    rows = [head]
+    for p in protocols:
+        rows.append(f"{p.id:18s} {p.version:>7s} {p.dataset:10s} {p.mode:6s} {p.fps:4g} {p.replications:4d} "
+                    f"{p.r_precision_pool_size:4d} {p.diversity_pairs:4d} "
+                    f"{f'{p.mm_texts}x{p.mm_samples}x{p.mm_pairs}':>10s} "
+                    f"{p.physical['contact_thresholds']:8s} {p.physical_config().body_label}")
+    return "\n".join(rows)
+
+
+def main_protocols(action: str = "ls", name: str | None = None) -> int:
+    """``hoibench protocols ls`` (table of the shipped protocols) or ``hoibench protocols show
+    NAME`` (the YAML file, its path and sha256). Returns an exit status."""
+    try:
+        from . import multibody_protocol as mbp
+        if action == "ls":
+            print(format_table(list_protocols()))
+            print("\nmulti-body (docs/multibody.md):")
+            for p in mbp.list_all():
+                print(f"{p.id:22s} {p.version:>7s} {p.dataset:20s} fps {p.fps:g}  CSR {p.csr_threshold_m * 1000:g} mm  "
+                      f"CRR {p.crr_threshold_m * 100:g} cm  voxel {p.voxel_m * 1000:g} mm  recognizer on "
+                      f"{p.recognizer_split}")
+            return 0
+        if action == "show":
+            if not name:
+                print("hoibench protocols: error: show needs a protocol id, e.g. behave-clean", file=sys.stderr)
+                return 2
+            if any(m.id == str(name).partition("@")[0] for m in mbp.list_all()):
+                m = mbp.get(name)
+                print(f"# {m.ref}  sha256 {m.sha256()}\n# file: {m.source}")
+                print(Path(m.source).read_text().rstrip())
+                return 0
+            p = get_protocol(name)
+            print(f"# {p.ref}  sha256 {p.sha256}\n# file: {p.source}")
+            print(Path(p.source).read_text().rstrip())
+            return 0
+        print(f"hoibench protocols: error: unknown action {action!r}; expected 'ls' or 'show'", file=sys.stderr)
+        return 2
+    except (KeyError, ValueError, FileNotFoundError) as e:
+        print(f"hoibench protocols: error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        return 2
+
+
+__all__ = ["default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
+           "summarize", "summarize_replications", "format_table", "main_protocols"]
