@@ -251,12 +251,6 @@ def _cmd_train_recognizer(args) -> int:
 
 
 def _cmd_evaluate(args) -> int:
-    from .datasets.store import Store
-    from .scoring.multibody import is_multibody_store
-    if is_multibody_store(Store(args.data)):
-        from .scoring.multibody import main_evaluate as main_multibody
-        return main_multibody(args.submission, args.data, args.evaluator, out=args.out, protocol=args.protocol,
-                              executor=args.executor)
     from .scoring.evaluate import main_evaluate
     return main_evaluate(args.submission, args.data, args.evaluator, out=args.out,
                          protocol=args.protocol, executor=args.executor, allow_failed_gate=args.allow_failed_gate,

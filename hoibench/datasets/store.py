@@ -144,6 +144,13 @@ class Store:
     def clip_ids(self, split: str | None = None) -> list[str]:
         return [c["id"] for c in self.manifest["clips"] if split is None or c["split"] == split]
 
+    @property
+    def is_multibody(self) -> bool:
+        """Whether the store holds multi-body clips (its first clip's ``layout`` says so)."""
+        from ..bodies.multibody import is_multibody_arrays
+        ids = self.clip_ids()
+        return bool(ids) and is_multibody_arrays(self.load(ids[0], keys=("layout",)))
+
     def load(self, clip_id: str, keys: Sequence[str] | None = None) -> dict[str, np.ndarray]:
         """The clip's arrays (``keys``: only those of them the file holds; None: all)."""
         check_id(clip_id, "clip id", self.root / MANIFEST)

@@ -148,6 +148,10 @@ class Evaluator:
         return (torch.from_numpy(body).to(dev), torch.from_numpy(lengths).to(dev),
                 None if obj is None else torch.from_numpy(obj).to(dev))
 
+    def embed(self, features, lengths=None, batch_size: int = 64) -> np.ndarray:
+        """The evaluator's motion embedding (:meth:`embed_motion`)."""
+        return self.embed_motion(features, lengths, batch_size)
+
     def embed_motion(self, features, lengths=None, batch_size: int = 64) -> np.ndarray:
         """(N, 512) float32 embeddings of raw feature rows: a padded (N, T, D) array with
         ``lengths`` (N,), or a list of (T_i, D) arrays."""

@@ -156,6 +156,10 @@ class Recognizer:
     def features(self, clips: list[MultiBodyClip]) -> np.ndarray:
         return self._forward(clips)[0]
 
+    def embed(self, clips: list[MultiBodyClip]) -> np.ndarray:
+        """The recognizer's embedding of ``clips`` (its (N, 64) features: what FID compares)."""
+        return self.features(clips)
+
     def predict(self, clips: list[MultiBodyClip]) -> list[str]:
         return self.run(clips)[1]
 

@@ -34,20 +34,19 @@ from typing import Mapping
 import numpy as np
 
 from .. import __version__
-from ..bodies.multibody import Body, MultiBodyClip, is_multibody_arrays
+from ..bodies.multibody import Body, MultiBodyClip
 from ..bodies.capsules import object_fields, pair_contact_frames, pair_penetration
+from .pipeline import Scorer
 
-__all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "main_evaluate",
+__all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "MultiBodyScorer",
            "format_result", "is_multibody_store", "REFERENCE_KINDS"]
 
 REFERENCE_KINDS = ("gt", "gt-noise", "desync", "lost_contact", "interpenetration", "static")
 
 
 def is_multibody_store(store) -> bool:
-    ids = store.clip_ids()
-    if not ids:
-        return False
-    return is_multibody_arrays(store.load(ids[0], keys=("layout",)))
+    """Whether ``store`` holds multi-body clips (:attr:`hoibench.datasets.store.Store.is_multibody`)."""
+    return store.is_multibody
 
 
 # --------------------------------------------------------------------------- submissions
@@ -178,8 +177,8 @@ def _wrists(clip: MultiBodyClip) -> np.ndarray:
 def _clip_unit(job: tuple) -> dict:
     """One test clip: GT and every sample's contact frames, penetration per frame, wrists."""
     cid, gt_arrays, sample, proto_dict, templates, K = job
-    from ..tracks.multibody_protocol import from_dict_plain
-    proto = from_dict_plain(proto_dict)
+    from ..tracks.protocol import Protocol
+    proto = Protocol.from_plain(proto_dict, "multibody")
     gt = MultiBodyClip.from_arrays(gt_arrays)
     gt.templates = templates
     fields = object_fields(gt)
@@ -201,48 +200,95 @@ def _clip_unit(job: tuple) -> dict:
     return out
 
 
-# --------------------------------------------------------------------------- evaluate
-def evaluate(submission, data, recognizer, protocol=None, executor: str = "serial") -> dict:
-    """Score ``submission`` on the multi-body store ``data`` with ``recognizer`` (a folder);
-    the result dict records every version (see the module docstring)."""
-    from ..metrics.embedding import fid as fid_of
-    from ..core.parallel import map_units
-    from ..datasets.store import Store
-    from .submission import Submission
-    from ..metrics import multibody as mbm
-    from ..tracks.multibody_protocol import get
-    from ..evaluator.recognizer import load_recognizer
-    store = Store(data)
-    proto = get(protocol, str(store.manifest.get("dataset", "")))
-    rec = load_recognizer(recognizer)
-    notes = []
-    if rec.card.get("trained_on_split") != proto.recognizer_split:
-        notes.append(f"the recognizer was trained on split {rec.card.get('trained_on_split')!r}, the protocol names "
-                     f"{proto.recognizer_split!r}")
-    if rec.card.get("store_manifest_sha256") != store.manifest_sha256():
-        notes.append("the recognizer was trained on another store (manifest sha256 differs)")
-    ids = store.clip_ids(proto.split)
-    with Submission(submission) as sub:
+# --------------------------------------------------------------------------- the scorer
+class MultiBodyScorer(Scorer):
+    """The ``multibody`` scorer: per-clip contact, penetration and wrist units on the
+    executor, then SyncDiff's metrics and the recognizer's RA and FID (module docstring)."""
+
+    name = "multibody"
+    unit = staticmethod(_clip_unit)
+    map_options = {"progress": "evaluate multibody"}
+
+    def prepare(self) -> None:
+        store, proto, rec = self.store, self.proto, self.ev
+        self.notes = []
+        if rec.card.get("trained_on_split") != proto.recognizer_split:
+            self.notes.append(f"the recognizer was trained on split {rec.card.get('trained_on_split')!r}, the protocol "
+                              f"names {proto.recognizer_split!r}")
+        if rec.card.get("store_manifest_sha256") != store.manifest_sha256():
+            self.notes.append("the recognizer was trained on another store (manifest sha256 differs)")
+        self.ids = store.clip_ids(proto.split)
+
+    def open_submission(self):
+        from .submission import Submission
+        return Submission(self.submission)
+
+    def validate(self, sub) -> list[str]:
+        """A multi-body result is scored complete only: every test id must have samples."""
+        ids = self.ids
         if sub.problems:
-            raise ValueError(f"{submission}: {sub.problems[0]}")
-        meta = sub.meta or {}
+            raise ValueError(f"{self.submission}: {sub.problems[0]}")
+        self.meta = sub.meta or {}
         missing = [i for i in ids if i not in set(sub.ids)]
         if missing:
-            raise ValueError(f"{submission}: samples/{missing[0]}.npz: missing ({len(missing)} of {len(ids)} test ids "
-                             f"missing); a multi-body result is scored complete only")
-        jobs = []
+            raise ValueError(f"{self.submission}: samples/{missing[0]}.npz: missing ({len(missing)} of {len(ids)} "
+                             f"test ids missing); a multi-body result is scored complete only")
+        return ids
+
+    def stream(self, sub, ids: list[str]):
+        """One job per test clip: its arrays, the sample's arrays, the protocol, the templates."""
+        store, proto = self.store, self.proto
+        self.jobs = []
         for cid in ids:
             arrays = store.load(cid)
             sample = sub.load(cid, keys=None)
             first = next(iter(sample.values()), None)
             K = int(len(first)) if first is not None else 0
             if K < 1:
-                raise ValueError(f"{submission}: samples/{cid}.npz: no arrays")
+                raise ValueError(f"{self.submission}: samples/{cid}.npz: no arrays")
             names = [str(t) for t in arrays["body_templates"] if str(t)]
             templates = {n: store.object_template(n) for n in names}
-            jobs.append((cid, arrays, sample, proto.to_dict(), templates, K))
-    units = list(map_units(_clip_unit, jobs, executor, progress="evaluate multibody"))
+            self.jobs.append((cid, arrays, sample, proto.to_dict(), templates, K))
+        self.units = []
+        return list(self.jobs)
 
+    def update(self, out) -> None:
+        self.units.append(out)
+
+    def replications(self) -> list[dict]:
+        """One replication: the protocol fixes K samples per prompt, every one is scored."""
+        metrics, reference, self.counts = _multibody_metrics(self.units, self.jobs, self.proto, self.ev)
+        self.reference = reference
+        return [metrics]
+
+    def summary(self, rows: list[dict]) -> dict:
+        metrics = rows[0]
+        proto, store, rec, meta = self.proto, self.store, self.ev, self.meta
+        undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
+                         "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
+                     for k, v in metrics.items() if v is None}
+        return {
+            "toolkit": "hoibench", "toolkit_version": __version__, "kind": "multibody",
+            "protocol": proto.id, "protocol_version": proto.version, "protocol_sha256": proto.sha256,
+            "protocol_settings": proto.to_dict(),
+            "recognizer_id": rec.id, "recognizer_trained_on_split": rec.card.get("trained_on_split"),
+            "store": str(store.manifest.get("dataset", "")), "store_manifest_sha256": store.manifest_sha256(),
+            "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version")},
+            "counts": {"clips": len(self.ids), "samples": self.counts}, "complete": True,
+            "metrics": {k: v for k, v in metrics.items() if v is not None},
+            "ground_truth": self.reference, "undefined_metrics": undefined, "notes": self.notes,
+        }
+
+    @staticmethod
+    def format_result(result: dict) -> str:
+        return format_result(result)
+
+
+def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tuple[dict, dict, int]:
+    """SyncDiff's metrics of the generated samples and of the ground truth, from the per-clip
+    units (reduced in id order) and the recognizer; returns (metrics, reference, samples)."""
+    from ..metrics import multibody as mbm
+    from ..metrics.embedding import fid as fid_of
     csr, crr, csiou = mbm.CSR(threshold_m=proto.csr_threshold_m), mbm.CRR(threshold_m=proto.crr_threshold_m), \
         mbm.CSIoU(threshold_m=proto.csr_threshold_m, empty_union=proto.csiou_empty_union)
     gt_csr, gt_crr = mbm.CSR(threshold_m=proto.csr_threshold_m), mbm.CRR(threshold_m=proto.crr_threshold_m)
@@ -310,20 +356,14 @@ def evaluate(submission, data, recognizer, protocol=None, executor: str = "seria
                "fid": float(fid_of(gt_feats, gen_feats)) if len(gts) > 1 else None}
     reference = {"csr": computed(gt_csr), "crr": computed(gt_crr), "csiou": 1.0, "iv_cm3": float(np.mean(gt_iv)),
                  "id_mm": float(np.mean(gt_id)), "od": grouped(gt_od), "ra": gt_ra, "fid": 0.0}
-    undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
-                     "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
-                 for k, v in metrics.items() if v is None}
-    return {
-        "toolkit": "hoibench", "toolkit_version": __version__, "kind": "multibody",
-        "protocol": proto.id, "protocol_version": proto.version, "protocol_sha256": proto.sha256(),
-        "protocol_settings": proto.to_dict(),
-        "recognizer_id": rec.id, "recognizer_trained_on_split": rec.card.get("trained_on_split"),
-        "store": str(store.manifest.get("dataset", "")), "store_manifest_sha256": store.manifest_sha256(),
-        "submission": {"path": str(submission), "method": meta.get("method"), "version": meta.get("version")},
-        "counts": {"clips": len(ids), "samples": len(gens)}, "complete": True,
-        "metrics": {k: v for k, v in metrics.items() if v is not None},
-        "ground_truth": reference, "undefined_metrics": undefined, "notes": notes,
-    }
+    return metrics, reference, len(gens)
+
+
+def evaluate(submission, data, recognizer, protocol=None, executor: str = "serial") -> dict:
+    """Score a multi-body submission (:func:`hoibench.scoring.evaluate.evaluate`, kept here
+    for the callers of 0.6)."""
+    from .evaluate import evaluate as evaluate_any
+    return evaluate_any(submission, data, recognizer, protocol=protocol, executor=executor)
 
 
 _ROWS = (("csr", "CSR", "fraction of frames, hands", "~GT"), ("crr", "CRR", "fraction of frames, humans", "~GT"),
@@ -352,15 +392,3 @@ def format_result(result: dict) -> str:
     for n in result.get("notes", []):
         lines.append(f"note: {n}")
     return "\n".join(lines)
-
-
-def main_evaluate(submission, data, recognizer, out=None, protocol=None, executor="serial") -> int:
-    from ..core.io import atomic_write_json
-    result = evaluate(submission, data, recognizer, protocol=protocol, executor=executor)
-    if out is not None:
-        atomic_write_json(out, result)
-    print(format_result(result))
-    if out is not None:
-        print(f"wrote {out}")
-    return 0
-

@@ -1,7 +1,10 @@
 """Evaluation protocols: versioned YAML files that fix everything a number depends on.
 
-A protocol (``hoibench/protocols/<id>.yaml``, shipped with the package) fixes the dataset and
-split, ``legacy|clean`` mode, frame rate, representation version, replications (20), seeds,
+One :class:`Protocol` type for every track, of two kinds. A protocol file
+(``hoibench/tracks/protocols/<id>.yaml``, shipped with the package) names its ``track``
+(:mod:`hoibench.tracks.registry`), which gives its kind. A ``multibody`` protocol fixes the
+contact thresholds, voxel size, pair reduction, diversity frames and the recognizer's split
+(docs/multibody.md). A ``hoi`` protocol fixes the dataset and split, ``legacy|clean`` mode, frame rate, representation version, replications (20), seeds,
 R-precision pools (32, drawn from a seeded permutation of the sorted test ids, independent
 of compute batch size), diversity pairs (300; 200 on BEHAVE as HOI-Diff), MultiModality
 (100 texts x 30 samples x 10 pairs) and the physical metrics' settings (body surface for
@@ -22,7 +25,8 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
-from dataclasses import asdict, dataclass, field
+import copy
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Hashable, Iterable, Sequence
 
@@ -36,39 +40,79 @@ MODES: tuple[str, ...] = ("legacy", "clean")
 CI_Z = 1.96
 
 
+#: the fields each kind of protocol has, in the order results list them (``to_dict``)
+COMMON_FIELDS = ("id", "version", "dataset", "split")
+KIND_FIELDS: dict[str, tuple[str, ...]] = {
+    "hoi": ("id", "version", "dataset", "split", "mode", "fps", "representation", "replications", "seed",
+            "r_precision_pool_size", "r_precision_top_k", "r_precision_drop_last", "diversity_pairs", "mm_texts",
+            "mm_samples", "mm_pairs", "physical", "metrics", "description", "changelog"),
+    "multibody": ("id", "version", "dataset", "split", "fps", "representation", "samples_per_prompt", "surfaces",
+                  "csr_threshold_m", "crr_threshold_m", "csiou_empty_union", "voxel_m", "pair_reduction",
+                  "diversity_frames", "recognizer_split", "metrics", "description"),
+}
+
+
 @dataclass(frozen=True)
 class Protocol:
-    """A parsed, validated protocol file (see the module docstring and docs/protocol.md)."""
+    """A parsed, validated protocol file of one of two kinds (see the module docstring and
+    docs/protocol.md): ``hoi`` (single-body and human-only tracks: replications, R-precision
+    pools, diversity, MultiModality, physical settings) or ``multibody`` (contact thresholds,
+    voxel size, pair reduction, diversity frames, recognizer split). ``track`` names the
+    registry entry (:mod:`hoibench.tracks.registry`) the protocol belongs to; the content
+    hash (:attr:`sha256`) covers the kind's settings (``KIND_FIELDS``)."""
 
     id: str
     version: str
     dataset: str
     split: str
-    mode: str
     fps: float
     representation: str
-    replications: int
-    seed: int
-    r_precision_pool_size: int
-    r_precision_top_k: int
-    r_precision_drop_last: bool
-    diversity_pairs: int
-    mm_texts: int
-    mm_samples: int
-    mm_pairs: int
-    physical: dict
     metrics: tuple
+    kind: str = "hoi"
+    track: str = ""
     description: str = ""
     changelog: tuple = ()
     source: str = field(default="", compare=False)
+    # --- hoi
+    mode: str | None = None
+    replications: int | None = None
+    seed: int | None = None
+    r_precision_pool_size: int | None = None
+    r_precision_top_k: int | None = None
+    r_precision_drop_last: bool | None = None
+    diversity_pairs: int | None = None
+    mm_texts: int | None = None
+    mm_samples: int | None = None
+    mm_pairs: int | None = None
+    physical: dict | None = None
+    # --- multibody
+    samples_per_prompt: int | None = None
+    surfaces: str | None = None
+    csr_threshold_m: float | None = None
+    crr_threshold_m: float | None = None
+    csiou_empty_union: float | None = None
+    voxel_m: float | None = None
+    pair_reduction: str | None = None
+    diversity_frames: int | None = None
+    recognizer_split: str | None = None
 
     # ------------------------------------------------------------------ identity
     def to_dict(self) -> dict:
-        d = asdict(self)
-        d.pop("source")
+        """The kind's settings (``KIND_FIELDS``), JSON-ready: what the content hash covers and
+        what a worker process receives (:meth:`from_plain`)."""
+        d = {k: getattr(self, k) for k in KIND_FIELDS[self.kind]}
         d["metrics"] = list(self.metrics)
-        d["changelog"] = list(self.changelog)
+        if "changelog" in d:
+            d["changelog"] = list(self.changelog)
+        if "physical" in d:
+            d["physical"] = copy.deepcopy(self.physical)
         return d
+
+    @classmethod
+    def from_plain(cls, d: dict, kind: str, track: str = "") -> "Protocol":
+        """The protocol from its :meth:`to_dict` (what a worker process receives)."""
+        extra = {"changelog": tuple(d["changelog"])} if "changelog" in d else {}
+        return cls(**{**d, "metrics": tuple(d["metrics"]), **extra}, kind=kind, track=track)
 
     @property
     def sha256(self) -> str:
@@ -160,10 +204,29 @@ def _positive(v, key: str, where: str):
 
 
 def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
-    """Validate a parsed protocol; ``ValueError`` naming the file and the field otherwise."""
+    """Validate a parsed protocol of either kind; ``ValueError`` naming the file and the field
+    otherwise. The kind comes from the ``track`` the file names (:mod:`hoibench.tracks.registry`),
+    else from its settings (``r_precision``: hoi; ``contact``: multibody)."""
     w = str(source)
     if not isinstance(d, dict):
         raise ValueError(f"{w}: expected a mapping at the top level")
+    track = d.get("track", "")
+    if not isinstance(track, str):
+        raise ValueError(f"{w}: field 'track' must be a track name, got {track!r}")
+    if track:
+        from .registry import get_track
+        try:
+            kind = get_track(track).protocol_kind
+        except KeyError as e:
+            raise ValueError(f"{w}: field 'track': {e.args[0]}") from None
+    else:
+        kind = "multibody" if "contact" in d and "r_precision" not in d else "hoi"
+    parse = _parse_multibody if kind == "multibody" else _parse_hoi
+    return parse(d, w, track)
+
+
+def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
+    """The ``hoi`` kind's settings, validated."""
     mode = _need(d, "mode", str, w)
     if mode not in MODES:
         raise ValueError(f"{w}: field 'mode' must be one of {MODES}, got {mode!r}")
@@ -197,10 +260,57 @@ def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
         mm_samples=_positive(_need(mm, "samples", int, f"{w}: multimodality"), "samples", w),
         mm_pairs=_positive(_need(mm, "pairs", int, f"{w}: multimodality"), "pairs", w),
         physical=phys, metrics=metrics, description=str(d.get("description", "")).strip(),
-        changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w)
+        changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w, kind="hoi", track=track)
     if proto.mm_samples <= proto.mm_pairs:
         raise ValueError(f"{w}: multimodality.samples must exceed multimodality.pairs")
     proto.physical_config()          # the physical settings must be valid too
+    return proto
+
+
+#: metrics a multi-body protocol may list
+MULTIBODY_METRICS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
+
+
+def _mb_need(d: dict, key: str, kind, where: str):
+    if key not in d:
+        raise ValueError(f"{where}: missing field {key!r}")
+    v = d[key]
+    if kind is float and isinstance(v, int) and not isinstance(v, bool):
+        v = float(v)
+    if not isinstance(v, kind) or isinstance(v, bool) and kind is not bool:
+        raise ValueError(f"{where}: field {key!r}: expected {kind.__name__}, got {v!r}")
+    return v
+
+
+def _parse_multibody(d: dict, w: str, track: str) -> Protocol:
+    """The ``multibody`` kind's settings, validated."""
+    need = _mb_need
+    c, p, dv, r = (need(d, k, dict, w) for k in ("contact", "penetration", "diversity", "recognizer"))
+    metrics = tuple(need(d, "metrics", list, w))
+    unknown = [m for m in metrics if m not in MULTIBODY_METRICS]
+    if unknown:
+        raise ValueError(f"{w}: field 'metrics' names unknown metrics {unknown}; known: {list(MULTIBODY_METRICS)}")
+    proto = Protocol(
+        id=need(d, "id", str, w), version=need(d, "version", str, w), dataset=need(d, "dataset", str, w),
+        split=need(d, "split", str, w), fps=need(d, "fps", float, w),
+        representation=need(d, "representation", str, w),
+        samples_per_prompt=need(d, "samples_per_prompt", int, w), surfaces=need(d, "surfaces", str, w),
+        csr_threshold_m=need(c, "csr_threshold_m", float, f"{w}: contact"),
+        crr_threshold_m=need(c, "crr_threshold_m", float, f"{w}: contact"),
+        csiou_empty_union=need(c, "csiou_empty_union", float, f"{w}: contact"),
+        voxel_m=need(p, "voxel_m", float, f"{w}: penetration"),
+        pair_reduction=need(p, "pair_reduction", str, f"{w}: penetration"),
+        diversity_frames=need(dv, "frames", int, f"{w}: diversity"),
+        recognizer_split=need(r, "split", str, f"{w}: recognizer"),
+        metrics=metrics, description=str(d.get("description", "")).strip(), source=w, kind="multibody",
+        track=track)
+    for name in ("fps", "csr_threshold_m", "crr_threshold_m", "voxel_m"):
+        if not getattr(proto, name) > 0:
+            raise ValueError(f"{w}: field {name!r} must be positive")
+    if proto.recognizer_split not in ("train", "all"):
+        raise ValueError(f"{w}: recognizer.split: expected 'train' or 'all', got {proto.recognizer_split!r}")
+    if proto.pair_reduction not in ("sum", "max", "mean"):
+        raise ValueError(f"{w}: penetration.pair_reduction: expected sum, max or mean")
     return proto
 
 
@@ -254,7 +364,7 @@ def default_protocol_id(manifest: dict) -> str:
     shipped = list_protocols()
     if any(p.id == pid for p in shipped):
         return pid
-    ids = sorted({p.id for p in shipped if p.dataset == dataset and p.mode == mode})
+    ids = sorted({p.id for p in shipped if p.dataset == dataset and p.mode in (mode, None)})   # None: multibody
     return ids[0] if len(ids) == 1 else pid
 
 
@@ -320,10 +430,13 @@ def summarize_replications(per_replication: Sequence[dict], replications: int | 
 
 # ====================================================================== CLI
 def format_table(protocols: Sequence[Protocol]) -> str:
+    """The ``hoi`` protocols as a table (one line each)."""
     head = (f"{'id':18s} {'version':>7s} {'dataset':10s} {'mode':6s} {'fps':>4s} {'reps':>4s} "
             f"{'pool':>4s} {'div':>4s} {'mm':>10s} {'contact':8s} body")
     rows = [head]
     for p in protocols:
+        if p.kind != "hoi":
+            continue
         rows.append(f"{p.id:18s} {p.version:>7s} {p.dataset:10s} {p.mode:6s} {p.fps:4g} {p.replications:4d} "
                     f"{p.r_precision_pool_size:4d} {p.diversity_pairs:4d} "
                     f"{f'{p.mm_texts}x{p.mm_samples}x{p.mm_pairs}':>10s} "
@@ -331,28 +444,28 @@ def format_table(protocols: Sequence[Protocol]) -> str:
     return "\n".join(rows)
 
 
+def format_multibody_table(protocols: Sequence[Protocol]) -> str:
+    """The ``multibody`` protocols, one line each."""
+    return "\n".join(
+        f"{p.id:22s} {p.version:>7s} {p.dataset:20s} fps {p.fps:g}  CSR {p.csr_threshold_m * 1000:g} mm  "
+        f"CRR {p.crr_threshold_m * 100:g} cm  voxel {p.voxel_m * 1000:g} mm  recognizer on {p.recognizer_split}"
+        for p in protocols if p.kind == "multibody")
+
+
 def main_protocols(action: str = "ls", name: str | None = None) -> int:
     """``hoibench protocols ls`` (table of the shipped protocols) or ``hoibench protocols show
     NAME`` (the YAML file, its path and sha256). Returns an exit status."""
     try:
-        from . import multibody_protocol as mbp
         if action == "ls":
-            print(format_table(list_protocols()))
+            shipped = list_protocols()
+            print(format_table(shipped))
             print("\nmulti-body (docs/multibody.md):")
-            for p in mbp.list_all():
-                print(f"{p.id:22s} {p.version:>7s} {p.dataset:20s} fps {p.fps:g}  CSR {p.csr_threshold_m * 1000:g} mm  "
-                      f"CRR {p.crr_threshold_m * 100:g} cm  voxel {p.voxel_m * 1000:g} mm  recognizer on "
-                      f"{p.recognizer_split}")
+            print(format_multibody_table(shipped))
             return 0
         if action == "show":
             if not name:
                 print("hoibench protocols: error: show needs a protocol id, e.g. behave-clean", file=sys.stderr)
                 return 2
-            if any(m.id == str(name).partition("@")[0] for m in mbp.list_all()):
-                m = mbp.get(name)
-                print(f"# {m.ref}  sha256 {m.sha256()}\n# file: {m.source}")
-                print(Path(m.source).read_text().rstrip())
-                return 0
             p = get_protocol(name)
             print(f"# {p.ref}  sha256 {p.sha256}\n# file: {p.source}")
             print(Path(p.source).read_text().rstrip())
@@ -364,5 +477,5 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
         return 2
 
 
-__all__ = ["default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
+__all__ = ["format_multibody_table", "MULTIBODY_METRICS", "KIND_FIELDS", "default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
            "summarize", "summarize_replications", "format_table", "main_protocols"]

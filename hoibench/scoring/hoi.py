@@ -1,0 +1,365 @@
+"""The single-body scorer (tracks of kind ``hoi`` and ``human``): R-precision, FID,
+MM-Dist, Diversity and MultiModality from a contrastive evaluator, and the physical metrics
+(CD, OCD, PS, FSR, extras) per clip on the executor.
+
+Stages (:mod:`hoibench.scoring.pipeline`; docs/protocol.md):
+
+1. ``prepare``: check that the protocol and the evaluator fit the store (dataset, mode, fps,
+   representation; refused unless overridden, and every override is recorded in the
+   result); re-measure the evaluator's sanity gate on this store's ground truth (the card's
+   own record is not trusted): a failing gate refuses the evaluation unless
+   ``allow_failed_gate``, which the result records;
+2. ``validate``: the submission against the store's test split (:mod:`hoibench.scoring.submission`,
+   within byte budgets, one file at a time); only valid ids are scored and every missing id
+   is listed in the result, which is marked incomplete;
+3. ``stream``: the valid ids one file at a time: each sample the protocol uses is encoded
+   with the store's representation (hoi269 rows; a ``human`` evaluator reads their first 263
+   columns) and embedded, and its physical metrics are mapped on the executor (identical for
+   every executor); peak memory holds one file, the embeddings and the per-clip statistics,
+   whatever the submission's size;
+4. ``replications``: per replication r: sample ``r mod K``, a caption per clip drawn with the
+   protocol's seed, R-precision top-1/2/3 and MM-Dist over the protocol's pools, FID against
+   the ground-truth embeddings, Diversity, MultiModality (only when K >= the protocol's
+   samples);
+5. ``summary``: every value is checked finite: an infinite value stops the run naming the
+   metric; a 0/0 (e.g. no clip has ground-contact frames) is reported as undefined, never as
+   NaN; on a human-only store (no test clip has an object: RICH) the object metrics (CD,
+   OCD, PS, penetration, contact IoU, hand contact, object floating) are undefined as "not
+   applicable", while the embedding metrics, FSR and jitter are scored. Mean and 95% CI over
+   replications are written as strict JSON with the protocol, evaluator, representation and
+   toolkit versions, sample counts, missing ids, flags and timings.
+"""
+from __future__ import annotations
+
+import platform
+import time
+from functools import partial
+from pathlib import Path
+from typing import Iterator, Sequence
+
+import numpy as np
+
+from .. import __version__
+from ..datasets.store import Store
+from .pipeline import Scorer
+
+#: motions embedded per batch while streaming
+EMBED_BATCH = 64
+
+
+class EvaluationRefused(ValueError):
+    """The evaluation cannot be run as asked (mismatched protocol or evaluator, failed gate,
+    nothing valid to score); the message says which override exists."""
+
+
+def _captions(data: Path, clip_id: str) -> list[str]:
+    """Whole-clip captions of a test clip (lines with start = end = 0; timed captions describe
+    a segment, not the clip), all captions when there is no whole-clip one."""
+    from ..evaluator.text import parse_text_file
+    from ..core.ids import check_id
+    from ..core.io import read_regular_file
+    path = data / "texts" / f"{check_id(clip_id, 'clip id', data / 'manifest.json')}.txt"
+    if not path.exists():
+        return []
+    caps = parse_text_file(read_regular_file(path, 1024 ** 2, "caption file").decode("utf-8", "replace"))
+    whole = [c.text for c in caps if c.whole_clip]
+    return whole or [c.text for c in caps]
+
+
+def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_evaluator_mismatch: bool) -> list[dict]:
+    """Refuse a protocol or evaluator that does not fit the store, or record the override."""
+    from ..evaluator import store_mismatches
+    from ..tracks.protocol import protocol_mismatches
+    overrides = []
+    for kind, reasons, allowed, flag in (
+            ("protocol_mismatch", protocol_mismatches(proto, store.manifest), allow_protocol_mismatch,
+             "--allow-protocol-mismatch"),
+            ("evaluator_mismatch", store_mismatches(ev, store.manifest), allow_evaluator_mismatch,
+             "--allow-evaluator-mismatch")):
+        if not reasons:
+            continue
+        if not allowed:
+            raise EvaluationRefused("; ".join(reasons) + f" (pass {flag} to score anyway: the result records it)")
+        overrides.append({"override": kind, "reasons": reasons})
+    return overrides
+
+
+def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
+            groups, proto, mode: str, fps: float, gen: np.ndarray) -> Iterator:
+    """Yield the physical-metric inputs of every (id, sample) in ``ks_physical``, loading one
+    file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``."""
+    from ..metrics.physical import clip_input_factory
+    from .submission import encode_sample
+
+    make_input = clip_input_factory(store, ids, groups, proto.physical["contact_thresholds"], fps)
+    pending: list[tuple[int, int, np.ndarray]] = []
+
+    def flush():
+        if pending:
+            emb = ev.embed_motion([f for _, _, f in pending])
+            for (k, i, _), e in zip(pending, emb):
+                gen[k, i] = e
+            pending.clear()
+
+    for i, cid in enumerate(ids):
+        arrays = sub.load(cid)
+        for k in ks_embed:
+            feats = encode_sample(arrays, k, mode, fps)
+            if not np.isfinite(feats).all():      # validate refuses these; never embed them
+                raise ValueError(f"{cid}: sample {k} encodes to non-finite features")
+            pending.append((k, i, feats))
+            if len(pending) >= EMBED_BATCH:
+                flush()
+        for k in ks_physical:
+            yield make_input(cid, {key: v[k] for key, v in arrays.items() if key != "hml263"}, k)
+        del arrays
+    flush()
+
+
+def _finite_rows(per_rep: list[dict]) -> tuple[list[dict], dict]:
+    """Drop undefined (NaN: 0/0) values from the replication rows, recording which; an
+    infinite value raises naming the metric and the replication."""
+    undefined: dict[str, list[int]] = {}
+    rows = []
+    for r, row in enumerate(per_rep):
+        clean = {}
+        for name, value in row.items():
+            arr = np.asarray(value, dtype=np.float64)
+            if np.isinf(arr).any():
+                raise ValueError(f"metric {name!r} is infinite in replication {r}: refusing to write a result "
+                                 "(an input escaped the plausibility checks; please report it)")
+            if np.isnan(arr).any():
+                undefined.setdefault(name, []).append(r)
+                continue
+            clean[name] = value
+        rows.append(clean)
+    notes = {name: (f"undefined (0/0: no qualifying frames or clips) in {len(reps)} of {len(per_rep)} "
+                    "replications") for name, reps in undefined.items()}
+    return rows, notes
+
+
+class HOIScorer(Scorer):
+    """The ``hoi`` scorer (see the module docstring for its stages)."""
+
+    name = "hoi"
+    evaluator_options = {"allow_failed_gate": True}     # the gate is measured in prepare, on this store
+    map_options = {"window": EMBED_BATCH}
+
+    def prepare(self) -> None:
+        """Fit checks, then the ground truth: captions, embeddings, the sanity gate on this store."""
+        from ..evaluator.gate import gate_from_embeddings
+        from .submission import submission_context
+        store, proto, ev, opts = self.store, self.proto, self.ev, self.options
+        self.overrides = _check_fit(proto, store, ev, opts.get("allow_protocol_mismatch", False),
+                                    opts.get("allow_evaluator_mismatch", False))
+        self.rows, self.fps, self.cap, self.mode = submission_context(store, proto)
+        t1 = time.perf_counter()
+        data = store.root
+        self.test_ids = test_ids = store.clip_ids("test")
+        captions = {cid: _captions(data, cid) for cid in test_ids}
+        no_text = [cid for cid, c in captions.items() if not c]
+        if no_text:
+            raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
+                                    f"run hoibench annotate first")
+        self.real_all = ev.embed_motion([_real_features(store, cid) for cid in test_ids])
+        all_caps = sorted({c for caps in captions.values() for c in caps})
+        cap_emb = dict(zip(all_caps, ev.embed_text(all_caps)))
+        self.sets_all = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in test_ids]
+        self.gate = gate = gate_from_embeddings(self.real_all, self.sets_all, test_ids, proto)   # from the weights
+        if not gate["passed"]:
+            if not opts.get("allow_failed_gate", False):
+                raise EvaluationRefused(f"evaluator {str(ev.id)[:12]} fails the sanity gate on {data}'s test split: "
+                                        + "; ".join(gate["reasons"])
+                                        + " (pass --allow-failed-gate to score anyway: the result is marked)")
+            self.overrides.append({"override": "failed_gate", "reasons": list(gate["reasons"])})
+        self.timings["ground_truth_s"] = time.perf_counter() - t1
+
+    def open_submission(self):
+        from .submission import Submission, limits_for
+        return Submission(self.submission, limits=limits_for(self.rows, self.fps, self.cap))
+
+    def validate(self, sub) -> list[str]:
+        from .submission import validation_report
+        proto = self.proto
+        t2 = time.perf_counter()
+        self.report = report = validation_report(sub, self.store, protocol=proto)
+        ids = sorted(report.valid_ids)
+        if not ids:
+            raise EvaluationRefused(f"{self.submission}: no valid test id to score ({len(report.errors)} error(s)); "
+                                    f"run hoibench validate for the list")
+        self.meta = dict(sub.meta or {})
+        self.timings["validate_s"] = time.perf_counter() - t2
+        self.K = K = int(report.samples_per_prompt or 1)
+        self.ks_physical = sorted({proto.sample_index(r, K) for r in range(proto.replications)})
+        self.mm_ok = K >= proto.mm_samples
+        self.ks_embed = sorted(set(self.ks_physical) | (set(range(proto.mm_samples)) if self.mm_ok else set()))
+        self.ids = ids
+        return ids
+
+    def stream(self, sub, ids: list[str]) -> Iterator:
+        """One streaming pass: embeddings in this process, physical metrics on the executor."""
+        from ..metrics.physical import PhysicalMetrics, _unit, load_groups
+        self._t3 = time.perf_counter()
+        cfg = self.proto.physical_config()
+        self.physical = {k: PhysicalMetrics(cfg.mode, cfg.body_label) for k in self.ks_physical}
+        self.gen = np.zeros((self.K, len(ids), self.ev.embed_dim), np.float32)
+        self.unit = partial(_unit, config=cfg)
+        return _stream(sub, ids, self.ks_physical, self.ks_embed, self.ev, self.store, load_groups(self.store.root),
+                       self.proto, self.mode, self.fps, self.gen)
+
+    def update(self, out) -> None:
+        key, stats = out
+        self.physical[key[1]].update(key, stats)
+
+    def replications(self) -> list[dict]:
+        from ..metrics import embedding as em
+        physical = {k: m.compute() for k, m in self.physical.items()}
+        self.timings["stream_s"] = time.perf_counter() - self._t3
+        t4 = time.perf_counter()
+        proto, ids, K, gen = self.proto, self.ids, self.K, self.gen
+        where_all = {cid: i for i, cid in enumerate(self.test_ids)}
+        real = self.real_all[[where_all[c] for c in ids]]
+        text_sets = [self.sets_all[where_all[c]] for c in ids]
+        per_rep, self.notes = [], []
+        if not proto.pools(ids, 0):
+            self.notes.append(f"fewer valid test ids ({len(ids)}) than the pool size ({proto.r_precision_pool_size}): "
+                              f"R-precision and MM-Dist use one pool of all ids (easier than the protocol's pools)")
+        if not self.mm_ok:
+            self.notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs "
+                              f"{proto.mm_samples}")
+        where = {cid: i for i, cid in enumerate(ids)}
+        pools_for = lambda r: [[where[c] for c in p] for p in proto.pools(ids, r)]  # noqa: E731
+        retrieval, fid_by_sample = {}, {}
+        real_stats = em.activation_statistics(real)               # once, for every sample index
+        self.fid_method = fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
+        for k in self.ks_physical:
+            retrieval[k] = em.retrieval_replications(text_sets, gen[k], pools_for,
+                                                     lambda r: proto.seed_for("caption", r),
+                                                     proto.replications, proto.r_precision_top_k)
+            fid_by_sample[k] = em.fid(real_stats, gen[k], method=fid_method)
+        for r in range(proto.replications):
+            k = proto.sample_index(r, K)
+            tops, mm = retrieval[k]
+            row = {f"r_precision_top{i + 1}": float(v) for i, v in enumerate(tops[r])}
+            row["mm_dist"] = float(mm[r])
+            row["fid"] = fid_by_sample[k]
+            pairs = proto.effective_diversity_pairs(len(ids))
+            if pairs > 0:
+                row["diversity"] = em.diversity(gen[k], pairs, proto.seed_for("diversity", r))
+            if self.mm_ok:
+                sel = [where[c] for c in proto.multimodality_ids(ids, r)]
+                row["multimodality"] = em.multimodality(gen[:proto.mm_samples, sel].transpose(1, 0, 2),
+                                                        proto.mm_pairs, proto.seed_for("multimodality", r))
+            row.update({key: float(v) for key, v in physical[k].items()
+                        if isinstance(v, (int, float)) and not isinstance(v, bool)})
+            per_rep.append(row)
+        self._t4 = t4
+        return per_rep
+
+    def summary(self, rows: list[dict]) -> dict:
+        from ..tracks.protocol import summarize_replications
+        proto, ids, report, ev, store, meta = self.proto, self.ids, self.report, self.ev, self.store, self.meta
+        per_rep, undefined = _finite_rows(rows)
+        if not any(self.rows[cid].get("object") for cid in ids):     # human-only: no object to measure against
+            from ..metrics.physical import OBJECT_OUTPUTS
+            for name in OBJECT_OUTPUTS:
+                if name in undefined:
+                    undefined[name] = ("not applicable: the scored clips have no object (human-only store, e.g. "
+                                       "RICH's static scenes); object metrics need an object mesh and pose")
+        notes = self.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
+        timings = self.timings
+        timings["replications_s"] = time.perf_counter() - self._t4
+        timings["total_s"] = time.perf_counter() - self.started
+        flags = meta.get("flags") if isinstance(meta.get("flags"), dict) else {}
+        overrides = self.overrides
+        return {
+            **proto.result_header(),
+            "complete": bool(report.complete) and not overrides,
+            "submission_complete": bool(report.complete),
+            "overrides": overrides,
+            "evaluator_id": ev.id, "evaluator_variant": ev.variant, "evaluator_gate": self.gate,
+            "representation": store.manifest["representations"], "toolkit": "hoibench",
+            "toolkit_version": __version__,
+            "dataset": store.manifest["dataset"], "store_config_sha256": store.manifest.get("config_sha256"),
+            "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version"),
+                           "flags": {k: flags[k] for k in ("uses_gt_length", "samples_per_prompt",
+                                                           "checkpoint_selection") if k in flags}},
+            "counts": {"test_ids": len(report.test_ids), "scored_ids": len(ids), "samples_per_prompt": self.K,
+                       "missing_ids": report.missing_ids, "errors": len(report.errors),
+                       "warnings": len(report.warnings)},
+            "body_surface": proto.physical_config().body_label,
+            "numerics": {"fid": self.fid_method},
+            "metrics": summarize_replications(per_rep, proto.replications),
+            "undefined_metrics": undefined,
+            "per_replication": per_rep, "notes": notes,
+            "timings_s": {k: round(v, 3) for k, v in timings.items()},
+            "platform": {"python": platform.python_version(), "numpy": np.__version__},
+        }
+
+    @staticmethod
+    def format_result(result: dict) -> str:
+        return format_result(result)
+
+
+def _real_features(store: Store, cid: str) -> np.ndarray:
+    clip = store.load(cid, keys=("hoi269", "hml263"))
+    return clip["hoi269"] if "hoi269" in clip else clip["hml263"]
+
+
+#: printed groups: the papers' semantic columns, their physical columns, hoibench's extras
+GROUPS = (("semantic", ("r_precision_top1", "r_precision_top2", "r_precision_top3", "fid", "mm_dist", "diversity",
+                        "multimodality")),
+          ("physical", ("cd", "ocd", "ps", "fsr")),
+          ("extras", ("penetration_depth_max_m", "penetration_depth_mean_m", "fsr_gmd", "contact_iou",
+                      "hand_contact_ratio", "object_floating_ratio", "jitter_mps3")))
+COUNTS = ("clips", "clips_with_contact")
+
+
+def format_result(result: dict) -> str:
+    """The result as a reader wants it: metrics grouped (semantic / physical / extras) with
+    the direction (↑ higher is better, ↓ lower, ≈GT closest to the ground truth) and units,
+    counts apart, undefined metrics named; a tiny negative FID from the reference numerics
+    shows as 0 (the JSON keeps the raw value)."""
+    from ..metrics import METRICS
+    state = "complete" if result["complete"] else "INCOMPLETE"
+    c = result["counts"]
+    lines = [f"{result['protocol']}@{result['protocol_version']}  evaluator {str(result['evaluator_id'])[:12]}  "
+             f"{state}  ({c['scored_ids']}/{c['test_ids']} ids, K={c['samples_per_prompt']})"]
+    metrics = result["metrics"]
+    shown = set()
+    for group, names in GROUPS:
+        rows = [n for n in names if n in metrics]
+        if not rows:
+            continue
+        lines.append(f"{group}:")
+        for name in rows:
+            mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
+            if isinstance(mean, list):
+                mean, ci = mean[0], ci[0]
+            if name == "fid" and -1e-6 < mean < 0:
+                mean = 0.0
+            info = METRICS.get(name)
+            arrow = {True: "↑", False: "↓", None: "≈GT"}[info.higher_is_better] if info else ""
+            units = info.units if info else ""
+            lines.append(f"  {name:26s} {arrow:>3s} {mean:12.5g} ± {ci:<10.3g} {units}")
+            shown.add(name)
+    rest = [n for n in metrics if n not in shown and n not in COUNTS]
+    for name in rest:
+        mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
+        mean, ci = (mean[0], ci[0]) if isinstance(mean, list) else (mean, ci)
+        lines.append(f"  {name:26s}     {mean:12.5g} ± {ci:<10.3g}")
+    counts = ", ".join(f"{n} {metrics[n]['mean']:g}" for n in COUNTS if n in metrics)
+    if counts:
+        lines.append(f"counts: {counts}")
+    by_reason: dict[str, list[str]] = {}
+    for n, why in sorted(result.get("undefined_metrics", {}).items()):
+        by_reason.setdefault(str(why), []).append(n)
+    lines += [f"undefined: {', '.join(names)}: {why}" for why, names in by_reason.items()]
+    lines += [f"override: {o['override']}: {'; '.join(o['reasons'])}" for o in result.get("overrides", [])]
+    lines += [f"note: {n}" for n in result["notes"] if not any(n.startswith(u + ":") for u in
+                                                              result.get("undefined_metrics", {}))]
+    return "\n".join(lines)
+
+
+
+__all__ = ["HOIScorer", "format_result", "EvaluationRefused", "EMBED_BATCH"]

@@ -1,0 +1,91 @@
+"""The scoring pipeline's stages and the scorer registry.
+
+:func:`hoibench.scoring.evaluate.evaluate` is the one evaluation function for every track:
+
+    store -> track (registry) -> protocol -> evaluator (backend registry) -> scorer
+    scorer.prepare()                      fit checks, ground-truth statistics
+    with scorer.open_submission() as sub:
+        ids = scorer.validate(sub)        refusals and what is scored
+        for out in map_units(scorer.unit, scorer.stream(sub, ids), executor):
+            scorer.update(out)            per-clip metric states, on any executor
+    rows = scorer.replications()          per-replication metric values
+    result = scorer.summary(rows)         the result dict (every version recorded)
+
+A :class:`Scorer` implements those stages for one kind of track (a track names its scorer;
+:mod:`hoibench.tracks.registry`). Units are keyed and reduced in sorted order, so every
+executor gives identical numbers. Adding a kind of track is one :func:`register_scorer`.
+"""
+from __future__ import annotations
+
+import time
+from contextlib import AbstractContextManager
+from typing import Any, Callable, Iterable
+
+
+class Scorer:
+    """The stages of one evaluation (see the module docstring). Subclasses set ``name``,
+    ``evaluator_options`` (passed to the evaluator's loader) and ``map_options`` (passed to
+    :func:`hoibench.core.parallel.map_units`), and implement the stages."""
+
+    name: str = ""
+    evaluator_options: dict = {}
+    map_options: dict = {}
+
+    def __init__(self, store, protocol, evaluator, track, submission, options: dict, started: float | None = None):
+        self.store, self.proto, self.ev, self.track = store, protocol, evaluator, track
+        self.submission, self.options = submission, dict(options)
+        self.started = time.perf_counter() if started is None else started
+        self.timings: dict[str, float] = {}
+
+    # --- stages
+    def prepare(self) -> None:
+        """Checks that need no submission, and the ground truth's statistics."""
+
+    def open_submission(self) -> AbstractContextManager:
+        raise NotImplementedError
+
+    def validate(self, sub) -> list[str]:
+        """The test ids to score (refusing what cannot be scored)."""
+        raise NotImplementedError
+
+    def stream(self, sub, ids: list[str]) -> Iterable:
+        """The per-clip work units, read one file at a time."""
+        raise NotImplementedError
+
+    #: the per-unit function run on the executor (picklable)
+    unit: Callable[[Any], Any]
+
+    def update(self, out) -> None:
+        """Fold one unit's output into the metric states."""
+        raise NotImplementedError
+
+    def replications(self) -> list[dict]:
+        raise NotImplementedError
+
+    def summary(self, rows: list[dict]) -> dict:
+        raise NotImplementedError
+
+    @staticmethod
+    def format_result(result: dict) -> str:
+        raise NotImplementedError
+
+
+_SCORERS: dict[str, str] = {"hoi": ".hoi:HOIScorer", "multibody": ".multibody:MultiBodyScorer"}
+
+
+def register_scorer(name: str, path: str) -> None:
+    """Register a scorer class by ``"module:Class"`` (relative to this package or absolute)."""
+    if name in _SCORERS:
+        raise ValueError(f"scorer {name!r} is registered twice")
+    _SCORERS[name] = path
+
+
+def get_scorer(name: str) -> type[Scorer]:
+    from importlib import import_module
+    if name not in _SCORERS:
+        raise KeyError(f"unknown scorer {name!r}; known: {', '.join(sorted(_SCORERS))}")
+    mod, _, attr = _SCORERS[name].partition(":")
+    return getattr(import_module(mod, __package__), attr)
+
+
+__all__ = ["Scorer", "register_scorer", "get_scorer"]

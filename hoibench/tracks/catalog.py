@@ -1,0 +1,41 @@
+"""The shipped tracks, one :func:`~hoibench.tracks.registry.register_track` call each
+(their protocols are the YAML files in ``hoibench/tracks/protocols/`` that name them)."""
+from __future__ import annotations
+
+from .registry import Track, register_track
+
+#: what every single-body (and human-only) track scores
+HOI_METRICS = ("r_precision_top1", "r_precision_top2", "r_precision_top3", "fid", "mm_dist", "diversity",
+               "multimodality", "cd", "ocd", "ps", "penetration_depth_max_m", "penetration_depth_mean_m", "fsr",
+               "fsr_gmd", "contact_iou", "hand_contact_ratio", "object_floating_ratio", "jitter_mps3")
+#: the leaderboard columns of single-body tracks (every other metric stays in the CSV)
+HOI_COLUMNS = ("r_precision_top1", "r_precision_top3", "fid", "mm_dist", "diversity", "multimodality",
+               "cd", "ocd", "ps", "fsr")
+#: what multi-body tracks score, and their columns
+MULTIBODY_METRICS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
+
+
+def _hoi(name: str, datasets: tuple[str, ...], protocols: tuple[str, ...], description: str,
+         store_kind: str = "hoi", **extras) -> Track:
+    return Track(name=name, datasets=datasets, store_kind=store_kind, representation="hoi269", submission="hoi",
+                 metrics=HOI_METRICS, evaluator_kind="contrastive", columns=HOI_COLUMNS, protocols=protocols,
+                 scorer="hoi", renderer="hoi", description=description, extras=extras)
+
+
+register_track(_hoi("synthetic", ("synthetic",), ("synthetic-clean", "synthetic-legacy"),
+                    "hoibench's generated HOI data in BEHAVE's layout (the README walk-through and `make demo`).",
+                    generic_for="hoi"))
+register_track(_hoi("behave", ("behave",), ("behave-clean", "behave-legacy"),
+                    "BEHAVE (HOI-Diff's clip split): one person, one object, 20 fps."))
+register_track(_hoi("omomo", ("omomo",), ("omomo-clean", "omomo-legacy"),
+                    "OMOMO: one person moving one large object, 20 fps."))
+register_track(_hoi("rich-cat", ("rich",), ("rich-cat-clean",),
+                    "RICH-CAT (CATMO): a person and a static scene object; object metrics are not applicable.",
+                    store_kind="human"))
+register_track(Track(
+    name="multibody-synthetic", datasets=("multibody-synthetic",), store_kind="multibody",
+    representation="multibody-syncdiff", submission="multibody", metrics=MULTIBODY_METRICS,
+    evaluator_kind="recognizer", columns=MULTIBODY_METRICS, protocols=("multibody-synthetic",),
+    scorer="multibody", renderer="multibody",
+    description="hoibench's generated multi-body data: hands, people and several objects (SyncDiff's metrics).",
+    extras={"generic_for": "multibody"}))
