@@ -21,7 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from ..core import skeleton as sk
-from ..bodies.contact import signed_distance_frames
+from ..bodies.distance import signed_distance_frames
 
 HANDS: tuple[int, int] = (20, 21)          # wrists
 OCD_LENGTH_TOLERANCE_FRAMES = 8            # ChainHOI: group members within +-8 frames

@@ -44,7 +44,8 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ..core import skeleton as sk
-from ..bodies.contact import joint_thresholds, signed_distance_field, to_template_frame
+from ..bodies.contact import joint_thresholds
+from ..bodies.distance import signed_distance_field, to_template_frame
 from ..core.parallel import map_units
 from . import METRICS
 from . import contact_metrics as cm
