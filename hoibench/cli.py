@@ -77,31 +77,30 @@ def _parse_defects(items: list[str]) -> dict:
     return out
 
 
+#: ``hoibench synth --layout L``: the writer of each raw layout and what it writes
+SYNTH_LAYOUTS = {
+    "behave": (".datasets.synthetic", "write_behave_layout", "clips", "in the behave layout"),
+    "omomo": (".datasets.synthetic_layouts", "write_omomo_layout", "clips", "in the omomo layout"),
+    "rich": (".datasets.synthetic_layouts", "write_rich_layout", "clips", "in the rich layout"),
+    "multibody": (".datasets.multibody", "write_synthetic_layout", "multi-body clips",
+                  "(hoibench's multi-body layout)"),
+    "grab": (".datasets.grab_layout", "write_grab_layout", "grab sequences", "in GRAB's layout"),
+    "core4d": (".datasets.core4d_layout", "write_core4d_layout", "core4d sequences", "in CORE4D's layout"),
+}
+
+
 def _cmd_synth(args) -> int:
+    import importlib
+    module, function, what, where = SYNTH_LAYOUTS[args.layout]
+    writer = getattr(importlib.import_module(module, __package__), function)
     if args.layout == "behave":
-        from .datasets.synthetic import write_behave_layout
-        write_behave_layout(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect),
-                            executor=args.executor)
+        writer(args.out, args.clips, seed=args.seed, defects=_parse_defects(args.defect), executor=args.executor)
+    elif args.defect:
+        raise ValueError("--defect: defects are injected in the behave layout only")
     else:
-        if args.defect:
-            raise ValueError("--defect: defects are injected in the behave layout only")
-        if args.layout in ("grab", "core4d"):
-            import importlib
-            mod = importlib.import_module(f".datasets.{args.layout}_layout", __package__)
-            getattr(mod, f"write_{args.layout}_layout")(args.out, args.clips, seed=args.seed)
-            print(f"wrote {args.clips} synthetic {args.layout} sequences to {args.out} in {args.layout.upper()}'s "
-                  f"layout; body models in {Path(args.out) / 'body_models'}")
-            return 0
-        if args.layout == "multibody":
-            from .datasets.multibody import write_synthetic_layout
-            write_synthetic_layout(args.out, args.clips, seed=args.seed)
-            print(f"wrote {args.clips} synthetic multi-body clips to {args.out} (hoibench's multi-body layout)")
-            return 0
-        from .datasets import synthetic_layouts
-        writer = getattr(synthetic_layouts, f"write_{args.layout}_layout")
         writer(args.out, args.clips, seed=args.seed)
-    print(f"wrote {args.clips} synthetic clips to {args.out} in the {args.layout} layout; "
-          f"body models in {Path(args.out) / 'body_models'}")
+    models = "" if args.layout == "multibody" else f"; body models in {Path(args.out) / 'body_models'}"
+    print(f"wrote {args.clips} synthetic {what} to {args.out} {where}{models}")
     return 0
 
 
@@ -112,7 +111,7 @@ def _cmd_prepare(args) -> int:
     # hoibench's own synthetic data in a raw layout is named as such (its protocol differs)
     synthetic = args.dataset == "behave" and (Path(args.root) / "hoibench_synthetic.json").exists()
     name = "synthetic" if synthetic else args.dataset
-    if args.dataset == "multibody":
+    if hasattr(loader, "dataset_name"):           # the layout names its dataset (multi-body)
         name = loader.dataset_name(args.root)
     elif args.body_models is None:
         raise ValueError(f"prepare {args.dataset}: --body-models is required (the folder with smplh/ or smplx/)")
@@ -140,7 +139,6 @@ def _cmd_render(args) -> int:
         path = render_comparison(args.clip, args.data, args.id, args.out, sample=args.sample)
         print(f"wrote {path}")
         return 0
-    from .publish.render import render_clip
     clip = Path(args.clip)
     if clip.suffix == ".npz":
         root, clip_id = clip.parent.parent, clip.stem
@@ -148,16 +146,8 @@ def _cmd_render(args) -> int:
         root, clip_id = args.data, str(clip)
     else:
         raise ValueError("clip: give DATA/clips/<id>.npz, or an id with --data DATA")
-    from .datasets.store import Store
-    from .bodies.multibody import MultiBodyClip, is_multibody_arrays
-    store = Store(root)
-    if is_multibody_arrays(store.load(clip_id, keys=("layout",))):   # a multi-body clip: a strip of frames
-        from .publish.render_multibody import render_multibody
-        path = render_multibody(MultiBodyClip.from_arrays(store.load(clip_id), store.object_template), args.out)
-        print(f"wrote {path}")
-        return 0
-    path = render_clip(root, clip_id, args.out, body=args.body)
-    print(f"wrote {path}")
+    from .publish.renderers import render_store_clip
+    print(f"wrote {render_store_clip(root, clip_id, args.out, body=args.body)}")
     return 0
 
 
@@ -207,24 +197,9 @@ def _cmd_submission(args) -> int:
         return 0
     if args.out is None:
         raise ValueError(f"submission {args.action}: --out is required")
-    from .datasets.store import Store
-    from .scoring.multibody import is_multibody_store, write_multibody_submission
-    if args.action in ("reference", "from-store") and is_multibody_store(Store(args.data)):
-        kind = "gt" if args.action == "from-store" else (args.kind or "gt")
-        path = write_multibody_submission(args.data, args.out, kind=kind, as_zip=args.zip, samples=args.samples,
-                                          sigma=args.sigma, seed=args.seed)
-        print(f"wrote {path} ({kind}, multi-body)")
-        return 0
-    if args.action == "reference":
-        if args.kind is None:
-            raise ValueError("submission reference: --kind is required (gt, gt-noise, static-first-pose, mean-pose, "
-                             "mismatched-texts)")
-        from .scoring.reference_rows import write_reference
-        path = write_reference(args.kind, args.data, args.out, sigma=args.sigma, seed=args.seed, as_zip=args.zip)
-        print(f"wrote {path} ({args.kind})")
-        return 0
-    from .scoring.submission import main_submission_from_store
-    return main_submission_from_store(args.data, args.out, as_zip=args.zip)
+    from .scoring.reference_rows import main_reference
+    return main_reference(args.action, args.data, args.out, args.kind, as_zip=args.zip, samples=args.samples,
+                          sigma=args.sigma, seed=args.seed)
 
 
 def _cmd_train_evaluator(args) -> int:

@@ -65,7 +65,7 @@ def write_reference(kind: str, data: str | Path, out: str | Path, *, sigma: floa
     if kind == "gt":
         return from_store(data, out, as_zip=as_zip)
     if kind == "mean-pose":
-        from ..baselines.trivial import write_mean_pose_submission
+        from .mean_pose import write_mean_pose_submission
         return write_mean_pose_submission(data, out, as_zip=as_zip)
     if kind == "gt-noise" and not (np.isfinite(sigma) and 0 < sigma <= 1.0):
         raise ValueError(f"--sigma: expected metres in (0, 1], got {sigma!r}")
@@ -105,3 +105,40 @@ def write_reference(kind: str, data: str | Path, out: str | Path, *, sigma: floa
                 yield cid, _arrays(clip, other["joints"], other.get("obj_rot"), other.get("obj_trans"))
 
     return write_submission(out, meta, samples(), as_zip=as_zip)
+
+
+# ---------------------------------------------------------------------- by track
+def _main_hoi(action: str, data, out, kind: str | None, *, as_zip: bool, samples: int, sigma: float,
+              seed: int) -> int:
+    if action == "reference":
+        if kind is None:
+            raise ValueError("submission reference: --kind is required (gt, gt-noise, static-first-pose, mean-pose, "
+                             "mismatched-texts)")
+        path = write_reference(kind, data, out, sigma=sigma, seed=seed, as_zip=as_zip)
+        print(f"wrote {path} ({kind})")
+        return 0
+    from .submission import main_submission_from_store
+    return main_submission_from_store(data, out, as_zip=as_zip)
+
+
+def _main_multibody(action: str, data, out, kind: str | None, *, as_zip: bool, samples: int, sigma: float,
+                    seed: int) -> int:
+    from .multibody import write_multibody_submission
+    kind = "gt" if action == "from-store" else (kind or "gt")
+    path = write_multibody_submission(data, out, kind=kind, as_zip=as_zip, samples=samples, sigma=sigma, seed=seed)
+    print(f"wrote {path} ({kind}, multi-body)")
+    return 0
+
+
+#: the reference-submission writers, by a track's submission schema
+REFERENCE_WRITERS = {"hoi": _main_hoi, "multibody": _main_multibody}
+
+
+def main_reference(action: str, data, out, kind: str | None = None, *, as_zip: bool = False, samples: int = 1,
+                   sigma: float = 0.01, seed: int = 0) -> int:
+    """``hoibench submission from-store|reference DATA --out OUT``: the ground truth or a
+    reference row of the store's test split, written in its track's submission schema."""
+    from ..tracks.registry import track_for_store
+    track = track_for_store(Store(data))
+    return REFERENCE_WRITERS[track.submission](action, data, out, kind, as_zip=as_zip, samples=samples,
+                                               sigma=sigma, seed=seed)

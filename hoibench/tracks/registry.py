@@ -10,8 +10,8 @@ field              resolved by                                 entries today
 =================  ==========================================  ==============================
 ``scorer``         :func:`hoibench.scoring.pipeline.get_scorer`  ``hoi``, ``multibody``
 ``evaluator_kind`` :func:`hoibench.evaluator.backends.get_backend` ``contrastive``, ``recognizer``
-``submission``     :func:`hoibench.scoring.references.reference_writer`  ``hoi``, ``multibody``
-``renderer``       :func:`hoibench.publish.render_registry.get_renderer` ``hoi``, ``multibody``
+``submission``     :data:`hoibench.scoring.reference_rows.REFERENCE_WRITERS` ``hoi``, ``multibody``
+``renderer``       :data:`hoibench.publish.renderers.RENDERERS`      ``hoi``, ``multibody``
 =================  ==========================================  ==============================
 
 Adding a track is one :func:`register_track` call in :mod:`hoibench.tracks.catalog` plus a
