@@ -1,0 +1,193 @@
+"""Value checks of one sample file's arrays, once their shapes are known to be right:
+finite values, plausibility bounds (units, speeds, distances), the up axis, object rotations,
+and that every sample encodes to finite features (:func:`check_arrays`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from ..core.plausibility import ROTATION_TOL
+from .submission_read import Problem
+
+#: height of the proxy body (the SMPL mean shape), metres; a skeleton's height is estimated as
+#: this times its bone-length scale (:func:`hoibench.bodies.contact.body_scale`)
+MEAN_BODY_HEIGHT_M = 1.72
+BODY_HEIGHT_RANGE_M = (0.5, 3.0)
+#: median object-pelvis distance above which a sample is in the wrong units
+MAX_OBJECT_DISTANCE_M = 20.0
+#: object-pelvis distance no single frame may exceed
+MAX_OBJECT_DISTANCE_FRAME_M = 100.0
+#: no joint or object coordinate may lie further than this from the origin, metres
+MAX_ABS_COORD_M = 1000.0
+#: root (pelvis) and object speed no frame may exceed, metres per second
+MAX_SPEED_MPS = 50.0
+#: bound on |obj_rotvec| (radians) and on every hml263 value
+MAX_ROTVEC_RAD = 100.0
+MAX_FEATURE_ABS = 1e6
+#: array -> (bound on every |value|, unit named in the message)
+_VALUE_BOUNDS = {"joints": (MAX_ABS_COORD_M, "m"), "obj_trans": (MAX_ABS_COORD_M, "m"),
+                 "obj_rotvec": (MAX_ROTVEC_RAD, "rad"), "hml263": (MAX_FEATURE_ABS, "units")}
+
+
+@dataclass(frozen=True)
+class ClipContext:
+    """What checking one sample file needs from the store and the submission."""
+
+    gt_frames: int
+    has_object: bool
+    fps: float
+    uses_gt_length: bool
+    max_samples: int
+    mode: str = "clean"            # representation mode used to encode (hoi269 clean|legacy)
+
+
+def check_arrays(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> tuple[list[Problem], str | None]:
+    """Value checks of one sample file's arrays (shapes already checked): finite values,
+    plausibility bounds per sample and per frame, rotations, and that every sample encodes
+    to finite features (what evaluate computes). Returns (problems, up-axis guess)."""
+    probs: list[Problem] = []
+    good = {}
+    for k, a in arrays.items():
+        nonfinite = ~np.isfinite(a)
+        if nonfinite.any():
+            first = np.argwhere(nonfinite)[0]
+            probs.append(Problem(sid, k, f"{int(nonfinite.sum())} non-finite value(s) (NaN or inf), first at index "
+                                         f"{tuple(int(i) for i in first)}"))
+            continue
+        bound = _VALUE_BOUNDS.get(k)          # obj_rot: checked as rotations below
+        if bound is not None:
+            limit, unit = bound
+            big = np.abs(a) > limit
+            if big.any():
+                first = tuple(int(i) for i in np.argwhere(big)[0])
+                probs.append(Problem(sid, k, f"{int(big.sum())} value(s) beyond +-{limit:g} ({unit}), "
+                                             f"first {float(a[first]):.3g} at index {first}: implausible"))
+                continue
+        good[k] = a
+    up = None
+    finite = dict(good)          # finite and within the bounds: the object check can use the joints
+    if "joints" in good:
+        jp, up = _check_joints(sid, good["joints"], ctx.fps)
+        probs += jp
+        if any(p.severity == "error" for p in jp):
+            good.pop("joints")
+    if "obj_rot" in good:
+        rp = _check_rotations(sid, good["obj_rot"])
+        probs += rp
+        if rp:
+            good.pop("obj_rot")
+    if "obj_trans" in good and "joints" in finite:
+        tp = _check_object_trans(sid, good["obj_trans"], finite["joints"], ctx.fps)
+        probs += tp
+        if tp:
+            good.pop("obj_trans")
+    if not any(p.severity == "error" for p in probs):
+        probs += _check_encodes(sid, good, ctx)
+    return probs, up
+
+
+def _check_joints(sid: str, joints: np.ndarray, fps: float) -> tuple[list[Problem], str | None]:
+    """Units per sample (body height from bone lengths), per frame (no frame's skeleton
+    outside the height range), root speed per frame; the up axis the feet suggest."""
+    from ..core.skeleton import PARENTS, SMPL_REST_JOINTS
+    J = joints.astype(np.float64)
+    par = np.array(PARENTS[1:])
+    ref = np.linalg.norm(SMPL_REST_JOINTS[1:] - SMPL_REST_JOINTS[par], axis=-1).sum()
+    frame_h = MEAN_BODY_HEIGHT_M * np.linalg.norm(J[..., 1:, :] - J[..., par, :], axis=-1).sum(-1) / ref  # (K, T)
+    heights = np.median(frame_h, axis=1)
+    lo, hi = BODY_HEIGHT_RANGE_M
+    worst_k = int(np.argmax(np.abs(np.log(np.maximum(heights, 1e-12) / MEAN_BODY_HEIGHT_M))))
+    worst = heights[worst_k]
+    if not (lo <= worst <= hi):
+        hint = " (millimetres?)" if worst > 300 else " (centimetres?)" if worst > 30 else ""
+        return [Problem(sid, "joints", f"implausible units: sample {worst_k}'s bone lengths give a body "
+                                       f"{worst:.3g} m tall (expected {lo}-{hi} m){hint}")], None
+    out_frames = (frame_h < lo / 2) | (frame_h > 2 * hi)
+    if out_frames.any():
+        k, t = (int(i) for i in np.argwhere(out_frames)[0])
+        return [Problem(sid, "joints", f"{int(out_frames.sum())} frame(s) whose skeleton is implausibly sized; "
+                                       f"first sample {k} frame {t}: {frame_h[k, t]:.3g} m tall (the sample's "
+                                       f"median is {heights[k]:.3g} m)")], None
+    if J.shape[1] > 1:
+        speed = np.linalg.norm(np.diff(J[:, :, 0], axis=1), axis=-1) * fps
+        if speed.max() > MAX_SPEED_MPS:
+            k, t = (int(i) for i in np.unravel_index(np.argmax(speed), speed.shape))
+            return [Problem(sid, "joints", f"the pelvis moves {speed[k, t]:.3g} m/s between frames {t} and {t + 1} "
+                                           f"of sample {k} (limit {MAX_SPEED_MPS:g} m/s): implausible")], None
+    # Up axis: along the true up axis the lowest joint is an ankle or foot in nearly every
+    # frame (standing, walking, sitting, kicking); along a horizontal axis it is arbitrary.
+    feet = np.array([7, 8, 10, 11])
+    frac = {}
+    for a, axis in enumerate("xyz"):
+        for sign in (1, -1):
+            frac[("" if sign > 0 else "-") + axis] = float(np.isin((sign * J[..., a]).argmin(-1), feet).mean())
+    best = max(frac, key=frac.get)
+    if best != "y" and frac[best] >= 0.8 and frac["y"] < 0.5:
+        return [Problem(sid, "joints", f"looks {best}-up: the feet are the lowest joints along {best} in "
+                                       f"{100 * frac[best]:.0f}% of frames but along y in {100 * frac['y']:.0f}%; "
+                                       "hoibench is y-up", "warning")], best
+    return [], None
+
+
+def _check_object_trans(sid: str, trans: np.ndarray, joints: np.ndarray, fps: float) -> list[Problem]:
+    """Object translation units per sample (median distance to the pelvis), per frame
+    (maximum distance) and object speed per frame."""
+    dist = np.linalg.norm(trans.astype(np.float64) - joints[:, :, 0].astype(np.float64), axis=-1)   # (K, T)
+    med = np.median(dist, axis=1)
+    if med.max() > MAX_OBJECT_DISTANCE_M:
+        k = int(np.argmax(med))
+        return [Problem(sid, "obj_trans", f"the object is {med[k]:.3g} m from the pelvis (median over sample {k}): "
+                                          "implausible units (centimetres?)")]
+    if dist.max() > MAX_OBJECT_DISTANCE_FRAME_M:
+        k, t = (int(i) for i in np.unravel_index(np.argmax(dist), dist.shape))
+        return [Problem(sid, "obj_trans", f"the object is {dist[k, t]:.3g} m from the pelvis at sample {k} frame "
+                                          f"{t} (limit {MAX_OBJECT_DISTANCE_FRAME_M:g} m): implausible")]
+    if trans.shape[1] > 1:
+        speed = np.linalg.norm(np.diff(trans.astype(np.float64), axis=1), axis=-1) * fps
+        if speed.max() > MAX_SPEED_MPS:
+            k, t = (int(i) for i in np.unravel_index(np.argmax(speed), speed.shape))
+            return [Problem(sid, "obj_trans", f"the object moves {speed[k, t]:.3g} m/s between frames {t} and "
+                                              f"{t + 1} of sample {k} (limit {MAX_SPEED_MPS:g} m/s): implausible")]
+    return []
+
+
+def _check_rotations(sid: str, R: np.ndarray) -> list[Problem]:
+    R = R.astype(np.float64)
+    orth = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-1, -2))
+    det = np.linalg.det(R)
+    bad = (orth > ROTATION_TOL) | (det < 0)
+    if not bad.any():
+        return []
+    k, t = (int(i) for i in np.argwhere(bad)[0])
+    what = "a reflection (det < 0)" if det[k, t] < 0 else f"max |R^T R - I| = {orth[k, t]:.3g}"
+    return [Problem(sid, "obj_rot", f"{int(bad.sum())} of {bad.size} matrices are not rotations; first at "
+                                    f"sample {k} frame {t}: {what}")]
+
+
+def encode_sample(arrays: Mapping[str, np.ndarray], k: int, mode: str, fps: float) -> np.ndarray:
+    """Features evaluate embeds for sample ``k``: hoi269 rows when the object pose is given,
+    hml263 rows otherwise (``mode``: ``clean`` | ``legacy``)."""
+    from ..representations import hml263, hoi269
+    joints = arrays["joints"][k]
+    if "obj_trans" in arrays and ("obj_rot" in arrays or "obj_rotvec" in arrays):
+        rot = arrays["obj_rot"][k] if "obj_rot" in arrays else arrays["obj_rotvec"][k]
+        return hoi269.encode(joints, rot, arrays["obj_trans"][k], mode=mode, fps=fps)
+    return hml263.encode(joints, mode=mode, fps=fps)
+
+
+def _check_encodes(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> list[Problem]:
+    if "joints" not in arrays or (ctx.has_object and "obj_trans" not in arrays):
+        return []
+    for k in range(len(arrays["joints"])):
+        try:
+            feats = encode_sample(arrays, k, ctx.mode, ctx.fps)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as e:
+            return [Problem(sid, "joints", f"sample {k} cannot be encoded: {e}")]
+        if not np.isfinite(feats).all():
+            t = int(np.argwhere(~np.isfinite(feats))[0][0])
+            return [Problem(sid, "joints", f"sample {k} encodes to non-finite features from frame {t} (a "
+                                           "degenerate pose: coincident hips or shoulders?)")]
+    return []
