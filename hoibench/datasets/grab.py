@@ -546,28 +546,10 @@ def _rigid(R_grab: np.ndarray, t: np.ndarray, mean: np.ndarray, src_t, dst) -> t
     return resample_rigid(src_t, dst, Rc, tc)
 
 
-def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE_FPS, root: str | Path | None = None,
-                  with_table: bool = False, name: str | None = None,
-                  assets: tuple[str, ...] | None = None) -> MultiBodyClip:
-    """Convert one GRAB sequence file into a :class:`MultiBodyClip` at ``fps`` (see the
-    module docstring).
-
-    ``root``: the GRAB folder holding ``tools/`` (default: two levels above the subject
-    folder). ``name``: the clip id (default ``<subject>_<stem>``). ``assets``: when given,
-    the only mesh files the sequence may read (:func:`conventional_assets`).
-    ``body_models`` holds ``smplx/`` and ``mano/`` (the user's files or hoibench's
-    proxies). Raises :class:`SequenceError` naming the sequence, the file and the key.
-    """
-    path = Path(path)
-    subject, stem = path.parent.name, path.stem
-    asset_root = Path(root) if root is not None else path.parent.parent.parent
-    try:
-        name = check_id(name or clip_id(subject, stem), "clip id", path)
-    except InvalidIdError as exc:
-        raise SequenceError(str(exc)) from None
-    rel = f"grab/{subject}/{path.name}"
-    where = f"{name}: {rel}"
-    fps = pl.check_fps(fps, "fps", name)
+def _read_checked(path: Path, subject: str, rel: str, where: str,
+                  with_table: bool) -> tuple[str, str, str, float, int, dict, dict, int]:
+    """Read one sequence file and check its header and per-frame arrays (one frame count,
+    finite tracks). Returns ``(gender, obj, intent, src_fps, n_comps, arrays, meshes, T)``."""
     try:
         seq = read_sequence_npz(path)
     except ValueError as exc:
@@ -597,7 +579,15 @@ def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE
             pl.check_track(arrays[f"{k}/params/transl"], f"{k}/params/transl", where, fps=src_fps)
         except ValueError as exc:
             raise SequenceError(str(exc)) from None
+    return gender, obj, intent, src_fps, n_comps, arrays, meshes, T
 
+
+def _load_assets(asset_root: Path, meshes: dict, assets: tuple[str, ...] | None, obj: str, with_table: bool,
+                 arrays: dict, where: str) -> tuple[dict[str, Path], list[tuple[str, str, str]], dict]:
+    """Resolve the sequence's mesh files, check the subject templates' vertex counts, load the
+    object (and table) templates and check the contact labels against them. Returns
+    ``(files, parts, templates)``: ``parts`` = (part, template name, mesh key),
+    ``templates[part]`` = (template name, vertices, faces, subtracted mean)."""
     files = {k: _resolve_asset(asset_root, v, k, where, assets) for k, v in meshes.items()}
     vtemp = _template_vertices(files["body/vtemp"], SMPLX_NUM_VERTICES, "body/vtemp", where)
     for side in ("lhand", "rhand"):
@@ -614,11 +604,14 @@ def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE
     if arrays["contact/body"].shape[1] != len(vtemp):
         raise SequenceError(f"{where}: contact/body: {arrays['contact/body'].shape[1]} labels per frame, "
                             f"SMPL-X has {len(vtemp)} vertices")
+    return files, parts, templates
 
-    src_t = np.arange(T) / src_fps
-    dst = resample_times(src_t, fps)
+
+def _human_body(body_models: str | Path, gender: str, files: dict[str, Path], n_comps: int, arrays: dict,
+                T: int, src_t: np.ndarray, dst: np.ndarray, where: str) -> tuple[Body, float]:
+    """The human at the output times and the floor height (lowest SMPL-X vertex over all
+    source frames) that every body and object is lowered by."""
     F = ZUP_TO_YUP
-
     # human: SMPL-X with the subject template, hands as PCA with the model's components
     zeros3 = np.zeros((T, 3))
     expr = arrays.get("body/params/expression")
@@ -644,10 +637,16 @@ def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE
         pl.check_body_height(human_j, f"{where}: human")
     except ValueError as exc:
         raise SequenceError(str(exc)) from None
-    bodies = [Body("human", "human", human_j[:, 0].copy(), F @ geo.axis_angle_to_matrix(pose[:, :3]), human_j)]
+    return Body("human", "human", human_j[:, 0].copy(), F @ geo.axis_angle_to_matrix(pose[:, :3]), human_j), floor
 
+
+def _hand_bodies(body_models: str | Path, files: dict[str, Path], n_comps: int, arrays: dict, T: int,
+                 src_t: np.ndarray, dst: np.ndarray, floor: float, asset_root: Path,
+                 where: str) -> tuple[list[Body], dict]:
+    """The left and the right hand at the output times, and their provenance."""
+    F = ZUP_TO_YUP
     # hands: MANO with the subject's hand templates
-    hand_prov = {}
+    bodies, hand_prov = [], {}
     for side, key in (("left", "lhand"), ("right", "rhand")):
         mano = _mano(str(Path(body_models)), side, str(files[f"{key}/vtemp"]), n_comps)
         aa = arrays[f"{key}/params/hand_pose"] @ _components(mano, "np_hand_components", n_comps, where)
@@ -662,9 +661,16 @@ def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE
                            side=side, owner="human"))
         hand_prov[side] = {"vtemp": files[f"{key}/vtemp"].relative_to(asset_root).as_posix(),
                            "hand_fullpose_max_dev_rad": dev}
+    return bodies, hand_prov
 
+
+def _object_bodies(templates: dict, parts: list[tuple[str, str, str]], arrays: dict, files: dict[str, Path],
+                   src_t: np.ndarray, dst: np.ndarray, floor: float,
+                   asset_root: Path) -> tuple[list[Body], dict, dict]:
+    """The object (and table) at the output times, their templates and their provenance."""
+    F = ZUP_TO_YUP
     # objects: GRAB's row-vector pose, template centred on its vertex mean
-    clip_templates, obj_prov = {}, {}
+    bodies, clip_templates, obj_prov = [], {}, {}
     for part, key in zip(templates, [p[2] for p in parts]):
         tname, v, f, mean = templates[part]
         R_grab = geo.axis_angle_to_matrix(arrays[f"{part}/params/global_orient"])
@@ -675,6 +681,41 @@ def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE
         clip_templates[tname] = (v, f)
         obj_prov[part] = {"template": tname, "mesh": files[key].relative_to(asset_root).as_posix(),
                           "template_mean_subtracted": mean.tolist(), "template_vertices": int(len(v))}
+    return bodies, clip_templates, obj_prov
+
+
+def load_sequence(path: str | Path, body_models: str | Path, fps: float = SOURCE_FPS, root: str | Path | None = None,
+                  with_table: bool = False, name: str | None = None,
+                  assets: tuple[str, ...] | None = None) -> MultiBodyClip:
+    """Convert one GRAB sequence file into a :class:`MultiBodyClip` at ``fps`` (see the
+    module docstring).
+
+    ``root``: the GRAB folder holding ``tools/`` (default: two levels above the subject
+    folder). ``name``: the clip id (default ``<subject>_<stem>``). ``assets``: when given,
+    the only mesh files the sequence may read (:func:`conventional_assets`).
+    ``body_models`` holds ``smplx/`` and ``mano/`` (the user's files or hoibench's
+    proxies). Raises :class:`SequenceError` naming the sequence, the file and the key.
+    """
+    path = Path(path)
+    subject, stem = path.parent.name, path.stem
+    asset_root = Path(root) if root is not None else path.parent.parent.parent
+    try:
+        name = check_id(name or clip_id(subject, stem), "clip id", path)
+    except InvalidIdError as exc:
+        raise SequenceError(str(exc)) from None
+    rel = f"grab/{subject}/{path.name}"
+    where = f"{name}: {rel}"
+    fps = pl.check_fps(fps, "fps", name)
+    gender, obj, intent, src_fps, n_comps, arrays, meshes, T = _read_checked(path, subject, rel, where, with_table)
+    files, parts, templates = _load_assets(asset_root, meshes, assets, obj, with_table, arrays, where)
+
+    src_t = np.arange(T) / src_fps
+    dst = resample_times(src_t, fps)
+    human, floor = _human_body(body_models, gender, files, n_comps, arrays, T, src_t, dst, where)
+    hands, hand_prov = _hand_bodies(body_models, files, n_comps, arrays, T, src_t, dst, floor, asset_root, where)
+    objects, clip_templates, obj_prov = _object_bodies(templates, parts, arrays, files, src_t, dst, floor,
+                                                       asset_root)
+    bodies = [human] + hands + objects
 
     # contacts from the object-vertex labels, nearest source frame
     flags, unknown = _contacts(arrays["contact/object"])

@@ -452,25 +452,10 @@ def _nearest_rotation(M: np.ndarray) -> np.ndarray:
     return R
 
 
-def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_ids, run_first: int,
-              out_start: int, length: int, fps: float, body_models: str | Path, gender: str,
-              transform_file: str | Path, with_contacts: bool = True, clip_id: str | None = None
-              ) -> HOISequence:
-    """Load one RICH-CAT clip: output frames ``out_start .. out_start + length - 1`` of the
-    run starting at source frame ``run_first`` (resampled to ``fps``), from the source
-    frames ``frame_ids`` (consecutive, covering the clip). See the module docstring."""
-    data_root = Path(data_root)
-    for value, what in ((split_dir, "split folder"), (seq, "sequence folder"), (sub, "subject file name")):
-        try:
-            check_id(value, what, data_root / "bodies")
-        except InvalidIdError as exc:
-            raise SequenceError(f"{clip_id or seq}: {exc}") from None
-    fps = pl.check_fps(fps, "fps", clip_id or seq)
-    if gender not in pl.GENDERS:
-        raise SequenceError(f"{clip_id or seq}: gender {gender!r} of subject {sub}: expected one of {pl.GENDERS}")
-    ids = np.asarray(frame_ids, dtype=np.int64)
-    if len(ids) < 1 or np.any(np.diff(ids) != 1):
-        raise SequenceError(f"{seq}: frame ids of a clip must be consecutive, got {ids[:5].tolist()}...")
+def _read_source(data_root: Path, split_dir: str, seq: str, sub: str, ids: np.ndarray, body_models: str | Path,
+                 gender: str) -> tuple:
+    """Read the clip's source frames ``ids`` and assemble, at the source rate, the SMPL-X
+    model and parameters: ``(model, pose (N, 55, 3), transl, betas, expr, raw_files)``."""
     body_dir = data_root / "bodies" / split_dir / seq
     frames = [read_frame(body_dir / f"{i:05d}" / f"{sub}.pkl", seq, data_root) for i in ids]
     raw_files = f"bodies/{split_dir}/{seq}/{{{ids[0]:05d}..{ids[-1]:05d}}}/{sub}.pkl"
@@ -492,20 +477,13 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     pose[:, 40:55] = _hand_aa(rh, model.np_right_hand_components, "right_hand_pose", seq).reshape(N, 15, 3)
     transl = _stack(frames, "transl", 3, seq)
     pl.check_track(transl, f"transl (row 0 = frame {ids[0]:05d})", f"{seq}: {raw_files}", fps=SOURCE_FPS)
+    return model, pose, transl, betas, expr, raw_files
 
-    # resample by time (the run's clock: source frame i at (i - run_first) / 30 s)
-    src_t = (ids - int(run_first)) / SOURCE_FPS
-    dst = (int(out_start) + np.arange(int(length))) / float(fps)
-    if dst[0] < src_t[0] - 1e-9 or dst[-1] > src_t[-1] + 1e-9:
-        raise SequenceError(f"{seq}: clip times {dst[0]:.3f}..{dst[-1]:.3f} s outside the loaded frames "
-                            f"{src_t[0]:.3f}..{src_t[-1]:.3f} s")
-    if N == 1:
-        pose_r, transl_r, betas_r, expr_r = pose, transl, betas, expr
-    else:
-        pose_r = _slerp_resample(src_t, dst, pose)
-        transl_r, betas_r, expr_r = (_lerp(src_t, dst, x) for x in (transl, betas, expr))
-    joints_c, verts_c = _smplx_forward(model, pose_r, betas_r, expr_r, transl_r)
 
+def _to_world(transform_file: str | Path, seq: str, joints_c: np.ndarray,
+              verts_c: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Camera-0 joints to the y-up world, floor at the lowest vertex of the clip. Returns
+    ``(c, R, A, b, joints, floor)``: ``p_world = A p_cam + b`` before the floor shift."""
     # camera 0 -> z-up world (X c R + t, row vectors) -> y-up; exact similarity for points
     c, R, t = _read_transform(Path(transform_file), seq)
     F = ZUP_TO_YUP
@@ -514,6 +492,15 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     joints = joints_c @ A.T + b
     floor = float((verts_c.reshape(-1, 3).astype(np.float64) @ A[1]).min() + b[1])
     joints[..., 1] -= floor
+    return c, R, A, b, joints, floor
+
+
+def _world_params(model, R: np.ndarray, A: np.ndarray, b: np.ndarray, floor: float, joints_c: np.ndarray,
+                  verts_c: np.ndarray, pose_r: np.ndarray, transl_r: np.ndarray, betas_r: np.ndarray,
+                  expr_r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """The SMPL-X parameters in the world, as stored (float32), and how far the mesh they
+    rebuild is from the toolkit's: ``(pose, betas, trans, expression, max deviation m)``."""
+    F = ZUP_TO_YUP
     # parameters: rotation part about the pelvis, pelvis exactly on the mapped pelvis
     Rr = _nearest_rotation(F @ R.T)
     j0 = joints_c[:, 0] - transl_r                         # per-frame rest pelvis
@@ -533,7 +520,15 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
     toolkit = verts_c.astype(np.float64) @ A.T + b
     toolkit[..., 1] -= floor
     params_dev = float(np.linalg.norm(rebuilt.astype(np.float64) - toolkit, axis=-1).max())
+    return pose_store, betas_store, trans_store, expr_store, params_dev
 
+
+def _clip_contacts(data_root: Path, split_dir: str, seq: str, sub: str, ids: np.ndarray,
+                   body_models: str | Path, with_contacts: bool, src_t: np.ndarray,
+                   dst: np.ndarray) -> tuple[np.ndarray | None, str | None]:
+    """Per-joint contacts at the output times from ``human_scene_contact`` (nearest source
+    frame), or None where not asked for or absent; and the contact map's source."""
+    N = len(ids)
     contacts, cmap_src = None, None
     contact_dir = data_root / "human_scene_contact" / split_dir / seq
     if with_contacts and contact_dir.is_dir():
@@ -555,6 +550,50 @@ def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_i
         jc = joint_contacts(np.stack(labels), vmap)
         nearest = np.clip(np.searchsorted(src_t, dst - 0.5 / SOURCE_FPS), 0, N - 1)
         contacts = jc[nearest]
+    return contacts, cmap_src
+
+
+def load_clip(data_root: str | Path, split_dir: str, seq: str, sub: str, frame_ids, run_first: int,
+              out_start: int, length: int, fps: float, body_models: str | Path, gender: str,
+              transform_file: str | Path, with_contacts: bool = True, clip_id: str | None = None
+              ) -> HOISequence:
+    """Load one RICH-CAT clip: output frames ``out_start .. out_start + length - 1`` of the
+    run starting at source frame ``run_first`` (resampled to ``fps``), from the source
+    frames ``frame_ids`` (consecutive, covering the clip). See the module docstring."""
+    data_root = Path(data_root)
+    for value, what in ((split_dir, "split folder"), (seq, "sequence folder"), (sub, "subject file name")):
+        try:
+            check_id(value, what, data_root / "bodies")
+        except InvalidIdError as exc:
+            raise SequenceError(f"{clip_id or seq}: {exc}") from None
+    fps = pl.check_fps(fps, "fps", clip_id or seq)
+    if gender not in pl.GENDERS:
+        raise SequenceError(f"{clip_id or seq}: gender {gender!r} of subject {sub}: expected one of {pl.GENDERS}")
+    ids = np.asarray(frame_ids, dtype=np.int64)
+    if len(ids) < 1 or np.any(np.diff(ids) != 1):
+        raise SequenceError(f"{seq}: frame ids of a clip must be consecutive, got {ids[:5].tolist()}...")
+    model, pose, transl, betas, expr, raw_files = _read_source(data_root, split_dir, seq, sub, ids, body_models,
+                                                              gender)
+    N = len(ids)
+    # resample by time (the run's clock: source frame i at (i - run_first) / 30 s)
+    src_t = (ids - int(run_first)) / SOURCE_FPS
+    dst = (int(out_start) + np.arange(int(length))) / float(fps)
+    if dst[0] < src_t[0] - 1e-9 or dst[-1] > src_t[-1] + 1e-9:
+        raise SequenceError(f"{seq}: clip times {dst[0]:.3f}..{dst[-1]:.3f} s outside the loaded frames "
+                            f"{src_t[0]:.3f}..{src_t[-1]:.3f} s")
+    if N == 1:
+        pose_r, transl_r, betas_r, expr_r = pose, transl, betas, expr
+    else:
+        pose_r = _slerp_resample(src_t, dst, pose)
+        transl_r, betas_r, expr_r = (_lerp(src_t, dst, x) for x in (transl, betas, expr))
+    joints_c, verts_c = _smplx_forward(model, pose_r, betas_r, expr_r, transl_r)
+
+    c, R, A, b, joints, floor = _to_world(transform_file, seq, joints_c, verts_c)
+    pose_store, betas_store, trans_store, expr_store, params_dev = _world_params(
+        model, R, A, b, floor, joints_c, verts_c, pose_r, transl_r, betas_r, expr_r)
+
+    contacts, cmap_src = _clip_contacts(data_root, split_dir, seq, sub, ids, body_models, with_contacts,
+                                        src_t, dst)
 
     scene = seq.split("_")[0]
     name = clip_id or f"{seq}_{sub}_{int(ids[0]):05d}"
