@@ -181,6 +181,11 @@ def _cmd_protocols(args) -> int:
     return main_protocols(args.action, args.name)
 
 
+def _cmd_tracks(args) -> int:
+    from .tracks.registry import main_tracks
+    return main_tracks(args.action, args.name)
+
+
 def _cmd_validate(args) -> int:
     from .scoring.submission import main_validate
     return main_validate(args.submission, args.data, protocol=args.protocol)
@@ -308,12 +313,8 @@ def _cmd_demo(args) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from .baselines.registry import SPECS as BASELINES
-    p = argparse.ArgumentParser(prog="hoibench", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="command", required=True)
-
+def _add_data_commands(sub) -> None:
+    """Representations, raw data, stores and texts: version, representations, represent, synth, prepare, splits, export, annotate."""
     s = sub.add_parser("version", help="print the toolkit version")
     s.set_defaults(func=_cmd_version)
 
@@ -361,18 +362,6 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)
 
-    s = sub.add_parser("render", help="render a processed clip to PNG, GIF or MP4 (off-screen)",
-                       epilog="examples:\n  hoibench render data/clips/Date01_Sub01_boxsmall_lift.npz --out clip.gif\n"
-                              "  hoibench render sub.zip --id Date03_Sub01_backpack_hold --data data --out cmp.gif",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("clip", help="DATA/clips/<id>.npz, or a clip id together with --data, or a submission with --id")
-    s.add_argument("--data", type=Path, default=None)
-    s.add_argument("--id", default=None, help="with a submission: draw its sample for this id beside the ground truth")
-    s.add_argument("--sample", type=int, default=0, help="with --id: which of the K samples (default 0)")
-    s.add_argument("--out", type=Path, required=True, help=".png (middle frame), .gif or .mp4")
-    s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy")
-    s.set_defaults(func=_cmd_render)
-
     s = sub.add_parser("splits", help="list or show the split files and their sources",
                        epilog="examples: hoibench splits ls; hoibench splits show omomo --split unseen-object")
     s.add_argument("action", choices=["ls", "show"])
@@ -400,6 +389,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="serial")
     s.add_argument("--strict", action="store_true")
     s.set_defaults(func=_cmd_annotate)
+
+
+def _add_scoring_commands(sub) -> None:
+    """Protocols, submissions, evaluators and scoring: protocols, validate, submission, train-evaluator, train-recognizer, evaluator, evaluate."""
+    s = sub.add_parser("tracks", help="list or show the benchmark tracks (store kind, evaluator, metrics, protocols)",
+                       epilog="examples: hoibench tracks ls; hoibench tracks show rich-cat")
+    s.add_argument("action", choices=["ls", "show"])
+    s.add_argument("name", nargs="?")
+    s.set_defaults(func=_cmd_tracks)
 
     s = sub.add_parser("protocols", help="list or show evaluation protocols",
                        epilog="examples: hoibench protocols ls; hoibench protocols show behave-clean")
@@ -478,6 +476,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="score with an evaluator trained on another dataset or representation (recorded)")
     s.set_defaults(func=_cmd_evaluate)
 
+
+def _add_baseline_commands(sub) -> None:
+    """Reference baselines and importers of other generators' outputs: baseline, import."""
+    from .baselines.registry import SPECS as BASELINES
     s = sub.add_parser("baseline", help="train and sample reference baselines (chainhoi, ejim, catmo, mean-pose)",
                        epilog="examples:\n  hoibench baseline train chainhoi data --config tiny --out runs/chainhoi-tiny\n"
                               "  hoibench baseline sample chainhoi runs/chainhoi-tiny --data data --out sub\n"
@@ -545,6 +547,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--zip", action="store_true")
     s.set_defaults(func=_cmd_import)
 
+
+def _add_publish_commands(sub) -> None:
+    """Comparing, publishing and looking: compare, leaderboard, render, demo."""
     s = sub.add_parser("compare", help="results side by side, with which differences are outside the CIs",
                        epilog="example: hoibench compare gt.json mine.json baseline.json --plot compare.png")
     s.add_argument("results", type=Path, nargs="+")
@@ -583,6 +588,26 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-baselines", action="store_true",
                    help="skip training the tiny ChainHOI and CATMO (~15 of the demo's ~18 minutes)")
     s.set_defaults(func=_cmd_demo)
+
+    s = sub.add_parser("render", help="render a processed clip to PNG, GIF or MP4 (off-screen)",
+                       epilog="examples:\n  hoibench render data/clips/Date01_Sub01_boxsmall_lift.npz --out clip.gif\n"
+                              "  hoibench render sub.zip --id Date03_Sub01_backpack_hold --data data --out cmp.gif",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("clip", help="DATA/clips/<id>.npz, or a clip id together with --data, or a submission with --id")
+    s.add_argument("--data", type=Path, default=None)
+    s.add_argument("--id", default=None, help="with a submission: draw its sample for this id beside the ground truth")
+    s.add_argument("--sample", type=int, default=0, help="with --id: which of the K samples (default 0)")
+    s.add_argument("--out", type=Path, required=True, help=".png (middle frame), .gif or .mp4")
+    s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy")
+    s.set_defaults(func=_cmd_render)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="hoibench", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    for add in (_add_data_commands, _add_scoring_commands, _add_baseline_commands, _add_publish_commands):
+        add(sub)
     return p
 
 

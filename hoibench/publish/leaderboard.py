@@ -13,6 +13,7 @@ import re
 from pathlib import Path
 
 from ..core.io import atomic_write_json
+from ..tracks.catalog import HOI_COLUMNS
 
 ENTRY_FORMAT = "hoibench-entry-1"
 SOURCES = ("reproduced", "reported")
@@ -58,8 +59,19 @@ def write_entry(entry: dict, entries_dir: str | Path) -> Path:
 # =========================================================================== tracks
 ROLES = ("ground-truth", "reference", "baseline", "method")
 #: the columns a leaderboard shows, in order (every other metric stays in the CSV)
-TABLE_METRICS = ("r_precision_top1", "r_precision_top3", "fid", "mm_dist", "diversity", "multimodality",
-                 "cd", "ocd", "ps", "fsr")
+TABLE_METRICS = HOI_COLUMNS
+
+
+def table_columns(track: str) -> tuple[str, ...]:
+    """The leaderboard columns of ``track`` (its registry entry's ``columns``; the
+    single-body columns for a track the registry does not know)."""
+    from ..tracks.registry import get_track
+    try:
+        return get_track(track).columns
+    except KeyError:
+        return HOI_COLUMNS
+
+
 SHORT = {"r_precision_top1": "R@1", "r_precision_top2": "R@2", "r_precision_top3": "R@3", "fid": "FID",
          "mm_dist": "MM-Dist", "diversity": "Diversity", "multimodality": "MModality", "cd": "CD", "ocd": "OCD",
          "ps": "PS", "fsr": "FSR"}
@@ -134,17 +146,13 @@ def order(entries: list[dict], key: str = "fid") -> list[dict]:
 
 
 def read_result(path: str | Path) -> dict:
-    """A result of ``hoibench evaluate`` (strict JSON with a ``metrics`` object), or
+    """A result of ``hoibench evaluate`` (:func:`hoibench.scoring.results.read_result`), or
     :class:`LeaderboardError` naming the file and field."""
-    from ..core.io import load_json_bytes, read_regular_file
-    path = Path(path)
+    from ..scoring.results import ResultError, read_result as read
     try:
-        result = load_json_bytes(read_regular_file(path, 64 << 20, "result"), path)
-    except ValueError as exc:
+        return read(path)
+    except ResultError as exc:
         raise LeaderboardError(str(exc)) from None
-    if not isinstance(result, dict) or not isinstance(result.get("metrics"), dict):
-        raise LeaderboardError(f"{path}: field metrics: not a result of `hoibench evaluate`")
-    return result
 
 
 def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, role: str = "method",

@@ -16,7 +16,7 @@ import io
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text
-from .leaderboard import SHORT, TABLE_METRICS, LeaderboardError, load_track, order
+from .leaderboard import SHORT, LeaderboardError, load_track, order, table_columns
 
 ARROW = {True: "↑", False: "↓", None: "≈GT"}
 
@@ -52,8 +52,11 @@ def _flags(e: dict) -> list[str]:
 
 
 def _columns(entries: list[dict]) -> list[str]:
+    """The track's leaderboard columns (:func:`hoibench.publish.leaderboard.table_columns`)
+    that some entry has."""
     present = {k for e in entries for k in e["metrics"]}
-    return [k for k in TABLE_METRICS if k in present]
+    track = entries[0]["track"] if entries else ""
+    return [k for k in table_columns(track) if k in present]
 
 
 def _header(name: str) -> str:

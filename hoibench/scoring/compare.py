@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .evaluate import GROUPS
-from ..publish.leaderboard import read_result as load_result
+from .results import read_result as load_result
 
 
 def _mc(r: dict, name: str) -> tuple[float, float] | None:

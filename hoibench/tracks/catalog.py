@@ -2,7 +2,7 @@
 (their protocols are the YAML files in ``hoibench/tracks/protocols/`` that name them)."""
 from __future__ import annotations
 
-from .registry import Track, register_track
+from .track import Track, register_track
 
 #: what every single-body (and human-only) track scores
 HOI_METRICS = ("r_precision_top1", "r_precision_top2", "r_precision_top3", "fid", "mm_dist", "diversity",

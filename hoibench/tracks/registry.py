@@ -14,84 +14,22 @@ field              resolved by                                 entries today
 ``renderer``       :data:`hoibench.publish.renderers.RENDERERS`      ``hoi``, ``multibody``
 =================  ==========================================  ==============================
 
-Adding a track is one :func:`register_track` call in :mod:`hoibench.tracks.catalog` plus a
+Adding a track is one :func:`~hoibench.tracks.track.register_track` call in :mod:`hoibench.tracks.catalog` plus a
 protocol YAML file naming it (docs/architecture.md has the worked example).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-#: the kinds of store a track may read
-STORE_KINDS = ("hoi", "human", "multibody")
-
-
-@dataclass(frozen=True)
-class Track:
-    """One benchmark track.
-
-    ``datasets``: the store datasets (``manifest["dataset"]``) it scores; ``store_kind``:
-    ``hoi`` (one human, one object), ``human`` (human-only clips: object metrics are not
-    applicable) or ``multibody``; ``representation``: the store representation submissions are
-    encoded with; ``submission``: the submission schema (``hoi``: hml263/hoi269 features or
-    joints per sample; ``multibody``: per-body joints or poses); ``metrics``: what it scores
-    (the protocol may list fewer); ``evaluator_kind``: the evaluator backend it needs;
-    ``columns``: leaderboard columns in order; ``protocols``: its shipped protocol ids, the
-    default first."""
-
-    name: str
-    datasets: tuple[str, ...]
-    store_kind: str
-    representation: str
-    submission: str
-    metrics: tuple[str, ...]
-    evaluator_kind: str
-    columns: tuple[str, ...]
-    protocols: tuple[str, ...]
-    scorer: str
-    renderer: str
-    description: str = ""
-    extras: dict = field(default_factory=dict, compare=False)
-
-    @property
-    def protocol_kind(self) -> str:
-        """The kind of protocol this track's YAML files hold (``hoi`` or ``multibody``)."""
-        return "multibody" if self.store_kind == "multibody" else "hoi"
-
-    def to_dict(self) -> dict:
-        return {"name": self.name, "datasets": list(self.datasets), "store_kind": self.store_kind,
-                "representation": self.representation, "submission": self.submission,
-                "metrics": list(self.metrics), "evaluator_kind": self.evaluator_kind, "columns": list(self.columns),
-                "protocols": list(self.protocols), "scorer": self.scorer, "renderer": self.renderer,
-                "description": self.description}
-
-
-_TRACKS: dict[str, Track] = {}
-
-
-def register_track(track: Track) -> Track:
-    """Add ``track`` to the registry (a name registered twice is an error)."""
-    if track.name in _TRACKS:
-        raise ValueError(f"track {track.name!r} is registered twice")
-    if track.store_kind not in STORE_KINDS:
-        raise ValueError(f"track {track.name!r}: store_kind must be one of {STORE_KINDS}, got {track.store_kind!r}")
-    _TRACKS[track.name] = track
-    return track
-
-
-def _load_catalog() -> None:
-    if not _TRACKS:
-        from . import catalog  # noqa: F401  (registers the shipped tracks)
+from . import catalog  # noqa: F401  (registers the shipped tracks)
+from .track import _TRACKS, STORE_KINDS, Track, register_track
 
 
 def list_tracks() -> list[Track]:
     """Every registered track, sorted by name."""
-    _load_catalog()
     return [_TRACKS[k] for k in sorted(_TRACKS)]
 
 
 def get_track(name: str) -> Track:
     """A track by name; ``KeyError`` listing the known names otherwise."""
-    _load_catalog()
     if name not in _TRACKS:
         raise KeyError(f"unknown track {name!r}; known: {', '.join(sorted(_TRACKS))}")
     return _TRACKS[name]
@@ -101,7 +39,6 @@ def track_for_dataset(dataset: str, multibody: bool = False) -> Track:
     """The track that scores stores of ``dataset``; a dataset no track lists falls back to the
     generic track of its kind (``multibody-synthetic`` settings are not assumed: the caller's
     protocol lookup then names what is missing)."""
-    _load_catalog()
     for t in _TRACKS.values():
         if dataset in t.datasets:
             return t
@@ -118,4 +55,19 @@ def track_for_store(store) -> Track:
     return track_for_dataset(str(store.manifest.get("dataset", "")), multibody=store.is_multibody)
 
 
-__all__ = ["track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "track_for_dataset"]
+def main_tracks(action: str = "ls", name: str | None = None) -> int:
+    """``hoibench tracks ls`` (one line per track) or ``hoibench tracks show NAME`` (its
+    registry entry as JSON). Returns an exit status."""
+    import json
+    if action == "show":
+        if not name:
+            raise ValueError("tracks show: name a track, e.g. hoibench tracks show rich-cat")
+        print(json.dumps(get_track(name).to_dict(), indent=1))
+        return 0
+    print(f"{'track':20s} {'store':9s} {'evaluator':11s} {'scorer':9s} protocols")
+    for t in list_tracks():
+        print(f"{t.name:20s} {t.store_kind:9s} {t.evaluator_kind:11s} {t.scorer:9s} {', '.join(t.protocols)}")
+    return 0
+
+
+__all__ = ["main_tracks", "track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "track_for_dataset"]
