@@ -125,8 +125,8 @@ def _hand_above(top_y: float, gap: float) -> Body:
 def test_a_hand_at_a_known_distance_flips_contact_at_the_threshold():
     import trimesh
     from hoibench.scoring.multibody import _contacts
-    from hoibench.tracks.multibody_protocol import get
-    proto = get("multibody-synthetic")
+    from hoibench.tracks.protocol import get_protocol
+    proto = get_protocol("multibody-synthetic")
     m = trimesh.creation.box(extents=(0.2, 0.1, 0.2))
     tmpl = {"box": (np.asarray(m.vertices), np.asarray(m.faces))}
     fields = {"box": ObjectField(*tmpl["box"])}

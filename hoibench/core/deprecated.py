@@ -36,7 +36,6 @@ MOVED: dict[str, str] = {
     "hoibench.text_tokens": "hoibench.text.tokens",
     "hoibench.multibody.metrics": "hoibench.metrics.multibody",
     "hoibench.protocol": "hoibench.tracks.protocol",
-    "hoibench.multibody.protocol": "hoibench.tracks.multibody_protocol",
     "hoibench.multibody.recognizer": "hoibench.evaluator.recognizer",
     "hoibench.submission": "hoibench.scoring.submission",
     "hoibench.evaluate": "hoibench.scoring.evaluate",
