@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .evaluate import GROUPS
+from .hoi import GROUPS
 from .results import read_result as load_result
 
 
