@@ -1,8 +1,17 @@
 """The baselines hoibench trains: one :class:`Spec` per baseline.
 
 The joint-level diffusion baselines (ChainHOI, EJIM; ``kind = "diffusion"``) share the trainer
-below; CATMO (``kind = "tokens"``) trains in stages (:mod:`.catmo.trainer`) and shares the run
-folder and the sampler's submission path.
+(:func:`.trainer.train_joint`) and the run loader (:class:`.sampler.LoadedRun`); CATMO
+(``kind = "tokens"``) trains in stages (:mod:`.catmo.trainer`) and loads its own run
+(:class:`.catmo.sampler.LoadedCatmo`), sharing the run folder and the sampler's submission path.
+A spec names both entry points (``train``, ``sample``: ``"<module>:<name>"`` under
+``hoibench.baselines``), so :func:`.trainer.train` and :func:`.sampler.load_run` dispatch through
+this registry and import no model package:
+
+- ``train(spec, data, out, config, *, device, resume, stop_after, threads, log)`` -> ``TrainResult``
+- ``sample(folder, device, verified=(card, weights bytes))`` -> a loaded run (``options``,
+  ``generate_sample``, ``check_store``, ``spec``, ``config``, ``id``, ``requires_object``,
+  ``object_points``)
 
 A spec names what differs between baselines -- the model config class, the presets, how to
 build the denoiser and which losses train it -- while the trainer (:mod:`.trainer`), the run
@@ -23,9 +32,18 @@ class Spec:
     title: str                       # method name in submissions and tables
     module: str                      # hoibench.baselines.<module> with preset, ModelConfig, build_model, losses
     kind: str = "diffusion"          # "diffusion": the shared trainer/sampler; "tokens": CATMO's own stages
+    train: str = "trainer:train_joint"          # train entry point, "<module>:<name>" under hoibench.baselines
+    sample: str = "sampler:LoadedRun"           # run loader (sample entry point), same form
 
     def _mod(self):
         return import_module(f"hoibench.baselines.{self.module}")
+
+    def entry_point(self, which: str) -> Callable:
+        """The callable the spec names for ``which`` (``"train"`` or ``"sample"``), imported on first use."""
+        if which not in ("train", "sample"):
+            raise ValueError(f"entry point {which!r}: expected 'train' or 'sample'")
+        module, _, name = getattr(self, which).partition(":")
+        return getattr(import_module(f"hoibench.baselines.{module}"), name)
 
     @property
     def preset(self) -> Callable:
@@ -45,7 +63,8 @@ class Spec:
 SPECS: dict[str, Spec] = {
     "chainhoi": Spec("chainhoi", "ChainHOI", "chainhoi.spec"),
     "ejim": Spec("ejim", "EJIM", "ejim.spec"),
-    "catmo": Spec("catmo", "CATMO", "catmo.config", kind="tokens"),
+    "catmo": Spec("catmo", "CATMO", "catmo.config", kind="tokens", train="catmo.trainer:train_baseline",
+                  sample="catmo.sampler:LoadedCatmo"),
 }
 
 

@@ -134,13 +134,11 @@ class LoadedRun:
 
 
 def load_run(folder: str | Path, device: str = "cpu", baseline: str | None = None):
-    """The verified run folder as a sampler: :class:`LoadedRun` for the diffusion baselines,
-    :class:`~hoibench.baselines.catmo.sampler.LoadedCatmo` for CATMO."""
+    """The verified run folder as a sampler, loaded by the sample entry point its baseline's
+    registry spec names: :class:`LoadedRun` for the diffusion baselines,
+    ``hoibench.baselines.catmo.sampler.LoadedCatmo`` for CATMO."""
     verified = ckpt.verify_run(Path(folder), baseline)
-    if get_spec(verified[0]["baseline"]).kind == "tokens":
-        from .catmo.sampler import LoadedCatmo
-        return LoadedCatmo(folder, device, verified)
-    return LoadedRun(folder, device, baseline, verified)
+    return get_spec(verified[0]["baseline"]).entry_point("sample")(folder, device, verified=verified)
 
 
 def check_store_fits(store: Store, dataset: dict, run_id: str, stats: tuple[str, ...], representation: str) -> None:

@@ -228,18 +228,25 @@ def _existing(out: Path, name: str, config: dict, dataset: dict,
 def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | str = "tiny", *,
           device: str = "cpu", resume: bool = True, stop_after: int | None = None, threads: int | None = None,
           log: Callable[[str], None] | None = print) -> TrainResult:
-    """Train ``baseline`` (``chainhoi``, ``ejim``) on ``data``'s train split into the run folder ``out``.
+    """Train ``baseline`` (``chainhoi``, ``ejim``, ``catmo``) on ``data``'s train split into the
+    run folder ``out``, with the train entry point its registry spec names
+    (:func:`train_joint` for the diffusion baselines).
 
-    ``config``: a :class:`RunConfig` or a preset name (``tiny``, ``paper``). ``resume``:
-    continue from ``OUT/checkpoint/last.pt``. ``stop_after``: stop after this many steps with
-    the checkpoint written and no final folder (an interruption, for tests). ``steps = 0``
-    writes the untrained model (the "untrained" reference row).
+    ``config``: a run config or a preset name (``tiny``, ``paper``). ``resume``: continue from
+    ``OUT/checkpoint/last.pt``. ``stop_after``: stop after this many steps with the checkpoint
+    written and no final folder (an interruption, for tests). ``steps = 0`` writes the
+    untrained model (the "untrained" reference row).
     """
     spec = get_spec(baseline)
-    if spec.kind == "tokens":
-        from .catmo.trainer import train as train_catmo
-        return train_catmo(data, out, config, device=device, resume=resume, stop_after=stop_after, threads=threads,
-                           log=log)
+    return spec.entry_point("train")(spec, data, out, config, device=device, resume=resume, stop_after=stop_after,
+                                     threads=threads, log=log)
+
+
+def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig | str = "tiny", *,
+                device: str = "cpu", resume: bool = True, stop_after: int | None = None, threads: int | None = None,
+                log: Callable[[str], None] | None = print) -> TrainResult:
+    """Train the joint-level diffusion baseline ``spec`` (ChainHOI, EJIM): :func:`train`'s
+    registry entry point for ``kind = "diffusion"``."""
     cfg = spec.preset(config) if isinstance(config, str) else config
     tag = f"[{spec.name}]"
     log = log or (lambda s: None)

@@ -5,7 +5,7 @@ Modules, one job each:
 ``config``     sizes (``paper``, ``tiny``), variants (``human``, ``hoi``), training recipe
 ``text``       caption files (``DATA/texts/<id>.txt``), the offline sentence encoder, its hash
 ``features``   motion-branch inputs: normalised hml263 rows, object-relative rows (``hoi``)
-``data``       text-motion items of a store split
+``data``       text-motion items of a store split, the store's default protocol (``store_protocol``)
 ``model``      motion encoder, text branch, learned temperature, symmetric InfoNCE loss
 ``embed``      :class:`Evaluator`: ``embed_motion`` / ``embed_text``
 ``retrieval``  GT retrieval scores: R-precision top-1/2/3 in pools of 32, MM-Dist, GT-vs-GT FID

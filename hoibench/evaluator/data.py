@@ -83,3 +83,14 @@ def load_items(store: Store | str | Path, split: str, variant: str = "human", mi
         if len(items) > n0:
             with_items.append(cid)
     return SplitItems(split, items, with_items, missing, skipped)
+
+
+def store_protocol(store: Store):
+    """The protocol ``hoibench evaluate`` uses by default for this store
+    (:func:`hoibench.tracks.protocol.default_protocol_id`: ``<dataset>-<mode>``, ``rich-cat-clean``
+    for a ``rich`` store), or None when none is shipped: GT scores then use the trainer's own pools."""
+    from ..tracks.protocol import default_protocol_id, get_protocol
+    try:
+        return get_protocol(default_protocol_id(store.manifest))
+    except KeyError:
+        return None

@@ -246,8 +246,7 @@ def recompute_gate(evaluator, store, protocol=None, split: str = "test") -> dict
     ships). On the store an evaluator was trained on this reproduces its card's gate.
     Returns the JSON-ready gate record, with ``measured_on`` (store, split, protocol)."""
     from ..datasets.store import Store
-    from .data import load_items
-    from .train import store_protocol
+    from .data import load_items, store_protocol
     store = store if isinstance(store, Store) else Store(Path(store))
     if isinstance(protocol, str):
         from ..tracks.protocol import get_protocol

@@ -39,7 +39,7 @@ from ..datasets.store import Store, manifest_sha256
 from . import card as card_mod
 from . import text as text_mod
 from .config import EvaluatorConfig, preset
-from .data import feature_key, load_items
+from .data import SplitItems, feature_key, load_items, store_protocol  # noqa: F401  (store_protocol: its old home)
 from .embed import Evaluator, deterministic
 from .features import FeatureStats, object_relative, object_stats
 from .errors import CheckpointError, EvaluatorFolderExists, EvaluatorIntegrityError
@@ -156,17 +156,6 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
     atomic_save_figure(fig, path)
 
 
-def store_protocol(store):
-    """The protocol ``hoibench evaluate`` uses by default for this store
-    (:func:`hoibench.tracks.protocol.default_protocol_id`: ``<dataset>-<mode>``, ``rich-cat-clean``
-    for a ``rich`` store), or None when none is shipped: GT scores then use the trainer's own pools."""
-    from ..tracks.protocol import default_protocol_id, get_protocol
-    try:
-        return get_protocol(default_protocol_id(store.manifest))
-    except KeyError:
-        return None
-
-
 #: what an evaluator output folder may hold before training (an interrupted run's leftovers)
 _OUTPUT_ENTRIES = {CHECKPOINT_DIR, card_mod.WEIGHTS, card_mod.CURVE_PNG, card_mod.TRAIN_LOG}
 
@@ -238,6 +227,255 @@ def resume_checkpoint(path: Path, ident: dict, epochs: int, model, opt, sched, d
     return curve
 
 
+def _load_splits(store: Store, cfg: EvaluatorConfig, log: Callable[[str], None]) -> tuple[SplitItems, SplitItems]:
+    """The captioned train and test items, checked (the ``shuffled_texts`` control applied)."""
+    variant, tc = cfg.model.variant, cfg.train
+    rep = store.manifest.get("representations", {}).get("hoi269", "")
+    if variant == "hoi" and "clean" not in rep:
+        raise ValueError(f"{store.root}: the hoi variant needs clean hoi269 rows (object rotation in the body's "
+                         f"canonical frame); this store has {rep!r}: prepare it with --mode clean")
+    train = load_items(store, "train", variant, tc.min_frames)
+    test = load_items(store, "test", variant, tc.min_frames)
+    if not train.items and not test.items:
+        raise FileNotFoundError(f"{store.root / 'texts'}: no caption files (<clip id>.txt, HumanML3D lines "
+                                f"'caption#tokens#start#end'); run `hoibench annotate` on the store first")
+    if len(train.items) < 2:
+        raise ValueError(f"train split: {len(train.items)} captioned items; at least 2 are needed "
+                         f"({len(train.missing_texts)} train clips have no text file)")
+    if len(test.items) < 4:
+        raise ValueError(f"test split: {len(test.items)} captioned items; at least 4 are needed for GT "
+                         f"retrieval and the GT-vs-GT FID")
+    for s in (train, test):
+        if s.missing_texts:
+            log(f"[train-evaluator] {len(s.missing_texts)} {s.split} clips have no caption file and are left out "
+                f"(e.g. {s.missing_texts[0]})")
+    if tc.control == "shuffled_texts":
+        perm = np.random.default_rng([tc.seed, _CONTROL_SEED_TAG]).permutation(len(train.items))
+        caps = [train.items[j].captions for j in perm]
+        for it, c in zip(train.items, caps):
+            it.captions = c
+    return train, test
+
+
+@dataclass
+class _Setup:
+    """What a training call fixed before the first epoch: data, statistics, text encoder, checkpoint."""
+    cfg: EvaluatorConfig
+    out: Path
+    store: Store
+    msha: str
+    train: SplitItems
+    test: SplitItems
+    stats: FeatureStats
+    te_name: str
+    te_sha: str
+    pooling: str
+    tok: object
+    transformer: object
+    tsha: str
+    ckpt_path: Path
+    ident: dict
+    log: Callable[[str], None]
+
+
+def _setup(store: Store, out: Path, cfg: EvaluatorConfig, msha: str, text_encoder: str | None,
+           log: Callable[[str], None]) -> _Setup:
+    """Items, statistics (checked against the manifest), the text encoder and the checkpoint identity."""
+    train, test = _load_splits(store, cfg, log)
+    stats = feature_stats(store, cfg.model.variant, train.clip_ids)
+    recorded = store.manifest.get("stats", {}).get("hml263", {}).get("sha256")
+    if recorded and recorded != stats.sha256():
+        raise ValueError(f"{store.root}: stats/hml263.npz does not match the manifest's sha256 (store modified?)")
+    te_name, te_path = text_mod.resolve_text_encoder(text_encoder)
+    te_sha = text_mod.weights_sha256(te_path)
+    pooling = text_mod.pooling_mode(te_path)
+    tok, transformer = text_mod.load_pretrained(te_path)
+    tsha = text_mod.texts_sha256(store.root, sorted(set(train.clip_ids) | set(test.clip_ids)))
+    ident = {"format": CHECKPOINT_FORMAT, "config_sha256": cfg.sha256(), "manifest_sha256": msha,
+             "texts_sha256": tsha, "text_encoder_sha256": te_sha}
+    return _Setup(cfg, out, store, msha, train, test, stats, te_name, te_sha, pooling, tok, transformer, tsha,
+                  out / CHECKPOINT_DIR / CHECKPOINT, ident, log)
+
+
+@dataclass
+class _Fit:
+    """The outcome of the epoch loop: the model, its curve and (unless interrupted) its GT scores."""
+    model: TextMotionModel
+    curve: list[dict]
+    vocab: list[str]
+    epochs_run: int
+    resumed_from: int | None
+    interrupted: bool = False
+    gt: dict | None = None
+    tr: dict | None = None
+
+
+def _run_epoch(e: int, su: _Setup, model: TextMotionModel, ev: Evaluator, opt, sched, params: list,
+               prepared: list, cap_idx: list[list[int]], vocab: list[str], cache) -> dict:
+    """One epoch's optimiser steps (order, captions and crops drawn from ``(seed, e)``); its curve row."""
+    mc, tc = su.cfg.model, su.cfg.train
+    dev = ev.device
+    n = len(prepared)
+    torch.manual_seed(_epoch_seed(tc.seed, e))
+    rng = np.random.default_rng([tc.seed, e])
+    perm = rng.permutation(n)
+    pick = rng.integers(0, 1 << 30, size=n)
+    crop_u = rng.random(n)
+    frozen = e < tc.text_unfreeze_epoch
+    model.text.set_frozen(frozen, tc.text_finetune_layers)
+    model.train()
+    tot_loss = tot_acc = 0.0
+    count = 0
+    for b in _batches(perm, tc.batch_size):
+        caps = torch.tensor([cap_idx[i][pick[i] % len(cap_idx[i])] for i in b])
+        crops = [int(crop_u[i] * (len(prepared[i][0]) - mc.max_frames + 1))
+                 if len(prepared[i][0]) > mc.max_frames else 0 for i in b]
+        body, lens, obj = ev._motion_batch([prepared[i] for i in b], crops)
+        m_emb = model.motion(body, lens, obj)
+        if frozen:
+            pooled = cache[caps.to(dev)]
+        else:
+            pooled = model.text.pooled(ev.tokenize([vocab[c] for c in caps.tolist()]))
+        t_emb = model.text.project(pooled)
+        same = (caps[:, None] == caps[None, :]).to(dev) if tc.negatives == "mask_same_caption" else None
+        loss, acc = contrastive_loss(t_emb, m_emb, model.scale(), same)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_([p for p in params if p.grad is not None], 1.0)
+        opt.step()
+        sched.step()
+        tot_loss += float(loss.detach()) * len(b)
+        tot_acc += float(acc.detach()) * len(b)
+        count += len(b)
+    if not math.isfinite(tot_loss):
+        raise FloatingPointError(f"training diverged at epoch {e + 1} (loss {tot_loss}); lower lr "
+                                 f"(now {tc.lr}) or check the features for outliers")
+    return {"epoch": e + 1, "loss": tot_loss / count, "batch_top1": tot_acc / count,
+            "temperature": float(1.0 / model.scale().detach()), "lr": opt.param_groups[0]["lr"],
+            "text_lr": opt.param_groups[2]["lr"], "text_frozen": frozen}
+
+
+def _fit(su: _Setup, resume: bool, checkpoint_every: int, interrupt_after_epoch: int | None,
+         pool_size: int, replications: int, device: str) -> _Fit:
+    """Model, optimiser and schedule (resumed from the checkpoint), the epochs, then GT scores on CPU."""
+    cfg, log, ckpt_path = su.cfg, su.log, su.ckpt_path
+    mc, tc = cfg.model, cfg.train
+    with deterministic(tc.threads):
+        torch.manual_seed(tc.seed)
+        model = TextMotionModel(mc, su.transformer, su.pooling)
+        ev = Evaluator(cfg, model, su.tok, su.stats, device=device)
+        prepared = ev.prepare_motion([it.features for it in su.train.items], crop=False)
+        vocab = sorted({c for it in su.train.items for c in it.captions})
+        index = {c: i for i, c in enumerate(vocab)}
+        cap_idx = [[index[c] for c in it.captions] for it in su.train.items]
+        n = len(su.train.items)
+        steps = len(_batches(np.arange(n), tc.batch_size))
+        opt = torch.optim.AdamW(_param_groups(model, cfg), betas=(0.9, 0.98), eps=1e-6)
+        main_lr, text_lr = _lr_lambdas(cfg, steps)
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, [main_lr, main_lr, text_lr])   # one per param group
+        curve: list[dict] = []
+        start = 0
+        resumed_from = None
+        if resume and ckpt_path.exists():
+            curve = resume_checkpoint(ckpt_path, su.ident, tc.epochs, model, opt, sched, ev.device)
+            start = resumed_from = len(curve)
+            log(f"[train-evaluator] resuming from epoch {start} ({ckpt_path})")
+
+        cache = None
+        if start < tc.text_unfreeze_epoch:
+            with torch.inference_mode():
+                model.text.set_frozen(True)
+                cache = torch.cat([model.text.pooled(ev.tokenize(vocab[s:s + 128])) for s in range(0, len(vocab), 128)])
+            cache = cache.clone()
+        epochs_run = 0
+        params = [p for g in opt.param_groups for p in g["params"]]
+        for e in range(start, tc.epochs):
+            curve.append(_run_epoch(e, su, model, ev, opt, sched, params, prepared, cap_idx, vocab, cache))
+            frozen = curve[-1]["text_frozen"]
+            epochs_run += 1
+            c = curve[-1]
+            log(f"[train-evaluator] epoch {e + 1}/{tc.epochs} loss {c['loss']:.4f} batch top-1 "
+                f"{c['batch_top1']:.3f} temperature {c['temperature']:.4f}{' (text frozen)' if frozen else ''}")
+            stop = interrupt_after_epoch is not None and e + 1 >= interrupt_after_epoch and e + 1 < tc.epochs
+            if (e + 1) % max(1, checkpoint_every) == 0 or e + 1 == tc.epochs or stop:
+                atomic_torch_save({**su.ident, "epoch": e + 1,
+                                    "model": model.own_state_dict(None if frozen else tc.text_finetune_layers),
+                                    "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                                    "torch_rng": torch.get_rng_state(), "curve": json.dumps(curve)}, ckpt_path)
+            if stop:
+                log(f"[train-evaluator] interrupted after epoch {e + 1} (checkpoint {ckpt_path})")
+                return _Fit(model, curve, vocab, epochs_run, resumed_from, interrupted=True)
+
+        model.eval()
+        model.to("cpu")        # GT scores as a loaded evaluator computes them (CPU, EMBED_THREADS)
+        ev = Evaluator(cfg, model, su.tok, su.stats)
+        proto = store_protocol(su.store)
+        gt = gt_scores(ev, su.test.items, pool_size, replications, tc.seed, protocol=proto)
+        tr = gt_scores(ev, su.train.items, pool_size, replications, tc.seed)
+    return _Fit(model, curve, vocab, epochs_run, resumed_from, gt=gt, tr=tr)
+
+
+def _card(su: _Setup, fit: _Fit, gate: GateResult) -> dict:
+    """The evaluator card (before its id is added by :func:`card.write_folder`)."""
+    cfg, store, train, test, model, curve, gt, tr = su.cfg, su.store, su.train, su.test, fit.model, fit.curve, \
+        fit.gt, fit.tr
+    mc, tc = cfg.model, cfg.train
+    variant = mc.variant
+    fine_tune = tc.text_unfreeze_epoch < tc.epochs
+    key = feature_key(variant)
+    return {
+        "toolkit": "hoibench", "toolkit_version": __version__, "seed": tc.seed,
+        "config": cfg.to_dict(), "config_sha256": cfg.sha256(),
+        "dataset": {"name": store.manifest.get("dataset"), "manifest_sha256": su.msha,
+                    "representation": store.manifest.get("representations", {}).get(key), "features": key,
+                    **card_mod.store_fingerprint(store.manifest),
+                    "train_split": "train", "test_split": "test",
+                    "train_clips": len(train.clip_ids), "train_items": len(train.items),
+                    "test_clips": len(test.clip_ids), "test_items": len(test.items),
+                    "clips_without_texts": {"train": len(train.missing_texts), "test": len(test.missing_texts)},
+                    "skipped_segments": train.skipped_segments + test.skipped_segments,
+                    "train_captions": len(fit.vocab), "texts_sha256": su.tsha},
+        "normalization": su.stats.to_card("store stats/hml263.npz (train split)" + (
+            "; object-relative statistics computed on the train split" if variant == "hoi" else "")),
+        "text_encoder": {"name": su.te_name, "weights_sha256": su.te_sha, "pooling": su.pooling,
+                         "hidden_size": model.text.hidden, "max_tokens": mc.text_max_tokens,
+                         "fine_tuned": fine_tune, "fine_tuned_layers": tc.text_finetune_layers if fine_tune else 0,
+                         "stored_in_weights": ("all fine-tuned transformer parameters" if fine_tune else
+                                               "none (the pretrained encoder, named by its weights_sha256)")},
+        "curve": {"summary": _curve_summary(curve), "epochs": curve},
+        "gt_retrieval": {"split": "test", **gt},
+        "train_retrieval": {"split": "train", "top1": tr["top1"], "top3": tr["top3"], "items": tr["items"],
+                            "pool_size": tr["pool_size"]},
+        "gate": gate.to_card(),
+        "libraries": text_mod.package_versions(),
+    }
+
+
+def _write_output(su: _Setup, fit: _Fit, gate: GateResult, keep_checkpoint: bool, t_start: float) -> TrainResult:
+    """The evaluator folder (weights, card), its curve plot and train log; the checkpoint removed."""
+    cfg, out, log, ckpt_path = su.cfg, su.out, su.log, su.ckpt_path
+    tc = cfg.train
+    text_layers = tc.text_finetune_layers if tc.text_unfreeze_epoch < tc.epochs else None
+    eid = card_mod.write_folder(out, fit.model.own_state_dict(text_layers), _card(su, fit, gate))
+    card = card_mod.read_card(out)
+    try:
+        plot_curve(fit.curve, out / card_mod.CURVE_PNG, tc.text_unfreeze_epoch,
+                   f"evaluator {eid[:12]} ({cfg.size}, {cfg.model.variant})")
+    except Exception as exc:  # a plot must never lose a trained evaluator
+        log(f"[train-evaluator] could not plot the curve: {exc}")
+    atomic_write_text(out / card_mod.TRAIN_LOG, json.dumps(
+        {"evaluator_id": eid, "wall_s_this_call": time.time() - t_start, "epochs_this_call": fit.epochs_run,
+         "resumed_from_epoch": fit.resumed_from, "threads": tc.threads}, indent=1) + "\n")
+    if not keep_checkpoint and ckpt_path.exists():
+        ckpt_path.unlink()
+        try:
+            ckpt_path.parent.rmdir()
+        except OSError:
+            pass
+    log(f"[train-evaluator] wrote evaluator {eid} to {out}; {gate.diagnostic()}")
+    return TrainResult(out, "trained", eid, card, gate, fit.epochs_run)
+
+
 def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig | None = None, *,
                     text_encoder: str | None = None, resume: bool = True, checkpoint_every: int = 1,
                     keep_checkpoint: bool = False, interrupt_after_epoch: int | None = None,
@@ -272,7 +510,6 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
     delete it to restart from epoch 0, which gives the same evaluator).
     """
     cfg = config or preset()
-    mc, tc = cfg.model, cfg.train
     log = log or (lambda s: print(s, file=sys.stderr, flush=True))
     out = Path(out)
     store = Store(data)
@@ -284,179 +521,10 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
         log(f"[train-evaluator] {out} already holds evaluator {done['evaluator_id'][:12]} for this config")
         return TrainResult(out, "already_trained", done["evaluator_id"], done, None, 0)
 
-    variant = mc.variant
-    rep = store.manifest.get("representations", {}).get("hoi269", "")
-    if variant == "hoi" and "clean" not in rep:
-        raise ValueError(f"{store.root}: the hoi variant needs clean hoi269 rows (object rotation in the body's "
-                         f"canonical frame); this store has {rep!r}: prepare it with --mode clean")
-    train = load_items(store, "train", variant, tc.min_frames)
-    test = load_items(store, "test", variant, tc.min_frames)
-    if not train.items and not test.items:
-        raise FileNotFoundError(f"{store.root / 'texts'}: no caption files (<clip id>.txt, HumanML3D lines "
-                                f"'caption#tokens#start#end'); run `hoibench annotate` on the store first")
-    if len(train.items) < 2:
-        raise ValueError(f"train split: {len(train.items)} captioned items; at least 2 are needed "
-                         f"({len(train.missing_texts)} train clips have no text file)")
-    if len(test.items) < 4:
-        raise ValueError(f"test split: {len(test.items)} captioned items; at least 4 are needed for GT "
-                         f"retrieval and the GT-vs-GT FID")
-    for s in (train, test):
-        if s.missing_texts:
-            log(f"[train-evaluator] {len(s.missing_texts)} {s.split} clips have no caption file and are left out "
-                f"(e.g. {s.missing_texts[0]})")
-    if tc.control == "shuffled_texts":
-        perm = np.random.default_rng([tc.seed, _CONTROL_SEED_TAG]).permutation(len(train.items))
-        caps = [train.items[j].captions for j in perm]
-        for it, c in zip(train.items, caps):
-            it.captions = c
-
-    stats = feature_stats(store, variant, train.clip_ids)
-    recorded = store.manifest.get("stats", {}).get("hml263", {}).get("sha256")
-    if recorded and recorded != stats.sha256():
-        raise ValueError(f"{store.root}: stats/hml263.npz does not match the manifest's sha256 (store modified?)")
-    te_name, te_path = text_mod.resolve_text_encoder(text_encoder)
-    te_sha = text_mod.weights_sha256(te_path)
-    pooling = text_mod.pooling_mode(te_path)
-    tok, transformer = text_mod.load_pretrained(te_path)
-    tsha = text_mod.texts_sha256(store.root, sorted(set(train.clip_ids) | set(test.clip_ids)))
-    fine_tune = tc.text_unfreeze_epoch < tc.epochs
-    text_layers = tc.text_finetune_layers if fine_tune else None
-
-    ckpt_path = out / CHECKPOINT_DIR / CHECKPOINT
-    ident = {"format": CHECKPOINT_FORMAT, "config_sha256": cfg.sha256(), "manifest_sha256": msha,
-             "texts_sha256": tsha, "text_encoder_sha256": te_sha}
+    su = _setup(store, out, cfg, msha, text_encoder, log)
     t_start = time.time()
-    with deterministic(tc.threads):
-        torch.manual_seed(tc.seed)
-        model = TextMotionModel(mc, transformer, pooling)
-        ev = Evaluator(cfg, model, tok, stats, device=device)
-        prepared = ev.prepare_motion([it.features for it in train.items], crop=False)
-        vocab = sorted({c for it in train.items for c in it.captions})
-        index = {c: i for i, c in enumerate(vocab)}
-        cap_idx = [[index[c] for c in it.captions] for it in train.items]
-        n = len(train.items)
-        steps = len(_batches(np.arange(n), tc.batch_size))
-        opt = torch.optim.AdamW(_param_groups(model, cfg), betas=(0.9, 0.98), eps=1e-6)
-        main_lr, text_lr = _lr_lambdas(cfg, steps)
-        sched = torch.optim.lr_scheduler.LambdaLR(opt, [main_lr, main_lr, text_lr])   # one per param group
-        curve: list[dict] = []
-        start = 0
-        resumed_from = None
-        if resume and ckpt_path.exists():
-            curve = resume_checkpoint(ckpt_path, ident, tc.epochs, model, opt, sched, ev.device)
-            start = resumed_from = len(curve)
-            log(f"[train-evaluator] resuming from epoch {start} ({ckpt_path})")
-
-        cache = None
-        if start < tc.text_unfreeze_epoch:
-            with torch.inference_mode():
-                model.text.set_frozen(True)
-                cache = torch.cat([model.text.pooled(ev.tokenize(vocab[s:s + 128])) for s in range(0, len(vocab), 128)])
-            cache = cache.clone()
-        dev = ev.device
-        epochs_run = 0
-        params = [p for g in opt.param_groups for p in g["params"]]
-        for e in range(start, tc.epochs):
-            torch.manual_seed(_epoch_seed(tc.seed, e))
-            rng = np.random.default_rng([tc.seed, e])
-            perm = rng.permutation(n)
-            pick = rng.integers(0, 1 << 30, size=n)
-            crop_u = rng.random(n)
-            frozen = e < tc.text_unfreeze_epoch
-            model.text.set_frozen(frozen, tc.text_finetune_layers)
-            model.train()
-            tot_loss = tot_acc = 0.0
-            count = 0
-            for b in _batches(perm, tc.batch_size):
-                caps = torch.tensor([cap_idx[i][pick[i] % len(cap_idx[i])] for i in b])
-                crops = [int(crop_u[i] * (len(prepared[i][0]) - mc.max_frames + 1))
-                         if len(prepared[i][0]) > mc.max_frames else 0 for i in b]
-                body, lens, obj = ev._motion_batch([prepared[i] for i in b], crops)
-                m_emb = model.motion(body, lens, obj)
-                if frozen:
-                    pooled = cache[caps.to(dev)]
-                else:
-                    pooled = model.text.pooled(ev.tokenize([vocab[c] for c in caps.tolist()]))
-                t_emb = model.text.project(pooled)
-                same = (caps[:, None] == caps[None, :]).to(dev) if tc.negatives == "mask_same_caption" else None
-                loss, acc = contrastive_loss(t_emb, m_emb, model.scale(), same)
-                opt.zero_grad(set_to_none=True)
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_([p for p in params if p.grad is not None], 1.0)
-                opt.step()
-                sched.step()
-                tot_loss += float(loss.detach()) * len(b)
-                tot_acc += float(acc.detach()) * len(b)
-                count += len(b)
-            if not math.isfinite(tot_loss):
-                raise FloatingPointError(f"training diverged at epoch {e + 1} (loss {tot_loss}); lower lr "
-                                         f"(now {tc.lr}) or check the features for outliers")
-            curve.append({"epoch": e + 1, "loss": tot_loss / count, "batch_top1": tot_acc / count,
-                          "temperature": float(1.0 / model.scale().detach()), "lr": opt.param_groups[0]["lr"],
-                          "text_lr": opt.param_groups[2]["lr"], "text_frozen": frozen})
-            epochs_run += 1
-            c = curve[-1]
-            log(f"[train-evaluator] epoch {e + 1}/{tc.epochs} loss {c['loss']:.4f} batch top-1 "
-                f"{c['batch_top1']:.3f} temperature {c['temperature']:.4f}{' (text frozen)' if frozen else ''}")
-            stop = interrupt_after_epoch is not None and e + 1 >= interrupt_after_epoch and e + 1 < tc.epochs
-            if (e + 1) % max(1, checkpoint_every) == 0 or e + 1 == tc.epochs or stop:
-                atomic_torch_save({**ident, "epoch": e + 1,
-                                    "model": model.own_state_dict(None if frozen else tc.text_finetune_layers),
-                                    "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
-                                    "torch_rng": torch.get_rng_state(), "curve": json.dumps(curve)}, ckpt_path)
-            if stop:
-                log(f"[train-evaluator] interrupted after epoch {e + 1} (checkpoint {ckpt_path})")
-                return TrainResult(out, "interrupted", None, None, None, epochs_run)
-
-        model.eval()
-        model.to("cpu")        # GT scores as a loaded evaluator computes them (CPU, EMBED_THREADS)
-        ev = Evaluator(cfg, model, tok, stats)
-        proto = store_protocol(store)
-        gt = gt_scores(ev, test.items, pool_size, replications, tc.seed, protocol=proto)
-        tr = gt_scores(ev, train.items, pool_size, replications, tc.seed)
-    gate = sanity_gate(gt, mc.embed_dim)
-    key = feature_key(variant)
-    card = {
-        "toolkit": "hoibench", "toolkit_version": __version__, "seed": tc.seed,
-        "config": cfg.to_dict(), "config_sha256": cfg.sha256(),
-        "dataset": {"name": store.manifest.get("dataset"), "manifest_sha256": msha,
-                    "representation": store.manifest.get("representations", {}).get(key), "features": key,
-                    **card_mod.store_fingerprint(store.manifest),
-                    "train_split": "train", "test_split": "test",
-                    "train_clips": len(train.clip_ids), "train_items": len(train.items),
-                    "test_clips": len(test.clip_ids), "test_items": len(test.items),
-                    "clips_without_texts": {"train": len(train.missing_texts), "test": len(test.missing_texts)},
-                    "skipped_segments": train.skipped_segments + test.skipped_segments,
-                    "train_captions": len(vocab), "texts_sha256": tsha},
-        "normalization": stats.to_card("store stats/hml263.npz (train split)" + (
-            "; object-relative statistics computed on the train split" if variant == "hoi" else "")),
-        "text_encoder": {"name": te_name, "weights_sha256": te_sha, "pooling": pooling,
-                         "hidden_size": model.text.hidden, "max_tokens": mc.text_max_tokens,
-                         "fine_tuned": fine_tune, "fine_tuned_layers": tc.text_finetune_layers if fine_tune else 0,
-                         "stored_in_weights": ("all fine-tuned transformer parameters" if fine_tune else
-                                               "none (the pretrained encoder, named by its weights_sha256)")},
-        "curve": {"summary": _curve_summary(curve), "epochs": curve},
-        "gt_retrieval": {"split": "test", **gt},
-        "train_retrieval": {"split": "train", "top1": tr["top1"], "top3": tr["top3"], "items": tr["items"],
-                            "pool_size": tr["pool_size"]},
-        "gate": gate.to_card(),
-        "libraries": text_mod.package_versions(),
-    }
-    eid = card_mod.write_folder(out, model.own_state_dict(text_layers), card)
-    card = card_mod.read_card(out)
-    try:
-        plot_curve(curve, out / card_mod.CURVE_PNG, tc.text_unfreeze_epoch,
-                   f"evaluator {eid[:12]} ({cfg.size}, {variant})")
-    except Exception as exc:  # a plot must never lose a trained evaluator
-        log(f"[train-evaluator] could not plot the curve: {exc}")
-    atomic_write_text(out / card_mod.TRAIN_LOG, json.dumps(
-        {"evaluator_id": eid, "wall_s_this_call": time.time() - t_start, "epochs_this_call": epochs_run,
-         "resumed_from_epoch": resumed_from, "threads": tc.threads}, indent=1) + "\n")
-    if not keep_checkpoint and ckpt_path.exists():
-        ckpt_path.unlink()
-        try:
-            ckpt_path.parent.rmdir()
-        except OSError:
-            pass
-    log(f"[train-evaluator] wrote evaluator {eid} to {out}; {gate.diagnostic()}")
-    return TrainResult(out, "trained", eid, card, gate, epochs_run)
+    fit = _fit(su, resume, checkpoint_every, interrupt_after_epoch, pool_size, replications, device)
+    if fit.interrupted:
+        return TrainResult(out, "interrupted", None, None, None, fit.epochs_run)
+    gate = sanity_gate(fit.gt, cfg.model.embed_dim)
+    return _write_output(su, fit, gate, keep_checkpoint, t_start)

@@ -295,6 +295,153 @@ class _Sink:
             os.unlink(self.tmp)
 
 
+class _Scene:
+    """The meshes of one render: added to the plotter on the first frame, updated in place after."""
+
+    def __init__(self, pv, plotter):
+        self.pv, self.plotter = pv, plotter
+        self.shade = dict(specular=0.2, ambient=0.15)
+        self.body_mesh = self.skel_mesh = self.ball_mesh = self.obj_mesh = None
+        self.contact_mesh = self.contact_actor = self.text = None
+
+    def body(self, bv: np.ndarray, faces: np.ndarray, normals: np.ndarray, rgb: np.ndarray | None) -> None:
+        """The body surface (V, 3) with its vertex normals; ``rgb``: per-vertex colours (contact tint) or None."""
+        if self.body_mesh is None:
+            self.body_mesh = self.pv.PolyData.from_regular_faces(bv.copy(), faces)
+            self.body_mesh.point_data["Normals"] = normals
+            self.body_mesh.point_data.active_normals_name = "Normals"
+            if rgb is not None:
+                self.body_mesh.point_data["rgb"] = rgb
+                self.plotter.add_mesh(self.body_mesh, scalars="rgb", rgb=True, show_scalar_bar=False, **self.shade)
+            else:
+                self.plotter.add_mesh(self.body_mesh, color=_BODY_COLOR, **self.shade)
+        else:
+            self.body_mesh.points = bv
+            self.body_mesh.point_data["Normals"] = normals
+            self.body_mesh.point_data.active_normals_name = "Normals"
+            if rgb is not None:
+                self.body_mesh.point_data["rgb"][:] = rgb
+
+    def skeleton(self, pose: np.ndarray) -> None:
+        """Bones and joint spheres of a (22, 3) pose."""
+        bones, balls = _bones(self.pv, pose), _spheres(self.pv, pose, _JOINT_RADIUS, res=12)
+        if self.skel_mesh is None:
+            self.skel_mesh, self.ball_mesh = bones, balls
+            self.plotter.add_mesh(self.skel_mesh, color=_SKELETON_COLOR, **self.shade)
+            self.plotter.add_mesh(self.ball_mesh, color=_SKELETON_COLOR, **self.shade)
+        else:
+            self.skel_mesh.copy_from(bones)
+            self.ball_mesh.copy_from(balls)
+
+    def object(self, ov: np.ndarray, faces: np.ndarray) -> None:
+        """The posed object (V, 3), smooth-shaded."""
+        if self.obj_mesh is None:
+            self.obj_mesh = self.pv.PolyData.from_regular_faces(ov.copy(), faces)
+            self.obj_mesh.point_data["Normals"] = _vertex_normals(ov, faces)
+            self.obj_mesh.point_data.active_normals_name = "Normals"
+            self.plotter.add_mesh(self.obj_mesh, color=_OBJECT_COLOR, **self.shade)
+        else:
+            self.obj_mesh.points = ov
+            self.obj_mesh.point_data["Normals"] = _vertex_normals(ov, faces)
+            self.obj_mesh.point_data.active_normals_name = "Normals"
+
+    def contacts(self, pose: np.ndarray, on: np.ndarray) -> None:
+        """Red spheres on the joints ``on`` of a (22, 3) pose (hidden when none)."""
+        if self.contact_mesh is None:
+            self.contact_mesh = _spheres(self.pv, pose[on[:1]] if len(on) else pose[:1], _CONTACT_RADIUS)
+            self.contact_actor = self.plotter.add_mesh(self.contact_mesh, color=_CONTACT_COLOR, ambient=0.3)
+        self.contact_actor.SetVisibility(bool(len(on)))
+        if len(on):
+            self.contact_mesh.copy_from(_spheres(self.pv, pose[on], _CONTACT_RADIUS))
+
+    def label(self, msg: str) -> None:
+        if self.text is None:
+            self.text = self.plotter.add_text(msg, position="upper_left", font_size=10, color="black")
+        elif hasattr(self.text, "SetInput"):
+            self.text.SetInput(msg)
+        else:  # vtkCornerAnnotation: corner 2 is the upper left
+            self.text.SetText(2, msg)
+
+
+def _check_body(body_vertices, body_faces, body_vertex_joint, contacts, T: int):
+    """(frame indices -> (n, V, 3) vertices or None, faces, vertex joints 0-21 for the contact tint or None)."""
+    body_fn = None
+    if body_vertices is not None:
+        if body_faces is None:
+            raise ValueError("body_faces: required with body_vertices")
+        body_faces = np.asarray(body_faces, np.int64)
+        if callable(body_vertices):
+            body_fn = body_vertices
+        else:
+            bv = np.asarray(body_vertices, np.float64)
+            if bv.ndim != 3 or bv.shape[0] != T or bv.shape[2] != 3:
+                raise ValueError(f"body_vertices: expected shape ({T}, V, 3), got {bv.shape}")
+            body_fn = bv.__getitem__
+    vjoint = None
+    if body_fn is not None and body_vertex_joint is not None and contacts is not None:
+        vj = np.asarray(body_vertex_joint, np.int64).reshape(-1)
+        vjoint = _SMPLH_TO_BODY[vj] if vj.max() >= 22 else vj
+    return body_fn, body_faces, vjoint
+
+
+def _view_box(J: np.ndarray, idx: np.ndarray, objs: _Object | None, body: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The box the camera frames: joints ``J`` of the selected frames (padded by the body's
+    thickness), the object, the floor."""
+    ok = np.isfinite(J).all(-1)
+    if not ok.any():
+        raise ValueError("render: no finite joint positions in the selected frames")
+    pad = _BODY_PAD if body else 0.05
+    lo, hi = J[ok].min(0) - pad, J[ok].max(0) + pad
+    if objs is not None:
+        olo, ohi = objs.bounds(idx)
+        if np.isfinite(olo).all() and np.isfinite(ohi).all():
+            lo, hi = np.minimum(lo, olo), np.maximum(hi, ohi)
+    lo[1] = min(lo[1], 0.0)
+    return lo, hi
+
+
+def _draw_frames(plotter, scene: _Scene, sink: _Sink, idx: np.ndarray, J: np.ndarray, cam: dict, body_fn,
+                 body_faces, vjoint, objs: _Object | None, obj_faces, contacts, label_of) -> None:
+    """Pose, draw and screenshot every selected frame into ``sink`` (the body posed
+    ``_BODY_CHUNK`` frames at a time; ``label_of(t)``: the label text, or None)."""
+    chunk_start, chunk = -1, None
+    for k, t in enumerate(idx):
+        if body_fn is not None:
+            if chunk is None or k >= chunk_start + len(chunk):
+                chunk_start = k
+                chunk = np.asarray(body_fn(idx[k:k + _BODY_CHUNK]), np.float64)
+                if chunk.ndim != 3 or chunk.shape[2] != 3 or len(chunk) != len(idx[k:k + _BODY_CHUNK]):
+                    raise ValueError(f"body_vertices: expected ({len(idx[k:k + _BODY_CHUNK])}, V, 3) "
+                                     f"vertices, got {chunk.shape}")
+            bv = chunk[k - chunk_start]
+            normals = _vertex_normals(bv, body_faces)
+            rgb = None
+            if vjoint is not None:
+                if len(vjoint) != len(bv):
+                    raise ValueError(f"body_vertex_joint: expected {len(bv)} entries, got {len(vjoint)}")
+                hot = contacts[t][vjoint]
+                rgb = (255 * np.where(hot[:, None], _CONTACT_COLOR, _BODY_COLOR)).astype(np.uint8)
+            scene.body(bv, body_faces, normals, rgb)
+        else:
+            scene.skeleton(J[k])
+        if objs is not None:
+            scene.object(objs.at(t), obj_faces)
+        if contacts is not None:
+            scene.contacts(J[k], np.flatnonzero(contacts[t]))
+        msg = label_of(t)
+        if msg is not None:
+            scene.label(msg)
+        if k == 0:
+            plotter.camera.position = tuple(cam["position"])
+            plotter.camera.focal_point = tuple(cam["focal_point"])
+            plotter.camera.up = tuple(cam["up"])
+            plotter.camera.view_angle = cam["view_angle"]
+        plotter.renderer.ResetCameraClippingRange()
+        plotter.render()
+        img = plotter.screenshot(return_img=True)
+        sink.add(np.ascontiguousarray(img[..., :3]))
+
+
 # --------------------------------------------------------------------------- rendering
 def render_sequence(joints, obj=None, obj_faces=None, contacts=None, out_path="render.gif", *,
                     body_vertices: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None,
@@ -356,36 +503,17 @@ def render_sequence(joints, obj=None, obj_faces=None, contacts=None, out_path="r
         contacts = np.asarray(contacts, bool)
         if contacts.shape != (T, 22):
             raise ValueError(f"contacts: expected shape ({T}, 22), got {contacts.shape}")
-    body_fn = None
-    if body_vertices is not None:
-        if body_faces is None:
-            raise ValueError("body_faces: required with body_vertices")
-        body_faces = np.asarray(body_faces, np.int64)
-        if callable(body_vertices):
-            body_fn = body_vertices
-        else:
-            bv = np.asarray(body_vertices, np.float64)
-            if bv.ndim != 3 or bv.shape[0] != T or bv.shape[2] != 3:
-                raise ValueError(f"body_vertices: expected shape ({T}, V, 3), got {bv.shape}")
-            body_fn = bv.__getitem__
-    vjoint = None
-    if body_fn is not None and body_vertex_joint is not None and contacts is not None:
-        vj = np.asarray(body_vertex_joint, np.int64).reshape(-1)
-        vjoint = _SMPLH_TO_BODY[vj] if vj.max() >= 22 else vj
+    body_fn, body_faces, vjoint = _check_body(body_vertices, body_faces, body_vertex_joint, contacts, T)
 
-    # the box the camera frames: joints (padded by the body's thickness), object, floor
     J = joints[idx]
-    ok = np.isfinite(J).all(-1)
-    if not ok.any():
-        raise ValueError("render: no finite joint positions in the selected frames")
-    pad = _BODY_PAD if body_fn is not None else 0.05
-    lo, hi = J[ok].min(0) - pad, J[ok].max(0) + pad
-    if objs is not None:
-        olo, ohi = objs.bounds(idx)
-        if np.isfinite(olo).all() and np.isfinite(ohi).all():
-            lo, hi = np.minimum(lo, olo), np.maximum(hi, ohi)
-    lo[1] = min(lo[1], 0.0)
+    lo, hi = _view_box(J, idx, objs, body_fn is not None)
     cam = camera_pose(lo, hi, _facing(J[0]), (w, h))
+
+    def label_of(t) -> str | None:
+        if not label:
+            return None
+        msg = f"{title}  " if title else ""
+        return msg + f"frame {int(t)}/{T - 1}  {t / clip_fps:.2f} s"
 
     pv = _import_pyvista()
     sink = _Sink(out, play_fps)
@@ -394,86 +522,8 @@ def render_sequence(joints, obj=None, obj_faces=None, contacts=None, out_path="r
         plotter.set_background("white")
         plotter.add_mesh(_floor(pv, lo, hi), scalars="rgb", rgb=True, show_scalar_bar=False,
                          ambient=0.3, diffuse=0.7)
-        shade = dict(specular=0.2, ambient=0.15)
-        body_mesh = skel_mesh = ball_mesh = obj_mesh = contact_mesh = contact_actor = text = None
-        chunk_start, chunk = -1, None
-        for k, t in enumerate(idx):
-            if body_fn is not None:
-                if chunk is None or k >= chunk_start + len(chunk):
-                    chunk_start = k
-                    chunk = np.asarray(body_fn(idx[k:k + _BODY_CHUNK]), np.float64)
-                    if chunk.ndim != 3 or chunk.shape[2] != 3 or len(chunk) != len(idx[k:k + _BODY_CHUNK]):
-                        raise ValueError(f"body_vertices: expected ({len(idx[k:k + _BODY_CHUNK])}, V, 3) "
-                                         f"vertices, got {chunk.shape}")
-                bv = chunk[k - chunk_start]
-                normals = _vertex_normals(bv, body_faces)
-                rgb = None
-                if vjoint is not None:
-                    if len(vjoint) != len(bv):
-                        raise ValueError(f"body_vertex_joint: expected {len(bv)} entries, got {len(vjoint)}")
-                    hot = contacts[t][vjoint]
-                    rgb = (255 * np.where(hot[:, None], _CONTACT_COLOR, _BODY_COLOR)).astype(np.uint8)
-                if body_mesh is None:
-                    body_mesh = pv.PolyData.from_regular_faces(bv.copy(), body_faces)
-                    body_mesh.point_data["Normals"] = normals
-                    body_mesh.point_data.active_normals_name = "Normals"
-                    if rgb is not None:
-                        body_mesh.point_data["rgb"] = rgb
-                        plotter.add_mesh(body_mesh, scalars="rgb", rgb=True, show_scalar_bar=False, **shade)
-                    else:
-                        plotter.add_mesh(body_mesh, color=_BODY_COLOR, **shade)
-                else:
-                    body_mesh.points = bv
-                    body_mesh.point_data["Normals"] = normals
-                    body_mesh.point_data.active_normals_name = "Normals"
-                    if rgb is not None:
-                        body_mesh.point_data["rgb"][:] = rgb
-            else:
-                bones, balls = _bones(pv, J[k]), _spheres(pv, J[k], _JOINT_RADIUS, res=12)
-                if skel_mesh is None:
-                    skel_mesh, ball_mesh = bones, balls
-                    plotter.add_mesh(skel_mesh, color=_SKELETON_COLOR, **shade)
-                    plotter.add_mesh(ball_mesh, color=_SKELETON_COLOR, **shade)
-                else:
-                    skel_mesh.copy_from(bones)
-                    ball_mesh.copy_from(balls)
-            if objs is not None:
-                ov = objs.at(t)
-                if obj_mesh is None:
-                    obj_mesh = pv.PolyData.from_regular_faces(ov.copy(), obj_faces)
-                    obj_mesh.point_data["Normals"] = _vertex_normals(ov, obj_faces)
-                    obj_mesh.point_data.active_normals_name = "Normals"
-                    plotter.add_mesh(obj_mesh, color=_OBJECT_COLOR, **shade)
-                else:
-                    obj_mesh.points = ov
-                    obj_mesh.point_data["Normals"] = _vertex_normals(ov, obj_faces)
-                    obj_mesh.point_data.active_normals_name = "Normals"
-            if contacts is not None:
-                on = np.flatnonzero(contacts[t])
-                if contact_mesh is None:
-                    contact_mesh = _spheres(pv, J[k, on[:1]] if len(on) else J[k, :1], _CONTACT_RADIUS)
-                    contact_actor = plotter.add_mesh(contact_mesh, color=_CONTACT_COLOR, ambient=0.3)
-                contact_actor.SetVisibility(bool(len(on)))
-                if len(on):
-                    contact_mesh.copy_from(_spheres(pv, J[k, on], _CONTACT_RADIUS))
-            if label:
-                msg = f"{title}  " if title else ""
-                msg += f"frame {int(t)}/{T - 1}  {t / clip_fps:.2f} s"
-                if text is None:
-                    text = plotter.add_text(msg, position="upper_left", font_size=10, color="black")
-                elif hasattr(text, "SetInput"):
-                    text.SetInput(msg)
-                else:  # vtkCornerAnnotation: corner 2 is the upper left
-                    text.SetText(2, msg)
-            if k == 0:
-                plotter.camera.position = tuple(cam["position"])
-                plotter.camera.focal_point = tuple(cam["focal_point"])
-                plotter.camera.up = tuple(cam["up"])
-                plotter.camera.view_angle = cam["view_angle"]
-            plotter.renderer.ResetCameraClippingRange()
-            plotter.render()
-            img = plotter.screenshot(return_img=True)
-            sink.add(np.ascontiguousarray(img[..., :3]))
+        _draw_frames(plotter, _Scene(pv, plotter), sink, idx, J, cam, body_fn, body_faces, vjoint, objs, obj_faces,
+                     contacts, label_of)
         plotter.close()
         return sink.commit()
     except BaseException:

@@ -330,54 +330,13 @@ def _load(path: Path, ident: dict, model, device) -> tuple[int, int, dict, dict,
     return read_checkpoint(path, ident, device, restore)
 
 
-def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny", *, device: str = "cpu",
-          resume: bool = True, stop_after: int | None = None, threads: int | None = None,
-          log: Callable[[str], None] | None = print) -> TrainResult:
-    """Train CATMO on ``data``'s train split into the run folder ``out`` (stages above).
-
-    ``stop_after``: stop after this many optimiser steps in total with the checkpoint
-    written (an interruption, for tests). All steps 0 writes the untrained model.
-    """
-    cfg = preset(config) if isinstance(config, str) else config
-    tag = f"[{NAME}]"
-    log = log or (lambda s: None)
-    out = Path(out)
-    dev = torch.device(device)
-    if threads:
-        torch.set_num_threads(threads)
-    t0 = time.perf_counter()
-    data_ = CD.read_data(data, "train", cfg.gpt.object_points, cfg.train.min_frames)
-    if not data_.items:
-        raise ValueError(f"{data}: no train clips with captions and >= {cfg.train.min_frames} rows; annotate the store "
-                         f"first (`hoibench annotate {data}`)")
-    dataset = _store_block(data_)
-    keys = ("manifest_sha256", "store_hml263_stats_sha256", "store_hoi269_stats_sha256")
-    done = _existing(out, NAME, cfg.to_dict(), dataset, keys)
-    if done is not None:
-        if (out / ckpt.CHECKPOINT_DIR).is_dir():
-            shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
-        log(f"{tag} {out} already holds this run ({done[ckpt.ID_KEY][:12]}); nothing to do")
-        return TrainResult(out, done[ckpt.ID_KEY], done, 0.0, already_trained=True)
-    out.mkdir(parents=True, exist_ok=True)
-    clean_stale_tmp(out)
-    clean_stale_tmp(out / ckpt.CHECKPOINT_DIR)
-    text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, data_.vocab)
-    torch.manual_seed(_seed(cfg.train.seed, "init"))
-    model = CATMO(cfg, len(text.vocab or []), text.width, data_.with_object).to(dev)
-    steps_of = stage_steps(cfg, data_.with_object)
-    ident = {"config": json.dumps(cfg.to_dict(), sort_keys=True), "baseline": NAME,
-             **{k: dataset[k] for k in keys}}
-    cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
-    stage_i, step, opt_state, curves, window = 0, 0, {}, {}, {}
-    if resume and cpath.exists():
-        stage_i, step, opt_state, curves, window = _load(cpath, ident, model, dev)
-        if stage_i < len(STAGES):
-            log(f"{tag} resuming at stage {STAGES[stage_i]} step {step}/{steps_of[STAGES[stage_i]]}")
-    n_params = {k: sum(p.numel() for p in m.parameters()) for k, m in model.named_children()}
-    log(f"{tag} training {cfg.name}: {sum(n_params.values()) / 1e6:.2f} M parameters, {len(data_.items)} train clips, "
-        f"{'human-object' if data_.with_object else 'human-only'} store, stages "
-        + ", ".join(f"{s} {steps_of[s]}" for s in STAGES if steps_of[s]) + f", device {dev}")
-    steps = Steps(model, data_, cfg, text, dev)
+def _run_stages(model: CATMO, steps: Steps, cfg: CatmoConfig, steps_of: dict[str, int],
+                resumed: tuple[int, int, dict, dict, dict], cpath: Path, ident: dict, stop_after: int | None,
+                log: Callable[[str], None], tag: str) -> dict[str, float] | None:
+    """Every stage's remaining steps from ``resumed`` (stage, step, optimiser state, curves,
+    loss window; ``curves`` is filled in place), checkpointed; each stage's seconds, or None
+    when ``stop_after`` stopped the run."""
+    stage_i, step, opt_state, curves, window = resumed
     taken = 0
     stage_seconds: dict[str, float] = {}
     while stage_i < len(STAGES):
@@ -429,9 +388,17 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
             if stop_after is not None and taken >= stop_after and not (step == total and stage_i == len(STAGES) - 1):
                 if step > saved:
                     _save(cpath, stage_i, step, model, opt, curves, window, ident)
-                return TrainResult(out, "", {}, time.perf_counter() - t0)
+                return None
         stage_seconds[stage] = round(time.perf_counter() - tl, 1)
         stage_i, step = stage_i + 1, 0
+    return stage_seconds
+
+
+def _write_result(out: Path, model: CATMO, data_: CD.CatmoData, cfg: CatmoConfig, text: TextConditioner, dev,
+                  dataset: dict, curves: dict[str, list[dict]], steps_of: dict[str, int], n_params: dict[str, int],
+                  stage_seconds: dict[str, float], cpath: Path, t0: float, log: Callable[[str], None],
+                  tag: str) -> TrainResult:
+    """VQ and matching reports, the run folder (weights, card), its curves and train log; the checkpoint removed."""
     model.eval()
     reports = {"train": vq_report(model, data_, dev)}
     test = CD.read_data(data_.store, "test", cfg.gpt.object_points, 1,
@@ -469,3 +436,66 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
         f"{ct['accuracy']:.3f}, F1 {ct['f1']:.3f}, perplexity {ct['perplexity']:.1f}")
     log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
     return TrainResult(out, cid, card, seconds)
+
+
+def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny", *, device: str = "cpu",
+          resume: bool = True, stop_after: int | None = None, threads: int | None = None,
+          log: Callable[[str], None] | None = print) -> TrainResult:
+    """Train CATMO on ``data``'s train split into the run folder ``out`` (stages above).
+
+    ``stop_after``: stop after this many optimiser steps in total with the checkpoint
+    written (an interruption, for tests). All steps 0 writes the untrained model.
+    """
+    cfg = preset(config) if isinstance(config, str) else config
+    tag = f"[{NAME}]"
+    log = log or (lambda s: None)
+    out = Path(out)
+    dev = torch.device(device)
+    if threads:
+        torch.set_num_threads(threads)
+    t0 = time.perf_counter()
+    data_ = CD.read_data(data, "train", cfg.gpt.object_points, cfg.train.min_frames)
+    if not data_.items:
+        raise ValueError(f"{data}: no train clips with captions and >= {cfg.train.min_frames} rows; annotate the store "
+                         f"first (`hoibench annotate {data}`)")
+    dataset = _store_block(data_)
+    keys = ("manifest_sha256", "store_hml263_stats_sha256", "store_hoi269_stats_sha256")
+    done = _existing(out, NAME, cfg.to_dict(), dataset, keys)
+    if done is not None:
+        if (out / ckpt.CHECKPOINT_DIR).is_dir():
+            shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
+        log(f"{tag} {out} already holds this run ({done[ckpt.ID_KEY][:12]}); nothing to do")
+        return TrainResult(out, done[ckpt.ID_KEY], done, 0.0, already_trained=True)
+    out.mkdir(parents=True, exist_ok=True)
+    clean_stale_tmp(out)
+    clean_stale_tmp(out / ckpt.CHECKPOINT_DIR)
+    text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, data_.vocab)
+    torch.manual_seed(_seed(cfg.train.seed, "init"))
+    model = CATMO(cfg, len(text.vocab or []), text.width, data_.with_object).to(dev)
+    steps_of = stage_steps(cfg, data_.with_object)
+    ident = {"config": json.dumps(cfg.to_dict(), sort_keys=True), "baseline": NAME,
+             **{k: dataset[k] for k in keys}}
+    cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
+    resumed = (0, 0, {}, {}, {})                  # stage, step, optimiser state, curves, loss window
+    if resume and cpath.exists():
+        resumed = _load(cpath, ident, model, dev)
+        if resumed[0] < len(STAGES):
+            log(f"{tag} resuming at stage {STAGES[resumed[0]]} step {resumed[1]}/{steps_of[STAGES[resumed[0]]]}")
+    n_params = {k: sum(p.numel() for p in m.parameters()) for k, m in model.named_children()}
+    log(f"{tag} training {cfg.name}: {sum(n_params.values()) / 1e6:.2f} M parameters, {len(data_.items)} train clips, "
+        f"{'human-object' if data_.with_object else 'human-only'} store, stages "
+        + ", ".join(f"{s} {steps_of[s]}" for s in STAGES if steps_of[s]) + f", device {dev}")
+    steps = Steps(model, data_, cfg, text, dev)
+    stage_seconds = _run_stages(model, steps, cfg, steps_of, resumed, cpath, ident, stop_after, log, tag)
+    if stage_seconds is None:
+        return TrainResult(out, "", {}, time.perf_counter() - t0)
+    return _write_result(out, model, data_, cfg, text, dev, dataset, resumed[3], steps_of, n_params, stage_seconds,
+                         cpath, t0, log, tag)
+
+
+def train_baseline(spec, data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny", *,
+                   device: str = "cpu", resume: bool = True, stop_after: int | None = None,
+                   threads: int | None = None, log: Callable[[str], None] | None = print) -> TrainResult:
+    """CATMO's train entry point in the baseline registry (``spec``: its
+    :class:`~hoibench.baselines.registry.Spec`): :func:`train`."""
+    return train(data, out, config, device=device, resume=resume, stop_after=stop_after, threads=threads, log=log)
