@@ -242,22 +242,12 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
                                      threads=threads, log=log)
 
 
-def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig | str = "tiny", *,
-                device: str = "cpu", resume: bool = True, stop_after: int | None = None, threads: int | None = None,
-                log: Callable[[str], None] | None = print) -> TrainResult:
-    """Train the joint-level diffusion baseline ``spec`` (ChainHOI, EJIM): :func:`train`'s
-    registry entry point for ``kind = "diffusion"``."""
-    cfg = spec.preset(config) if isinstance(config, str) else config
-    tag = f"[{spec.name}]"
-    log = log or (lambda s: None)
-    out = Path(out)
-    dev = torch.device(device)
-    if threads:
-        torch.set_num_threads(threads)
-    t0 = time.perf_counter()
-    ts = training_set(data, cfg)
-    dataset = _store_block(ts.store, ts)
-    done = _existing(out, spec.name, cfg.to_dict(), dataset)
+def finished_run(out: Path, name: str, config: dict, dataset: dict, tag: str, log: Callable[[str], None],
+                 keys: tuple[str, ...] | None = None) -> "TrainResult | None":
+    """The finished run already in ``out`` for this config and store (its leftover
+    checkpoints removed), or None after making ``out`` ready for training (stale temporary
+    files removed)."""
+    done = _existing(out, name, config, dataset) if keys is None else _existing(out, name, config, dataset, keys)
     if done is not None:
         if (out / ckpt.CHECKPOINT_DIR).is_dir():        # interrupted after the folder was written
             shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
@@ -266,6 +256,31 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
     out.mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(out)
     clean_stale_tmp(out / ckpt.CHECKPOINT_DIR)
+    return None
+
+
+def start_run(out: str | Path, device: str, threads: int | None, log: Callable[[str], None] | None
+              ) -> tuple[Callable[[str], None], Path, "torch.device", float]:
+    """What every baseline's training starts with: the log function (None: silent), the run
+    folder, the torch device, the thread count set, and the start time."""
+    if threads:
+        torch.set_num_threads(threads)
+    return log or (lambda s: None), Path(out), torch.device(device), time.perf_counter()
+
+
+def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig | str = "tiny", *,
+                device: str = "cpu", resume: bool = True, stop_after: int | None = None, threads: int | None = None,
+                log: Callable[[str], None] | None = print) -> TrainResult:
+    """Train the joint-level diffusion baseline ``spec`` (ChainHOI, EJIM): :func:`train`'s
+    registry entry point for ``kind = "diffusion"``."""
+    cfg = spec.preset(config) if isinstance(config, str) else config
+    tag = f"[{spec.name}]"
+    log, out, dev, t0 = start_run(out, device, threads, log)
+    ts = training_set(data, cfg)
+    dataset = _store_block(ts.store, ts)
+    finished = finished_run(out, spec.name, cfg.to_dict(), dataset, tag, log)
+    if finished is not None:
+        return finished
     text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, ts.vocab)
     model = build_model(spec, cfg, text, cfg.train.seed).to(dev)
     ema = EMA(model, cfg.train.ema_decay)

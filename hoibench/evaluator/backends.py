@@ -15,9 +15,10 @@ Adding a backend (for example one that imports a published evaluator) is one
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import import_module
 from pathlib import Path
 from typing import Any
+
+from ..core.registry import Registry, load_object
 
 
 @dataclass(frozen=True)
@@ -31,19 +32,15 @@ class Backend:
     description: str
 
     def load(self, folder: str | Path, **options) -> Any:
-        mod, _, attr = self.loader.partition(":")
-        return getattr(import_module(mod, __package__), attr)(folder, **options)
+        return load_object(self.loader, __package__)(folder, **options)
 
 
-_BACKENDS: dict[str, Backend] = {}
+_BACKENDS: Registry[Backend] = Registry("evaluator backend")
 
 
 def register_backend(backend: Backend) -> Backend:
     """Add ``backend`` to the registry (a name registered twice is an error)."""
-    if backend.name in _BACKENDS:
-        raise ValueError(f"evaluator backend {backend.name!r} is registered twice")
-    _BACKENDS[backend.name] = backend
-    return backend
+    return _BACKENDS.add(backend.name, backend)
 
 
 register_backend(Backend("contrastive", "contrastive", "card.json", ".card:load_evaluator",
@@ -53,13 +50,11 @@ register_backend(Backend("recognizer", "recognizer", "recognizer.json", ".recogn
 
 
 def list_backends() -> list[Backend]:
-    return [_BACKENDS[k] for k in sorted(_BACKENDS)]
+    return _BACKENDS.values()
 
 
 def get_backend(name: str) -> Backend:
-    if name not in _BACKENDS:
-        raise KeyError(f"unknown evaluator backend {name!r}; known: {', '.join(sorted(_BACKENDS))}")
-    return _BACKENDS[name]
+    return _BACKENDS.get(name)
 
 
 def backend_of(folder: str | Path) -> Backend | None:

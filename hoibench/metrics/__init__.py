@@ -19,7 +19,6 @@ from here instead of guessing. docs/metrics.md is the catalogue.
 """
 from __future__ import annotations
 
-import importlib
 from dataclasses import asdict, dataclass
 
 from .embedding import (FID, Diversity, MultiModality, RPrecision, activation_statistics, diversity,
@@ -44,8 +43,8 @@ class MetricInfo:
 
     def load(self):
         """Import and return the implementation named by ``impl``."""
-        mod, _, attr = self.impl.partition(":")
-        return getattr(importlib.import_module(mod), attr)
+        from ..core.registry import load_object
+        return load_object(self.impl)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -132,16 +132,19 @@ def _nsamples(n) -> int:
     return int(n)
 
 
-def _distance_kind(x) -> str:
-    if x not in DISTANCES:
-        raise ValueError(f"distance: expected one of {DISTANCES}, got {x!r}")
+def _choice(x, options: tuple, field: str) -> str:
+    """``x`` when it is one of ``options``; ``ValueError`` naming ``field`` otherwise."""
+    if x not in options:
+        raise ValueError(f"{field}: expected one of {options}, got {x!r}")
     return x
+
+
+def _distance_kind(x) -> str:
+    return _choice(x, DISTANCES, "distance")
 
 
 def _pair_reduction(x) -> str:
-    if x not in PAIR_REDUCTIONS:
-        raise ValueError(f"pair_reduction: expected one of {PAIR_REDUCTIONS}, got {x!r}")
-    return x
+    return _choice(x, PAIR_REDUCTIONS, "pair_reduction")
 
 
 def _num_frames(n) -> int | None:
@@ -153,9 +156,7 @@ def _num_frames(n) -> int | None:
 
 
 def _mode(x) -> str:
-    if x not in DIVERSITY_MODES:
-        raise ValueError(f"mode: expected one of {DIVERSITY_MODES}, got {x!r}")
-    return x
+    return _choice(x, DIVERSITY_MODES, "mode")
 
 
 def _frames(x, field: str) -> np.ndarray:

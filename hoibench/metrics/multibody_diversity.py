@@ -92,15 +92,12 @@ def overall_diversity(trajectories, num_frames: int | None = DIFFH2O_FRAMES, mod
 
 
 # ===================================================================== mergeable metrics
-class SampleDiversity(_PerClipMean):
-    """SD (DiffH2O, as SyncDiff reports it): keyed by prompt id, each prompt's mean pairwise
-    distance between its generated wrist trajectories; the mean over prompts (metres, see
-    :func:`mean_pairwise_distance` for ``mode``)."""
+class _TrajectorySettings:
+    """What SD and OD share: frames sampled per trajectory, the distance mode (metres) and
+    their direction (higher is better)."""
 
-    name = "sd"
     higher_is_better = True
     units = "m (diffh2o: flattened distance / frames)"
-    paper_column = "SD (SyncDiff / DiffH2O)"
 
     def __init__(self, num_frames: int | None = DIFFH2O_FRAMES, mode: str = "diffh2o"):
         super().__init__()
@@ -108,6 +105,15 @@ class SampleDiversity(_PerClipMean):
 
     def config(self) -> dict:
         return {"num_frames": self.num_frames, "mode": self.mode}
+
+
+class SampleDiversity(_TrajectorySettings, _PerClipMean):
+    """SD (DiffH2O, as SyncDiff reports it): keyed by prompt id, each prompt's mean pairwise
+    distance between its generated wrist trajectories; the mean over prompts (metres, see
+    :func:`mean_pairwise_distance` for ``mode``)."""
+
+    name = "sd"
+    paper_column = "SD (SyncDiff / DiffH2O)"
 
     def update(self, prompt_id, trajectories) -> None:
         """``trajectories``: the S >= 2 samples of one prompt, each (T, 3) or (T, J, 3)."""
@@ -115,24 +121,18 @@ class SampleDiversity(_PerClipMean):
         self._put(prompt_id, _prompt_diversity(trajectories, self.num_frames, self.mode, "trajectories"), "prompt_id")
 
 
-class OverallDiversity(Metric):
+class OverallDiversity(_TrajectorySettings, Metric):
     """OD (DiffH2O, as SyncDiff reports it): every generated wrist trajectory of a split,
     keyed by id (e.g. ``(prompt id, sample)``); ``compute()`` stacks them in sorted key
     order and returns their mean pairwise distance (metres, see
     :func:`mean_pairwise_distance`)."""
 
     name = "od"
-    higher_is_better = True
-    units = "m (diffh2o: flattened distance / frames)"
     paper_column = "OD (SyncDiff / DiffH2O)"
 
     def __init__(self, num_frames: int | None = DIFFH2O_FRAMES, mode: str = "diffh2o"):
-        super().__init__()
-        self.num_frames, self.mode = _num_frames(num_frames), _mode(mode)
+        super().__init__(num_frames, mode)
         self.add_state("trajectories", {}, "keyed")
-
-    def config(self) -> dict:
-        return {"num_frames": self.num_frames, "mode": self.mode}
 
     def update(self, clip_id, trajectory) -> None:
         """One generated wrist trajectory (T, 3) or (T, J, 3)."""

@@ -34,7 +34,6 @@ fitting the surface (``floor_shift``).
 """
 from __future__ import annotations
 
-import importlib
 import json
 from dataclasses import asdict, dataclass, field
 from functools import partial
@@ -47,6 +46,7 @@ from ..core import skeleton as sk
 from ..bodies.contact import joint_thresholds
 from ..bodies.distance import signed_distance_field, to_template_frame
 from ..core.parallel import map_units
+from ..core.registry import load_object
 from . import METRICS
 from . import contact_metrics as cm
 from . import motion as mo
@@ -135,8 +135,7 @@ class ClipInput:
 def _body_fn(config: PhysicalConfig) -> Callable:
     if config.body_surface == "proxy":
         return proxy_vertices_from_joints
-    mod, _, attr = config.body_surface.partition(":")
-    return getattr(importlib.import_module(mod), attr)
+    return load_object(config.body_surface)
 
 
 def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig()) -> dict:

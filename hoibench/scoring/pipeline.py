@@ -21,6 +21,8 @@ import time
 from contextlib import AbstractContextManager
 from typing import Any, Callable, Iterable
 
+from ..core.registry import Registry, load_object
+
 
 class Scorer:
     """The stages of one evaluation (see the module docstring). Subclasses set ``name``,
@@ -70,22 +72,20 @@ class Scorer:
         raise NotImplementedError
 
 
-_SCORERS: dict[str, str] = {"hoi": ".hoi:HOIScorer", "multibody": ".multibody:MultiBodyScorer"}
+_SCORERS: Registry[str] = Registry("scorer")
 
 
 def register_scorer(name: str, path: str) -> None:
     """Register a scorer class by ``"module:Class"`` (relative to this package or absolute)."""
-    if name in _SCORERS:
-        raise ValueError(f"scorer {name!r} is registered twice")
-    _SCORERS[name] = path
+    _SCORERS.add(name, path)
+
+
+register_scorer("hoi", ".hoi:HOIScorer")
+register_scorer("multibody", ".multibody:MultiBodyScorer")
 
 
 def get_scorer(name: str) -> type[Scorer]:
-    from importlib import import_module
-    if name not in _SCORERS:
-        raise KeyError(f"unknown scorer {name!r}; known: {', '.join(sorted(_SCORERS))}")
-    mod, _, attr = _SCORERS[name].partition(":")
-    return getattr(import_module(mod, __package__), attr)
+    return load_object(_SCORERS.get(name), __package__)
 
 
 __all__ = ["Scorer", "register_scorer", "get_scorer"]

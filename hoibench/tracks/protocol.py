@@ -197,6 +197,15 @@ def _need(d: dict, key: str, kind, where: str):
     return v
 
 
+def _listed_metrics(d: dict, known: list, where: str) -> tuple:
+    """The protocol's ``metrics`` list, each one of ``known``."""
+    metrics = tuple(_need(d, "metrics", list, where))
+    unknown = [m for m in metrics if m not in known]
+    if unknown:
+        raise ValueError(f"{where}: field 'metrics' names unknown metrics {unknown}; known: {known}")
+    return metrics
+
+
 def _positive(v, key: str, where: str):
     if not v > 0:
         raise ValueError(f"{where}: field {key!r} must be positive, got {v!r}")
@@ -242,10 +251,7 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
         _need(phys["fsr"], key, float, f"{w}: physical.fsr")
     for key, kind in (("height_m", float), ("speed_mps", float), ("window_frames", int)):
         _need(phys["fsr_gmd"], key, kind, f"{w}: physical.fsr_gmd")
-    metrics = tuple(_need(d, "metrics", list, w))
-    unknown = [m for m in metrics if m not in METRICS]
-    if unknown:
-        raise ValueError(f"{w}: field 'metrics' names unknown metrics {unknown}; known: {sorted(METRICS)}")
+    metrics = _listed_metrics(d, sorted(METRICS), w)
     proto = Protocol(
         id=_need(d, "id", str, w), version=_need(d, "version", str, w), dataset=_need(d, "dataset", str, w),
         split=_need(d, "split", str, w), mode=mode, fps=_positive(_need(d, "fps", float, w), "fps", w),
@@ -271,25 +277,11 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
 MULTIBODY_METRICS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
 
 
-def _mb_need(d: dict, key: str, kind, where: str):
-    if key not in d:
-        raise ValueError(f"{where}: missing field {key!r}")
-    v = d[key]
-    if kind is float and isinstance(v, int) and not isinstance(v, bool):
-        v = float(v)
-    if not isinstance(v, kind) or isinstance(v, bool) and kind is not bool:
-        raise ValueError(f"{where}: field {key!r}: expected {kind.__name__}, got {v!r}")
-    return v
-
-
 def _parse_multibody(d: dict, w: str, track: str) -> Protocol:
     """The ``multibody`` kind's settings, validated."""
-    need = _mb_need
+    need = _need
     c, p, dv, r = (need(d, k, dict, w) for k in ("contact", "penetration", "diversity", "recognizer"))
-    metrics = tuple(need(d, "metrics", list, w))
-    unknown = [m for m in metrics if m not in MULTIBODY_METRICS]
-    if unknown:
-        raise ValueError(f"{w}: field 'metrics' names unknown metrics {unknown}; known: {list(MULTIBODY_METRICS)}")
+    metrics = _listed_metrics(d, list(MULTIBODY_METRICS), w)
     proto = Protocol(
         id=need(d, "id", str, w), version=need(d, "version", str, w), dataset=need(d, "dataset", str, w),
         split=need(d, "split", str, w), fps=need(d, "fps", float, w),

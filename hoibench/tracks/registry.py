@@ -25,14 +25,12 @@ from .track import _TRACKS, STORE_KINDS, Track, register_track
 
 def list_tracks() -> list[Track]:
     """Every registered track, sorted by name."""
-    return [_TRACKS[k] for k in sorted(_TRACKS)]
+    return _TRACKS.values()
 
 
 def get_track(name: str) -> Track:
     """A track by name; ``KeyError`` listing the known names otherwise."""
-    if name not in _TRACKS:
-        raise KeyError(f"unknown track {name!r}; known: {', '.join(sorted(_TRACKS))}")
-    return _TRACKS[name]
+    return _TRACKS.get(name)
 
 
 def track_for_dataset(dataset: str, multibody: bool = False) -> Track:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..core.registry import Registry
+
 #: the kinds of store a track may read
 STORE_KINDS = ("hoi", "human", "multibody")
 
@@ -49,17 +51,14 @@ class Track:
                 "description": self.description}
 
 
-_TRACKS: dict[str, Track] = {}
+_TRACKS: Registry[Track] = Registry("track")
 
 
 def register_track(track: Track) -> Track:
     """Add ``track`` to the registry (a name registered twice is an error)."""
-    if track.name in _TRACKS:
-        raise ValueError(f"track {track.name!r} is registered twice")
     if track.store_kind not in STORE_KINDS:
         raise ValueError(f"track {track.name!r}: store_kind must be one of {STORE_KINDS}, got {track.store_kind!r}")
-    _TRACKS[track.name] = track
-    return track
+    return _TRACKS.add(track.name, track)
 
 
 __all__ = ["Track", "STORE_KINDS", "register_track"]

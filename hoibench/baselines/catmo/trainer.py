@@ -44,7 +44,8 @@ from ...core.io import atomic_torch_save, atomic_write_json, clean_stale_tmp
 from ...representations import hml263
 from .. import checkpoint as ckpt
 from ..text import TextConditioner
-from ..trainer import TrainingDiverged, TrainResult, _existing, _seed, drop_checkpoint, plot_panels, read_checkpoint
+from ..trainer import (TrainingDiverged, TrainResult, _existing, _seed, drop_checkpoint, plot_panels, read_checkpoint,
+                       finished_run, start_run)
 from . import data as CD
 from .config import CatmoConfig, preset
 from .gpt import corrupt, interleave
@@ -448,27 +449,16 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
     """
     cfg = preset(config) if isinstance(config, str) else config
     tag = f"[{NAME}]"
-    log = log or (lambda s: None)
-    out = Path(out)
-    dev = torch.device(device)
-    if threads:
-        torch.set_num_threads(threads)
-    t0 = time.perf_counter()
+    log, out, dev, t0 = start_run(out, device, threads, log)
     data_ = CD.read_data(data, "train", cfg.gpt.object_points, cfg.train.min_frames)
     if not data_.items:
         raise ValueError(f"{data}: no train clips with captions and >= {cfg.train.min_frames} rows; annotate the store "
                          f"first (`hoibench annotate {data}`)")
     dataset = _store_block(data_)
     keys = ("manifest_sha256", "store_hml263_stats_sha256", "store_hoi269_stats_sha256")
-    done = _existing(out, NAME, cfg.to_dict(), dataset, keys)
-    if done is not None:
-        if (out / ckpt.CHECKPOINT_DIR).is_dir():
-            shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
-        log(f"{tag} {out} already holds this run ({done[ckpt.ID_KEY][:12]}); nothing to do")
-        return TrainResult(out, done[ckpt.ID_KEY], done, 0.0, already_trained=True)
-    out.mkdir(parents=True, exist_ok=True)
-    clean_stale_tmp(out)
-    clean_stale_tmp(out / ckpt.CHECKPOINT_DIR)
+    finished = finished_run(out, NAME, cfg.to_dict(), dataset, tag, log, keys)
+    if finished is not None:
+        return finished
     text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, data_.vocab)
     torch.manual_seed(_seed(cfg.train.seed, "init"))
     model = CATMO(cfg, len(text.vocab or []), text.width, data_.with_object).to(dev)
