@@ -56,7 +56,7 @@ import numpy as np
 from ..core.errors import StrictStop
 from ..core.io import atomic_write_json, atomic_write_text, clean_stale_tmp
 from ..core.parallel import map_units
-from .captions import SOURCE, ClipAnnotation, annotate_clip, humanml3d_line, parse_humanml3d_line
+from .captions import ANNOTATOR_ID, SOURCE, ClipAnnotation, annotate_clip, humanml3d_line, parse_humanml3d_line
 from .spec import SPEC_ENV, AnnotatorSpec, SpecError, Token, default_spec_dir, load_spec, parse_phrase
 from .spec import SPEC_FILE, UPOS, Phrase, Slot  # noqa: F401  (re-exported for callers of this module)
 from .timeline import (_REPEAT_SUFFIX, ActionSpan, action_from_name, body_part_timeline, resolve_action,
@@ -300,7 +300,7 @@ def annotate_store(data: str | Path, spec_dir: str | Path | None = None, seed: i
     groups: dict[str, list[str]] = {}
     for cid in sorted(annotations):
         groups.setdefault(annotations[cid]["group_id"], []).append(cid)
-    index = {"annotator": "hoibench.text.annotate", "annotator_version": spec.version, "spec_name": spec.name,
+    index = {"annotator": ANNOTATOR_ID, "annotator_version": spec.version, "spec_name": spec.name,
              "spec_sha256": spec.sha256, "seed": int(seed),
              "labels": None if not labels else {"scheme": labels["scheme"], "file": Path(labels.get("path", "")).name},
              "counts": {"clips": len(ids), "annotated": len(annotations), "failed": len(errors),

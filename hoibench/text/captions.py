@@ -22,6 +22,9 @@ from .timeline import (ActionSpan, _Action, _candidate_masks, _normalise_actions
                        _select_units, _unit_entry, body_part_timeline, group_id)
 
 SOURCE = "annotator"            # `source` of generated texts; human texts keep theirs
+#: the annotator's name as annotation files record it (a stable id, not a module path: it
+#: enters the texts' hashes, so it did not change when the module moved to hoibench.text)
+ANNOTATOR_ID = "hoibench.annotate"
 
 
 # =========================================================================== rendering
@@ -196,7 +199,7 @@ class ClipAnnotation:
         d = asdict(self)
         if d["scene_partner"] is None:
             del d["scene_partner"]
-        d["annotator"] = "hoibench.text.annotate"
+        d["annotator"] = ANNOTATOR_ID
         return d
 
     def humanml3d_lines(self) -> list[str]:
