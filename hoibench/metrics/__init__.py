@@ -5,6 +5,8 @@ mergeable class (torchmetrics-style; see :mod:`hoibench.metrics.state`).
 Modules (find a metric by its file):
 
 * :mod:`~hoibench.metrics.embedding` -- FID, R-precision, MM-Dist, Diversity, MultiModality;
+* :mod:`~hoibench.metrics.legacy_loops` -- the papers' released evaluation loops for those
+  metrics (text-to-motion, MDM, ChainHOI, InterAct), replayed exactly on fixed embeddings;
 * :mod:`~hoibench.metrics.contact_metrics` -- CD, OCD, PS, penetration depth, contact IoU,
   hand-object contact ratio, object floating (one clip, from signed distances);
 * :mod:`~hoibench.metrics.motion` -- foot skating (ChainHOI legacy / clean, GMD) and jitter;
