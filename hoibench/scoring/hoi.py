@@ -228,10 +228,14 @@ class HOIScorer(Scorer):
             self.notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs "
                               f"{proto.mm_samples}")
         where = {cid: i for i, cid in enumerate(ids)}
+        self.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
+        if proto.embedding_loop != "hoibench":
+            self._t4 = t4
+            return self._reference_loop_rows(real, text_sets, physical)
         pools_for = lambda r: [[where[c] for c in p] for p in proto.pools(ids, r)]  # noqa: E731
         retrieval, fid_by_sample = {}, {}
         real_stats = em.activation_statistics(real)               # once, for every sample index
-        self.fid_method = fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
+        fid_method = self.fid_method
         for k in self.ks_physical:
             retrieval[k] = em.retrieval_replications(text_sets, gen[k], pools_for,
                                                      lambda r: proto.seed_for("caption", r),
@@ -255,6 +259,29 @@ class HOIScorer(Scorer):
             per_rep.append(row)
         self._t4 = t4
         return per_rep
+
+    def _reference_loop_rows(self, real: np.ndarray, text_sets: list[np.ndarray], physical: dict) -> list[dict]:
+        """Per-replication rows from a paper's released loop (the protocol's ``embedding_loop``,
+        :func:`hoibench.metrics.legacy_loops.run_loop`) on this submission's embeddings: one
+        caption per clip drawn with the protocol's seed, sample 0 as the generated motions,
+        the first ``mm_samples`` samples for MultiModality when K allows, the protocol's
+        replications; the physical metrics of replication r use sample ``r mod K``."""
+        from ..metrics.legacy_loops import run_loop
+        proto, K = self.proto, self.K
+        rng = np.random.default_rng(proto.seed_for("caption", 0))
+        text = np.stack([t[int(rng.integers(len(t)))] for t in text_sets])
+        samples = self.gen[:proto.mm_samples] if self.mm_ok else None
+        result = run_loop(proto.embedding_loop, text, self.gen[0], real, samples, seed=int(proto.seed),
+                          replications=int(proto.replications))
+        self.fid_method = "sqrtm (the reference loop's)"
+        self.notes += [f"{proto.embedding_loop} loop: {n}" for n in result.notes]
+        rows = []
+        for r, row in enumerate(result.rows()):
+            k = proto.sample_index(r, K)
+            row.update({key: float(v) for key, v in physical[k].items()
+                        if isinstance(v, (int, float)) and not isinstance(v, bool)})
+            rows.append(row)
+        return rows
 
     def summary(self, rows: list[dict]) -> dict:
         from ..tracks.protocol import summarize_replications
@@ -289,6 +316,8 @@ class HOIScorer(Scorer):
                        "warnings": len(report.warnings)},
             "body_surface": proto.physical_config().body_label,
             "numerics": {"fid": self.fid_method},
+            "metric_variants": {"embedding_loop": proto.embedding_loop,
+                                "physical": proto.physical_config().to_dict()},
             "metrics": summarize_replications(per_rep, proto.replications),
             "undefined_metrics": undefined,
             "per_replication": per_rep, "notes": notes,

@@ -85,6 +85,7 @@ class Protocol:
     mm_samples: int | None = None
     mm_pairs: int | None = None
     physical: dict | None = None
+    embedding_loop: str = "hoibench"
     # --- multibody
     samples_per_prompt: int | None = None
     surfaces: str | None = None
@@ -101,6 +102,8 @@ class Protocol:
         """The kind's settings (``KIND_FIELDS``), JSON-ready: what the content hash covers and
         what a worker process receives (:meth:`from_plain`)."""
         d = {k: getattr(self, k) for k in KIND_FIELDS[self.kind]}
+        if self.kind == "hoi" and self.embedding_loop != "hoibench":
+            d["embedding_loop"] = self.embedding_loop    # absent = hoibench's loop (older hashes unchanged)
         d["metrics"] = list(self.metrics)
         if "changelog" in d:
             d["changelog"] = list(self.changelog)
@@ -197,6 +200,18 @@ def _need(d: dict, key: str, kind, where: str):
     return v
 
 
+def _embedding_loop(d: dict, where: str) -> str:
+    """The ``embedding_loop`` a protocol names: ``hoibench`` (default: seeded pools and draws,
+    :mod:`hoibench.metrics.embedding`) or a paper's released loop
+    (:data:`hoibench.metrics.legacy_loops.LOOPS`)."""
+    from ..metrics.legacy_loops import LOOPS
+    loop = d.get("embedding_loop", "hoibench")
+    known = ("hoibench", *sorted(LOOPS))
+    if loop not in known:
+        raise ValueError(f"{where}: field 'embedding_loop' must be one of {known}, got {loop!r}")
+    return loop
+
+
 def _listed_metrics(d: dict, known: list, where: str) -> tuple:
     """The protocol's ``metrics`` list, each one of ``known``."""
     metrics = tuple(_need(d, "metrics", list, where))
@@ -266,7 +281,8 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
         mm_samples=_positive(_need(mm, "samples", int, f"{w}: multimodality"), "samples", w),
         mm_pairs=_positive(_need(mm, "pairs", int, f"{w}: multimodality"), "pairs", w),
         physical=phys, metrics=metrics, description=str(d.get("description", "")).strip(),
-        changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w, kind="hoi", track=track)
+        changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w, kind="hoi", track=track,
+        embedding_loop=_embedding_loop(d, w))
     if proto.mm_samples <= proto.mm_pairs:
         raise ValueError(f"{w}: multimodality.samples must exceed multimodality.pairs")
     proto.physical_config()          # the physical settings must be valid too
