@@ -160,3 +160,37 @@ def test_a_new_track_is_one_registry_entry_plus_a_protocol_file(stores, tmp_path
     assert res["protocol"] == "lab-hoi-clean" and res["dataset"] == "lab-hoi"
     assert abs(res["metrics"]["fid"]["mean"]) < 1e-4
     assert Track.__dataclass_fields__.keys() >= {"store_kind", "evaluator_kind", "columns", "submission"}
+
+
+def test_a_protocol_naming_a_reference_loop_scores_with_it(stores, tmp_path, monkeypatch):
+    """``embedding_loop: chainhoi`` with one replication: the scorer hands the loop one caption
+    per clip, sample 0 and the GT embeddings, and reports the loop's values as they are."""
+    from hoibench.metrics import legacy_loops
+    from hoibench.scoring.evaluate import evaluate
+    base, data, _ = stores
+    src = Path(P.get_protocol("synthetic-clean").source).read_text()
+    proto = tmp_path / "synthetic-chainhoi-loop.yaml"
+    proto.write_text(src.replace("id: synthetic-clean", "id: synthetic-chainhoi-loop")
+                     .replace("replications: 20", "replications: 1\nembedding_loop: chainhoi"))
+    parsed = P.load_protocol(proto)
+    assert parsed.embedding_loop == "chainhoi" and parsed.sha256 != P.get_protocol("synthetic-clean").sha256
+    seen = {}
+    original = legacy_loops.run_loop
+
+    def spy(name, text, motion, gt_motion, samples=None, **kw):
+        out = original(name, text, motion, gt_motion, samples, **kw)
+        seen.update(name=name, shapes=(text.shape, motion.shape, gt_motion.shape), rows=out.rows(), kw=kw)
+        return out
+
+    monkeypatch.setattr(legacy_loops, "run_loop", spy)
+    res = evaluate(base / "gt", data, base / "ev", protocol=str(proto), allow_failed_gate=True)
+    n = res["counts"]["scored_ids"]
+    assert seen["name"] == "chainhoi" and seen["kw"]["replications"] == 1
+    assert seen["shapes"][0][0] == seen["shapes"][1][0] == seen["shapes"][2][0] == n
+    assert res["metric_variants"]["embedding_loop"] == "chainhoi" and len(res["per_replication"]) == 1
+    for name in ("r_precision_top1", "r_precision_top3", "mm_dist", "fid"):
+        assert res["per_replication"][0][name] == pytest.approx(seen["rows"][0][name], abs=0)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(proto.read_text().replace("embedding_loop: chainhoi", "embedding_loop: mine"))
+    with pytest.raises(ValueError, match="bad.yaml: field 'embedding_loop' must be one of"):
+        P.load_protocol(bad)
