@@ -34,3 +34,41 @@ def test_slug_and_source_are_checked():
         slug("+++")
     with pytest.raises(ValueError, match="source"):
         entry_from_result(RESULT, method="x", track="synthetic", source="claimed")
+
+
+def test_a_row_is_comparable_with_a_paper_only_under_its_legacy_protocol_and_evaluator(tmp_path):
+    from hoibench.publish.leaderboard import LeaderboardError, comparable, comparable_citations, read_entry
+    from hoibench.publish.pages import _flags
+    paper = {"source": "reported", "citation": "ChainHOI Tab. 1", "method": "ChainHOI",
+             "comparable_with": {"protocol": "behave-legacy", "evaluator_backend": "chainhoi"}}
+    ours = entry_from_result({**RESULT, "protocol": "behave-legacy", "evaluator_backend": "chainhoi"},
+                             method="mine", track="behave")
+    assert comparable(ours, paper) and comparable_citations(ours, [paper]) == ["ChainHOI Tab. 1"]
+    assert _flags(ours, [paper]) == ["comparable with ChainHOI Tab. 1", "incomplete", "1 missing ids"]
+    assert _flags({**paper, "metrics": {}}, [ours])[0] == "reported, comparable with 1 scored row(s)"
+    # hoibench's own evaluator (results before backends were recorded count as it), another
+    # protocol, a paper row that names nothing: not comparable
+    assert entry_from_result(RESULT, method="x", track="behave")["evaluator_backend"] == "contrastive"
+    assert not comparable({**ours, "evaluator_backend": "contrastive"}, paper)
+    assert not comparable({**ours, "protocol": "behave-clean"}, paper)
+    assert not comparable(ours, {k: v for k, v in paper.items() if k != "comparable_with"})
+    assert not comparable(paper, paper)
+    bad = {**paper, "format": "hoibench-entry-1", "track": "behave", "metrics": {},
+           "comparable_with": {"protocol": "behave-legacy"}}
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    with pytest.raises(LeaderboardError, match="bad.json: field comparable_with"):
+        read_entry(tmp_path / "bad.json")
+
+
+def test_no_checked_in_row_is_comparable_until_a_published_evaluator_scores_one():
+    """The ChainHOI rows name behave-legacy/omomo-legacy with ChainHOI's evaluator; every
+    hoibench row was scored with hoibench's own, so none is comparable (docs/leaderboards.md)."""
+    from pathlib import Path
+    from hoibench.publish.leaderboard import comparable, load_track
+    root = Path(__file__).resolve().parent.parent / "leaderboards"
+    for track in ("behave", "omomo", "rich-cat", "synthetic"):
+        entries = load_track(root / track)
+        papers = [e for e in entries if e["source"] == "reported"]
+        assert not any(comparable(e, p) for e in entries for p in papers)
+    assert all(p.get("comparable_with", {}).get("evaluator_backend") == "chainhoi"
+               for p in load_track(root / "behave") if p["source"] == "reported")

@@ -40,7 +40,9 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
     return {
         "format": ENTRY_FORMAT, "track": track, "method": method, "source": source,
         "metrics": metrics, "undefined_metrics": result.get("undefined_metrics", {}),
-        "evaluator_id": result.get("evaluator_id"), "protocol": result.get("protocol"),
+        "evaluator_id": result.get("evaluator_id"),
+        "evaluator_backend": result.get("evaluator_backend", "contrastive" if result.get("evaluator_id") else None),
+        "protocol": result.get("protocol"),
         "protocol_version": result.get("protocol_version"), "representation": result.get("representation"),
         "toolkit_version": result.get("toolkit_version"), "replications": result.get("replications"),
         "samples_per_prompt": counts.get("samples_per_prompt"), "scored_ids": counts.get("scored_ids"),
@@ -104,9 +106,31 @@ def read_entry(path: str | Path) -> dict:
             raise LeaderboardError(f"{path}: field metrics.{name}: expected {{\"mean\": number, \"ci95\": number}}")
     if e["source"] == "reported" and not e.get("citation"):
         raise LeaderboardError(f"{path}: field citation: a reported row needs the paper it is copied from")
+    want = e.get("comparable_with")
+    if want is not None and not (isinstance(want, dict) and all(isinstance(want.get(k), str) and want.get(k)
+                                                                for k in ("protocol", "evaluator_backend"))):
+        raise LeaderboardError(f"{path}: field comparable_with: expected {{\"protocol\": id, "
+                               f"\"evaluator_backend\": name}}")
     e["role"] = role_of(e)
     e["_file"] = path.name
     return e
+
+
+def comparable(entry: dict, reported: dict) -> bool:
+    """Whether ``entry`` (scored by hoibench) can stand beside the paper row ``reported``: the
+    paper row names the protocol and evaluator backend that reproduce its paper's evaluation
+    (``comparable_with: {protocol, evaluator_backend}``: the paper's legacy protocol and its
+    published evaluator), and ``entry`` was scored under exactly those. A paper row without
+    ``comparable_with`` is comparable with nothing."""
+    want = reported.get("comparable_with")
+    return (isinstance(want, dict) and reported.get("source") == "reported" and entry.get("source") != "reported"
+            and bool(want.get("protocol")) and entry.get("protocol") == want.get("protocol")
+            and entry.get("evaluator_backend") == want.get("evaluator_backend"))
+
+
+def comparable_citations(entry: dict, entries: list[dict]) -> list[str]:
+    """The citations of the paper rows ``entry`` is comparable with (:func:`comparable`)."""
+    return sorted({str(r.get("citation")) for r in entries if comparable(entry, r)})
 
 
 def role_of(entry: dict) -> str:

@@ -16,7 +16,7 @@ import io
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text
-from .leaderboard import SHORT, LeaderboardError, load_track, order, table_columns
+from .leaderboard import SHORT, LeaderboardError, comparable, comparable_citations, load_track, order, table_columns
 
 ARROW = {True: "↑", False: "↓", None: "≈GT"}
 
@@ -38,10 +38,13 @@ def fmt(m: dict | None) -> str:
     return f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
 
-def _flags(e: dict) -> list[str]:
+def _flags(e: dict, entries: list[dict] = ()) -> list[str]:
     out = []
     if e["source"] == "reported":
-        out.append("reported, not comparable")
+        n = sum(comparable(x, e) for x in entries)
+        out.append(f"reported, comparable with {n} scored row(s)" if n else "reported, not comparable")
+    else:
+        out += [f"comparable with {c}" for c in comparable_citations(e, list(entries))]
     if not e.get("complete", True):
         out.append("incomplete")
     if e.get("samples_per_prompt") and e["samples_per_prompt"] > 1:
@@ -84,7 +87,7 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
         if e["source"] == "reported":
             name += f" ({e.get('citation')})"
         lines.append(f"| {i} | {name} | " + " | ".join(fmt(e["metrics"].get(c)) for c in cols)
-                     + f" | {', '.join(_flags(e))} |")
+                     + f" | {', '.join(_flags(e, entries))} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}.", "", "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
     return "\n".join(lines)
@@ -189,14 +192,15 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
                                                         ("reference" if e["role"] == "reference" else ""))
         name = e_(e["method"])
         if e["source"] == "reported":
-            name += f' <span class="cite">{e_(str(e.get("citation")))}</span> <span class="badge">not comparable</span>'
+            badge = "comparable" if any(comparable(x, e) for x in entries) else "not comparable"
+            name += f' <span class="cite">{e_(str(e.get("citation")))}</span> <span class="badge">{badge}</span>'
         if not e.get("complete", True):
             name += ' <span class="badge warn">incomplete</span>'
         cells = "".join(
             f'<td data-v="{float(m["mean"]) if m else ""}">{e_(fmt(m))}</td>'
             for m in (e["metrics"].get(c) for c in cols))
         rows.append(f'<tr class="{cls}"><td data-v="{i}">{i}</td><td data-v="{e_(e["method"])}">{name}</td>{cells}'
-                    f'<td data-v="{e_(", ".join(_flags(e)))}">{e_(", ".join(_flags(e)))}</td></tr>')
+                    f'<td data-v="{e_(", ".join(_flags(e, entries)))}">{e_(", ".join(_flags(e, entries)))}</td></tr>')
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
     units = "; ".join(f"{e_(SHORT.get(c, c))}: {e_(_info(c).units)}" for c in cols if _info(c))

@@ -30,7 +30,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     complete only). The ``allow_*`` overrides apply to single-body tracks.
     """
     from ..core.parallel import map_units
-    from ..evaluator.backends import load_evaluator
+    from ..evaluator.backends import backend_of, load_evaluator
     from ..tracks.protocol import default_protocol_id, get_protocol
     from ..tracks.registry import track_for_store
     from .pipeline import get_scorer
@@ -45,9 +45,11 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
                                 f"({', '.join(track.protocols)})")
     scorer_cls = get_scorer(track.scorer)
     ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options)
+    backend = backend_of(evaluator)
     scorer = scorer_cls(store, proto, ev, track, submission,
                         {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": allow_protocol_mismatch,
-                         "allow_evaluator_mismatch": allow_evaluator_mismatch}, started=started)
+                         "allow_evaluator_mismatch": allow_evaluator_mismatch,
+                         "evaluator_backend": backend.name if backend else track.evaluator_kind}, started=started)
     scorer.prepare()
     with scorer.open_submission() as sub:
         ids = scorer.validate(sub)
