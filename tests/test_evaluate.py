@@ -139,3 +139,33 @@ def test_undefined_metrics_are_named_and_infinite_ones_stop_the_run():
     assert rows == [{"fid": 1.0}, {"fid": 2.0}] and "fsr" in undefined and "2 of 2" in undefined["fsr"]
     with pytest.raises(ValueError, match="'cd' is infinite in replication 1"):
         _finite_rows([{"cd": 0.1}, {"cd": float("inf")}])
+
+
+def test_a_legacy_length_crop_scores_each_replication_on_its_own_windows(setup):
+    """synthetic-legacy crops the evaluated lengths (ChainHOI's multiples of 4 at a random
+    offset): replication r's physical metrics are those of the windows drawn for (clip, r)."""
+    from hoibench.datasets.store import Store
+    from hoibench.metrics.legacy_rules import replication_windows
+    from hoibench.metrics.physical import clip_inputs, evaluate_physical_windows, load_groups
+    from hoibench.scoring.evaluate import evaluate
+    from hoibench.scoring.submission import Submission
+    from hoibench.tracks.protocol import get_protocol
+    base, data = setup
+    res = evaluate(base / "gt", data, base / "ev", protocol="synthetic-legacy", allow_protocol_mismatch=True)
+    proto = get_protocol("synthetic-legacy")
+    cfg = proto.physical_config()
+    store, sub = Store(data), Submission(base / "gt")
+    motions = {cid: {k: v[0] for k, v in sub.load(cid).items()} for cid in sorted(sub.ids)}
+    inputs = clip_inputs(store, motions, sample=0, groups=load_groups(data),
+                         contact_mode=proto.physical["contact_thresholds"], gt_rule=cfg.contact_gt_rule,
+                         gt_threshold_m=cfg.contact_gt_threshold_m)
+    frames = {c["id"]: int(c["frames"]) for c in store.manifest["clips"]}
+    for inp in inputs:
+        inp.windows = replication_windows(inp.key[0], frames[inp.key[0]], cfg.length_crop, (0, 1), proto.seed_for)
+    want = evaluate_physical_windows(inputs, cfg)
+    for r in (0, 1):
+        exp = want[r].compute()
+        for name in ("cd", "ocd", "ps", "fsr", "jitter_mps3"):
+            assert res["per_replication"][r].get(name, float("nan")) == pytest.approx(exp[name], rel=0, abs=0,
+                                                                                      nan_ok=True), (r, name)
+    assert len({row["jitter_mps3"] for row in res["per_replication"]}) > 1      # windows differ by replication

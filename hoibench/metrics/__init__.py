@@ -12,6 +12,8 @@ Modules (find a metric by its file):
 * :mod:`~hoibench.metrics.motion` -- foot skating (ChainHOI legacy / clean, GMD) and jitter;
 * :mod:`~hoibench.metrics.body_surface` -- the proxy body fitted to joints (for PS);
 * :mod:`~hoibench.metrics.physical` -- per-clip units mapped by an executor, pooled;
+* :mod:`~hoibench.metrics.legacy_rules` -- ChainHOI's released CD/OCD/FSR rules and evaluated
+  lengths (legacy protocols);
 * :mod:`~hoibench.metrics.state` -- the mergeable-state base class.
 
 :data:`METRICS` is the registry of what a result may report: name -> :class:`MetricInfo`

@@ -24,7 +24,7 @@ from ..core import skeleton as sk
 from ..bodies.distance import signed_distance_frames
 
 HANDS: tuple[int, int] = (20, 21)          # wrists
-OCD_LENGTH_TOLERANCE_FRAMES = 8            # ChainHOI: group members within +-8 frames
+OCD_LENGTH_TOLERANCE_FRAMES = 8            # group members within +-8 frames (ChainHOI: after cropping)
 VERTEX_CONTACT_M = 0.02                    # BEHAVE: body vertices within 2 cm touch
 FLOOR_TOLERANCE_M = 0.02
 
@@ -196,20 +196,29 @@ def contact_distance(distances, gt_contacts) -> float:
 
 
 def optimal_contact_distance(distances, gt_contacts, group_contacts: Sequence = (),
-                             length_tolerance: int = OCD_LENGTH_TOLERANCE_FRAMES) -> float:
+                             length_tolerance: int = OCD_LENGTH_TOLERANCE_FRAMES,
+                             members: str = "tolerance") -> float:
     """OCD of one clip, m^2: the CD minimised over the contact maps of the clip's semantic group.
 
-    Candidates: the clip's own GT map (when it has contact), and every other group member's
-    map whose length is within ``length_tolerance`` frames of the generated clip's
-    (ChainHOI's +-8 frames); a member's map covers its first ``min(T, T_m)`` frames, later
-    frames are unmasked. ``OCD = min_c CD_c`` over candidates with at least one contact
-    frame; ``nan`` when none has. Motivation: a text describes several valid contact
-    patterns; OCD does not punish a generated motion for choosing another one of its group.
+    Candidates: the clip's own GT map (when it has contact), and the other group members'
+    maps. ``members="tolerance"`` (hoibench clean): a member counts when its length T_m is
+    within ``length_tolerance`` frames of the generated clip's T. ``members="crop"``
+    (ChainHOI, compute.py:625-626): the member is first cut to the generated length,
+    ``T_m <- min(T_m, T)``, so a longer member always counts and a shorter one counts when
+    ``T - T_m <= length_tolerance``. A member's map covers its first ``min(T, T_m)``
+    frames, later frames are unmasked. ``OCD = min_c CD_c`` over candidates with at least
+    one contact frame; ``nan`` when none has. Motivation: a text describes several valid
+    contact patterns; OCD does not punish a generated motion for choosing another one of
+    its group.
     """
+    if members not in ("tolerance", "crop"):
+        raise ValueError(f"members: expected 'tolerance' or 'crop', got {members!r}")
     d = _dist(distances)
     best = contact_distance(d, gt_contacts)
     for g in group_contacts:
         g = _labels(g, "group_contacts")
+        if members == "crop":
+            g = g[:len(d)]
         if abs(len(g) - len(d)) > length_tolerance:
             continue
         cd = contact_distance(d, g)

@@ -30,12 +30,15 @@ Body surface for PS, penetration depth and object floating: the proxy body fitte
 joints (:mod:`hoibench.metrics.body_surface`), labelled ``"proxy (joint fit)"``, or a
 user callable named ``"module:function"``. ``legacy`` mode also reproduces ChainHOI's PS
 quirk of lowering the body (not the object) so that its lowest joint is at y = 0 before
-fitting the surface (``floor_shift``).
+fitting the surface (``floor_shift``). ChainHOI's other released rules (OCD members, wrists,
+GT labels, the FSR frame, evaluated lengths) are settings of :class:`PhysicalConfig`
+(:mod:`hoibench.metrics.legacy_rules`); a clip with ``windows`` gives one set of statistics
+per replication (:func:`clip_window_stats`, :func:`evaluate_physical_windows`).
 """
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -49,6 +52,7 @@ from ..core.parallel import map_units
 from ..core.registry import load_object
 from . import METRICS
 from . import contact_metrics as cm
+from . import legacy_rules as lr
 from . import motion as mo
 from .body_surface import PROXY_LABEL, PROXY_VERTICES, proxy_template_points, proxy_vertices_from_joints
 from .state import Metric, sorted_items
@@ -72,7 +76,9 @@ class PhysicalConfig:
     or ``clean``. ``contact_mode``: thresholds of the predicted contact labels (contact IoU,
     hand contact ratio), :func:`hoibench.bodies.contact.joint_thresholds` modes ``chainhoi`` or
     ``surface``. ``body_surface``: ``"proxy"`` or ``"module:function"`` mapping joints
-    (T, 22, 3) to vertices (T, V, 3).
+    (T, 22, 3) to vertices (T, V, 3). ``ocd_members`` ... ``length_crop``: ChainHOI's rules
+    (:mod:`hoibench.metrics.legacy_rules`; defaults: hoibench's clean rules);
+    ``fsr_canonical_mode``: the hml263 mode of ``fsr_frame="canonical"`` (HOI-Diff's, as ChainHOI).
     """
 
     mode: str = "clean"
@@ -88,8 +94,25 @@ class PhysicalConfig:
     floor_tolerance_m: float = cm.FLOOR_TOLERANCE_M
     floor_shift: bool | None = None          # None: True in legacy mode, False in clean
     inside_test: str = "auto"
+    # ChainHOI's rules (legacy_rules.PHYSICAL_OPTIONS; the defaults are the clean rules)
+    ocd_members: str = "tolerance"
+    contact_joints: str = "all"
+    contact_gt_rule: str = "signed"
+    contact_gt_threshold_m: float | None = None
+    fsr_frame: str = "world"
+    fsr_feet_to_floor: bool = False
+    length_crop: str = "none"
+    fsr_canonical_mode: str = "legacy-hoidiff"
 
     def __post_init__(self):
+        for name in lr.PHYSICAL_OPTIONS:
+            lr.check_option(name, getattr(self, name))
+        thr = self.contact_gt_threshold_m
+        if thr is not None and not thr > 0:
+            raise ValueError(f"contact_gt_threshold_m: expected a positive threshold, got {thr!r}")
+        if self.fsr_canonical_mode not in lr.CANONICAL_MODES:
+            raise ValueError(f"fsr_canonical_mode: expected one of {lr.CANONICAL_MODES}, "
+                             f"got {self.fsr_canonical_mode!r}")
         if self.mode not in MODES:
             raise ValueError(f"mode: expected one of {MODES}, got {self.mode!r}")
         if self.contact_mode not in ("chainhoi", "surface"):
@@ -117,7 +140,8 @@ class ClipInput:
     y-up; ``obj_rot`` (T, 3, 3), ``obj_trans`` (T, 3) (``v = R v_template + t``); the object
     template (V, 3), (F, 3) and name (for contact thresholds); ``gt_contacts`` (T', 22) the
     ground truth of the test id (None: CD, OCD and IoU undefined); ``group_contacts``: GT maps
-    of the other clips of its semantic group (OCD).
+    of the other clips of its semantic group (OCD); ``windows``: ``((replication, start,
+    length), ...)`` when a legacy length crop applies (:func:`clip_window_stats`).
     """
 
     key: Any
@@ -130,6 +154,7 @@ class ClipInput:
     template_faces: np.ndarray | None = None
     gt_contacts: np.ndarray | None = None
     group_contacts: tuple = field(default_factory=tuple)
+    windows: tuple = ()
 
 
 def _body_fn(config: PhysicalConfig) -> Callable:
@@ -146,7 +171,8 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     fps = float(inp.fps)
     st: dict[str, Any] = {"frames": len(J)}
     st["fsr_skating"], st["fsr_ground"] = mo.foot_skating_counts(
-        J, fps, config.mode, config.fsr_height_m, config.fsr_displacement_m)
+        lr.fsr_joints(J, fps, config.fsr_frame, config.fsr_feet_to_floor, config.fsr_canonical_mode),
+        fps, config.mode, config.fsr_height_m, config.fsr_displacement_m)
     st["gmd_skating"], st["gmd_frames"] = mo.gmd_skating_counts(
         J, fps, config.gmd_height_m, config.gmd_speed_mps, config.gmd_window_frames)
     st["jerk_sum"], st["jerk_count"] = mo.jitter_sums(J, fps)
@@ -160,9 +186,10 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     st["inside_test"] = field_.inside_test
     d = cm.joint_object_distances(J, inp.template_vertices, inp.template_faces, R, t, field=field_)
     if inp.gt_contacts is not None:
-        st["cd_sum"], st["cd_count"] = cm.contact_distance_sums(d, inp.gt_contacts)
-        st["ocd"] = cm.optimal_contact_distance(d, inp.gt_contacts, inp.group_contacts,
-                                                config.ocd_length_tolerance)
+        own = lr.select_joints(inp.gt_contacts, config.contact_joints)
+        group = tuple(lr.select_joints(g, config.contact_joints) for g in inp.group_contacts)
+        st["cd_sum"], st["cd_count"] = cm.contact_distance_sums(d, own)
+        st["ocd"] = cm.optimal_contact_distance(d, own, group, config.ocd_length_tolerance, config.ocd_members)
     tau = joint_thresholds(inp.object_name, config.contact_mode, joints=J)
     pred = cm.predicted_contacts(d, tau)
     if inp.gt_contacts is not None:
@@ -208,7 +235,35 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     return st
 
 
+def window_input(inp: ClipInput, start: int, length: int) -> ClipInput:
+    """``inp`` seen through the window ``[start, start + length)``: the generated arrays and
+    the GT labels are cut to it (a generated clip that ends before ``start + 2`` is read from
+    frame 0), group members lose their first ``start`` frames (ChainHOI reads every member
+    from the evaluated clip's offset: compute.py:625, ``label[idx:idx + L]``)."""
+    T = len(inp.joints)
+    s = start if T >= start + 2 else 0
+    cut = lambda a, s0=s: None if a is None else np.asarray(a)[s0:s0 + length]  # noqa: E731
+    return replace(inp, joints=cut(inp.joints), obj_rot=cut(inp.obj_rot), obj_trans=cut(inp.obj_trans),
+                   gt_contacts=cut(inp.gt_contacts, start),
+                   group_contacts=tuple(np.asarray(g)[start:] for g in inp.group_contacts), windows=())
+
+
+def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig()) -> dict[int, dict]:
+    """``{replication: stats}``: :func:`clip_physical_stats` of each window of
+    ``inp.windows`` (:func:`window_input`); a window drawn twice is computed once."""
+    done: dict[tuple[int, int], dict] = {}
+    out = {}
+    for r, start, length in inp.windows:
+        if (start, length) not in done:
+            done[(start, length)] = clip_physical_stats(window_input(inp, start, length), config)
+        out[int(r)] = done[(start, length)]
+    return out
+
+
 def _unit(inp: ClipInput, config: PhysicalConfig) -> tuple:
+    """``(key, stats)``; with windows ``(key, {"replications": {r: stats}})``."""
+    if inp.windows:
+        return inp.key, {"replications": clip_window_stats(inp, config)}
     return inp.key, clip_physical_stats(inp, config)
 
 
@@ -299,10 +354,29 @@ def evaluate_physical(inputs: Sequence[ClipInput], config: PhysicalConfig = Phys
                       executor: str = "serial", progress: str | None = None) -> PhysicalMetrics:
     """Map :func:`clip_physical_stats` over ``inputs`` on ``executor`` (``serial``,
     ``processes[:N]``, ``dask://...``; :mod:`hoibench.core.parallel`) and pool the results."""
+    inputs = list(inputs)
+    if any(inp.windows for inp in inputs):
+        raise ValueError("inputs: clips with length windows give one value per replication: "
+                         "use evaluate_physical_windows")
     metric = PhysicalMetrics(config.mode, config.body_label)
-    for key, stats in map_units(partial(_unit, config=config), list(inputs), executor, progress=progress):
+    for key, stats in map_units(partial(_unit, config=config), inputs, executor, progress=progress):
         metric.update(key, stats)
     return metric
+
+
+def evaluate_physical_windows(inputs: Sequence[ClipInput], config: PhysicalConfig = PhysicalConfig(),
+                              executor: str = "serial", progress: str | None = None) -> dict[int, PhysicalMetrics]:
+    """``{replication: PhysicalMetrics}`` for clips with length windows (``ClipInput.windows``,
+    :func:`hoibench.metrics.legacy_rules.replication_windows`): :func:`clip_window_stats`
+    mapped on ``executor``, each replication pooled over the clips."""
+    inputs = list(inputs)
+    if not all(inp.windows for inp in inputs):
+        raise ValueError("inputs: every clip needs its windows (legacy_rules.replication_windows)")
+    out: dict[int, PhysicalMetrics] = {}
+    for key, stats in map_units(partial(_unit, config=config), inputs, executor, progress=progress):
+        for r, st in stats["replications"].items():
+            out.setdefault(r, PhysicalMetrics(config.mode, config.body_label)).update(key, st)
+    return dict(sorted(out.items()))
 
 
 # ===================================================================== from a store
@@ -315,18 +389,28 @@ def load_groups(data) -> dict[str, list[str]] | None:
     return {g: list(ids) for g, ids in json.loads(p.read_text()).get("groups", {}).items()}
 
 
-def gt_contact_labels(store, clip: Mapping[str, np.ndarray], mode: str = "chainhoi") -> np.ndarray | None:
-    """Ground-truth joint contact labels (T, 22) of a store clip: its stored ``contacts``, else
-    :func:`hoibench.bodies.contact.joint_contact_labels` with ``mode`` thresholds; None without object."""
-    if "contacts" in clip:
+def gt_contact_labels(store, clip: Mapping[str, np.ndarray], mode: str = "chainhoi", rule: str = "signed",
+                      threshold_m: float | None = None) -> np.ndarray | None:
+    """Ground-truth joint contact labels (T, 22) of a store clip; None without object.
+
+    ``rule="signed"`` without ``threshold_m`` (clean): its stored ``contacts``, else
+    :func:`hoibench.bodies.contact.joint_contact_labels` (``d < tau``, ``mode`` thresholds).
+    Otherwise (ChainHOI's rule, whose labels always come from distances) from the signed
+    distances d of the clip's joints, stored labels ignored: :func:`legacy_rules.gt_labels`
+    (``unsigned``: ``|d| <= tau``) with ``tau = threshold_m`` or the ``mode`` thresholds."""
+    reference = rule != "signed" or threshold_m is not None
+    if "contacts" in clip and not reference:
         return np.asarray(clip["contacts"], dtype=bool)
     if "obj_rot" not in clip:
-        return None
-    from ..bodies.contact import joint_contact_labels
-    v, f = store.object_template(str(clip["object_name"]))
-    labels, _ = joint_contact_labels(clip["joints"], v, f, clip["obj_rot"], clip["obj_trans"],
-                                     str(clip["object_name"]), mode=mode)
-    return labels
+        return None if "contacts" not in clip else np.asarray(clip["contacts"], dtype=bool)
+    from ..bodies.contact import joint_contact_labels, joint_thresholds
+    name = str(clip["object_name"])
+    v, f = store.object_template(name)
+    labels, d = joint_contact_labels(clip["joints"], v, f, clip["obj_rot"], clip["obj_trans"], name, mode=mode)
+    if not reference:
+        return labels
+    tau = threshold_m if threshold_m is not None else joint_thresholds(name, mode, joints=clip["joints"])
+    return lr.gt_labels(d, tau, rule)
 
 
 def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
@@ -339,13 +423,15 @@ def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
 
 
 def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[str]] | None = None,
-                       contact_mode: str = "chainhoi", fps: float | None = None) -> Callable[..., ClipInput]:
+                       contact_mode: str = "chainhoi", fps: float | None = None, gt_rule: str = "signed",
+                       gt_threshold_m: float | None = None) -> Callable[..., ClipInput]:
     """A function ``make(cid, motion, sample=None) -> ClipInput`` for generated motions of
     the test ids ``ids``, one at a time (what streaming evaluation needs): the test clip's
     object, GT contacts and its group members' GT contacts (only members among ``ids``
     count: ChainHOI compares within the evaluated set) come from ``store``; GT contacts and
     templates are cached. ``motion``: ``{"joints" (T, 22, 3), "obj_rot" (T, 3, 3) or
-    "obj_rotvec" (T, 3), "obj_trans" (T, 3)}``; ``sample`` goes into the key ``(id, sample)``."""
+    "obj_rotvec" (T, 3), "obj_trans" (T, 3)}``; ``sample`` goes into the key ``(id, sample)``.
+    ``gt_rule``, ``gt_threshold_m``: how GT labels are made (:func:`gt_contact_labels`)."""
     fps = float(store.manifest["config"]["fps"]) if fps is None else float(fps)
     evaluated = set(ids)
     member_of: dict[str, list[str]] = {}
@@ -359,7 +445,7 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
     def gt(cid):
         if cid not in cache:
             clip = store.load(cid)
-            cache[cid] = gt_contact_labels(store, clip, contact_mode)
+            cache[cid] = gt_contact_labels(store, clip, contact_mode, gt_rule, gt_threshold_m)
             names[cid] = str(clip["object_name"]) if "object_name" in clip else ""
         return cache[cid]
 
@@ -383,12 +469,14 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
 
 def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: int | None = None,
                 groups: Mapping[str, Sequence[str]] | None = None, contact_mode: str = "chainhoi",
-                fps: float | None = None) -> list[ClipInput]:
+                fps: float | None = None, gt_rule: str = "signed",
+                gt_threshold_m: float | None = None) -> list[ClipInput]:
     """:class:`ClipInput` per generated motion (test id -> one sample's arrays), in sorted id
     order: :func:`clip_input_factory` over every id of ``motions``."""
-    make = clip_input_factory(store, list(motions), groups, contact_mode, fps)
+    make = clip_input_factory(store, list(motions), groups, contact_mode, fps, gt_rule, gt_threshold_m)
     return [make(cid, motions[cid], sample) for cid in sorted(motions)]
 
 
 __all__ = ["PHYSICAL_OUTPUTS", "OBJECT_OUTPUTS", "PhysicalConfig", "ClipInput", "clip_physical_stats", "PhysicalMetrics",
+           "window_input", "clip_window_stats", "evaluate_physical_windows",
            "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs", "clip_input_factory"]

@@ -20,7 +20,9 @@ Stages (:mod:`hoibench.scoring.pipeline`; docs/protocol.md):
 4. ``replications``: per replication r: sample ``r mod K``, a caption per clip drawn with the
    protocol's seed, R-precision top-1/2/3 and MM-Dist over the protocol's pools, FID against
    the ground-truth embeddings, Diversity, MultiModality (only when K >= the protocol's
-   samples);
+   samples); the physical metrics of sample ``r mod K`` -- per replication when the protocol
+   crops the evaluated lengths (``length_crop``: each clip and replication draws its window,
+   :func:`hoibench.metrics.legacy_rules.replication_windows`);
 5. ``summary``: every value is checked finite: an infinite value stops the run naming the
    metric; a 0/0 (e.g. no clip has ground-contact frames) is reported as undefined, never as
    NaN; on a human-only store (no test clip has an object: RICH) the object metrics (CD,
@@ -85,13 +87,16 @@ def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_eva
 
 
 def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
-            groups, proto, mode: str, fps: float, gen: np.ndarray) -> Iterator:
+            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None) -> Iterator:
     """Yield the physical-metric inputs of every (id, sample) in ``ks_physical``, loading one
-    file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``."""
+    file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``.
+    ``windows(id, k)``: the legacy length windows of the replications using sample k."""
     from ..metrics.physical import clip_input_factory
     from .submission import encode_sample
 
-    make_input = clip_input_factory(store, ids, groups, proto.physical["contact_thresholds"], fps)
+    cfg = proto.physical_config()
+    make_input = clip_input_factory(store, ids, groups, proto.physical["contact_thresholds"], fps,
+                                    cfg.contact_gt_rule, cfg.contact_gt_threshold_m)
     pending: list[tuple[int, int, np.ndarray]] = []
 
     def flush():
@@ -111,7 +116,10 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
             if len(pending) >= EMBED_BATCH:
                 flush()
         for k in ks_physical:
-            yield make_input(cid, {key: v[k] for key, v in arrays.items() if key != "hml263"}, k)
+            inp = make_input(cid, {key: v[k] for key, v in arrays.items() if key != "hml263"}, k)
+            if windows is not None:
+                inp.windows = windows(cid, k)
+            yield inp
         del arrays
     flush()
 
@@ -198,18 +206,33 @@ class HOIScorer(Scorer):
 
     def stream(self, sub, ids: list[str]) -> Iterator:
         """One streaming pass: embeddings in this process, physical metrics on the executor."""
+        from ..metrics.legacy_rules import replication_windows
         from ..metrics.physical import PhysicalMetrics, _unit, load_groups
         self._t3 = time.perf_counter()
-        cfg = self.proto.physical_config()
-        self.physical = {k: PhysicalMetrics(cfg.mode, cfg.body_label) for k in self.ks_physical}
+        proto, K = self.proto, self.K
+        cfg = proto.physical_config()
+        # physical metrics per sample index, or per replication when lengths are cropped
+        self.windowed = cfg.length_crop != "none"
+        slots = range(proto.replications) if self.windowed else self.ks_physical
+        self.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
         self.gen = np.zeros((self.K, len(ids), self.ev.embed_dim), np.float32)
         self.unit = partial(_unit, config=cfg)
+        windows = None
+        if self.windowed:
+            reps = {k: [r for r in range(proto.replications) if proto.sample_index(r, K) == k]
+                    for k in self.ks_physical}
+            windows = lambda cid, k: replication_windows(  # noqa: E731
+                cid, int(self.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
         return _stream(sub, ids, self.ks_physical, self.ks_embed, self.ev, self.store, load_groups(self.store.root),
-                       self.proto, self.mode, self.fps, self.gen)
+                       proto, self.mode, self.fps, self.gen, windows)
 
     def update(self, out) -> None:
         key, stats = out
-        self.physical[key[1]].update(key, stats)
+        if self.windowed:
+            for r, st in stats["replications"].items():
+                self.physical[r].update(key, st)
+        else:
+            self.physical[key[1]].update(key, stats)
 
     def replications(self) -> list[dict]:
         from ..metrics import embedding as em
@@ -254,7 +277,7 @@ class HOIScorer(Scorer):
                 sel = [where[c] for c in proto.multimodality_ids(ids, r)]
                 row["multimodality"] = em.multimodality(gen[:proto.mm_samples, sel].transpose(1, 0, 2),
                                                         proto.mm_pairs, proto.seed_for("multimodality", r))
-            row.update({key: float(v) for key, v in physical[k].items()
+            row.update({key: float(v) for key, v in physical[r if self.windowed else k].items()
                         if isinstance(v, (int, float)) and not isinstance(v, bool)})
             per_rep.append(row)
         self._t4 = t4

@@ -33,6 +33,7 @@ from typing import Hashable, Iterable, Sequence
 import numpy as np
 
 from ..metrics import METRICS, make_pools
+from ..metrics import legacy_rules
 from ..metrics.physical import PhysicalConfig
 
 PROTOCOLS_DIR = Path(__file__).resolve().parent / "protocols"
@@ -175,7 +176,13 @@ class Protocol:
         return int(replication) % int(samples_per_prompt)
 
     def physical_config(self) -> PhysicalConfig:
+        """The physical settings; the optional keys (ChainHOI's rules,
+        :data:`hoibench.metrics.legacy_rules.PHYSICAL_OPTIONS` and ``contact_gt_threshold_m``)
+        default to the clean rules."""
         p = self.physical
+        options = {k: p[k] for k in legacy_rules.PHYSICAL_OPTIONS if k in p}
+        if p.get("contact_gt_threshold_m") is not None:
+            options["contact_gt_threshold_m"] = float(p["contact_gt_threshold_m"])
         return PhysicalConfig(
             mode=self.mode, contact_mode=p["contact_thresholds"], body_surface=p["body_surface"],
             ocd_length_tolerance=int(p["ocd_length_tolerance_frames"]),
@@ -183,7 +190,7 @@ class Protocol:
             gmd_height_m=float(p["fsr_gmd"]["height_m"]), gmd_speed_mps=float(p["fsr_gmd"]["speed_mps"]),
             gmd_window_frames=int(p["fsr_gmd"]["window_frames"]),
             vertex_contact_m=float(p["vertex_contact_m"]), floor_tolerance_m=float(p["floor_tolerance_m"]),
-            floor_shift=bool(p["floor_shift"]))
+            floor_shift=bool(p["floor_shift"]), **options)
 
 
 # ====================================================================== loading
@@ -264,6 +271,7 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
         _need(phys, key, kind, f"{w}: physical")
     for key in ("height_m", "displacement_m"):
         _need(phys["fsr"], key, float, f"{w}: physical.fsr")
+    _check_reference_rules(phys, f"{w}: physical")
     for key, kind in (("height_m", float), ("speed_mps", float), ("window_frames", int)):
         _need(phys["fsr_gmd"], key, kind, f"{w}: physical.fsr_gmd")
     metrics = _listed_metrics(d, sorted(METRICS), w)
@@ -287,6 +295,19 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
         raise ValueError(f"{w}: multimodality.samples must exceed multimodality.pairs")
     proto.physical_config()          # the physical settings must be valid too
     return proto
+
+
+def _check_reference_rules(phys: dict, where: str) -> None:
+    """The optional ``physical`` keys of ChainHOI's rules (docs/metrics.md), validated."""
+    for key in legacy_rules.PHYSICAL_OPTIONS:
+        if key in phys:
+            try:
+                legacy_rules.check_option(key, phys[key])
+            except ValueError as e:
+                raise ValueError(f"{where}: {e}") from None
+    v = phys.get("contact_gt_threshold_m")
+    if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0):
+        raise ValueError(f"{where}: field 'contact_gt_threshold_m' must be a positive number or null, got {v!r}")
 
 
 #: metrics a multi-body protocol may list
