@@ -186,6 +186,7 @@ def test_a_protocol_naming_a_reference_loop_scores_with_it(stores, tmp_path, mon
     res = evaluate(base / "gt", data, base / "ev", protocol=str(proto), allow_failed_gate=True)
     n = res["counts"]["scored_ids"]
     assert seen["name"] == "chainhoi" and seen["kw"]["replications"] == 1
+    assert (seen["kw"]["r_size"], seen["kw"]["top_k"]) == (parsed.r_precision_pool_size, 3)
     assert seen["shapes"][0][0] == seen["shapes"][1][0] == seen["shapes"][2][0] == n
     assert res["metric_variants"]["embedding_loop"] == "chainhoi" and len(res["per_replication"]) == 1
     for name in ("r_precision_top1", "r_precision_top3", "mm_dist", "fid"):

@@ -146,6 +146,18 @@ def _finite_rows(per_rep: list[dict]) -> tuple[list[dict], dict]:
     return rows, notes
 
 
+def _loop_settings(proto) -> dict:
+    """The protocol's numbers in a reference loop's own keywords: replications, R-precision
+    batch (``r_size`` in ChainHOI's, ``batch_size`` in the others), top-k and diversity pairs
+    (InterAct's loop fixes its own: 300, or 50 under 300 rows)."""
+    batch = "r_size" if proto.embedding_loop == "chainhoi" else "batch_size"
+    out = {"replications": int(proto.replications), batch: int(proto.r_precision_pool_size),
+           "top_k": int(proto.r_precision_top_k)}
+    if proto.embedding_loop != "interact":
+        out["diversity_times"] = int(proto.diversity_pairs)
+    return out
+
+
 class HOIScorer(Scorer):
     """The ``hoi`` scorer (see the module docstring for its stages)."""
 
@@ -289,14 +301,18 @@ class HOIScorer(Scorer):
         caption per clip drawn with the protocol's seed, sample 0 as the generated motions,
         the first ``mm_samples`` samples for MultiModality when K allows, the protocol's
         replications; the physical metrics of replication r use sample ``r mod K``."""
-        from ..metrics.legacy_loops import run_loop
+        from ..metrics.legacy_loops import LOOPS, run_loop
         proto, K = self.proto, self.K
         rng = np.random.default_rng(proto.seed_for("caption", 0))
         text = np.stack([t[int(rng.integers(len(t)))] for t in text_sets])
         samples = self.gen[:proto.mm_samples] if self.mm_ok else None
         result = run_loop(proto.embedding_loop, text, self.gen[0], real, samples, seed=int(proto.seed),
-                          replications=int(proto.replications))
+                          **_loop_settings(proto))
         self.fid_method = "sqrtm (the reference loop's)"
+        spec = LOOPS[proto.embedding_loop]
+        self.notes.append(f"embedding metrics: the {spec.name} loop as released ({spec.source}), "
+                          f"{proto.replications} replication(s)"
+                          + ("; a single replication has no CI (shown as 0)" if proto.replications == 1 else ""))
         self.notes += [f"{proto.embedding_loop} loop: {n}" for n in result.notes]
         rows = []
         for r, row in enumerate(result.rows()):
