@@ -15,8 +15,9 @@ DEMO_OUT ?= demo-out
 
 check-system:
 	@ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0' || { \
-	  echo "hoibench needs the system library libusb-1.0-0 (used by open3d)."; \
-	  echo "Install it with:  sudo apt-get install libusb-1.0-0   (Debian/Ubuntu)"; exit 1; }
+	  echo "hoibench needs the system library libusb-1.0-0 (used by open3d). Install it (Debian/Ubuntu):"; \
+	  echo "  as root:       apt-get install libusb-1.0-0"; \
+	  echo "  otherwise:     sudo apt-get install libusb-1.0-0"; exit 1; }
 
 $(VENV)/.installed: setup.cfg pyproject.toml | check-system
 	@echo "[install 1/4] virtual environment in $(VENV)"

@@ -132,22 +132,8 @@ def _cmd_prepare(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    if args.id is not None:                       # a submission's sample beside its ground truth
-        if args.data is None:
-            raise ValueError("render SUB --id ID: --data DATA (the store the submission is for) is required")
-        from .publish.render import render_comparison
-        path = render_comparison(args.clip, args.data, args.id, args.out, sample=args.sample)
-        print(f"wrote {path}")
-        return 0
-    clip = Path(args.clip)
-    if clip.suffix == ".npz":
-        root, clip_id = clip.parent.parent, clip.stem
-    elif args.data is not None:
-        root, clip_id = args.data, str(clip)
-    else:
-        raise ValueError("clip: give DATA/clips/<id>.npz, or an id with --data DATA")
-    from .publish.renderers import render_store_clip
-    print(f"wrote {render_store_clip(root, clip_id, args.out, body=args.body)}")
+    from .publish.renderers import main_render
+    print(f"wrote {main_render(args.clip, args.data, args.id, args.out, sample=args.sample, body=args.body)}")
     return 0
 
 
@@ -235,7 +221,7 @@ def _cmd_evaluate(args) -> int:
     return main_evaluate(args.submission, args.data, args.evaluator, out=args.out,
                          protocol=args.protocol, executor=args.executor, allow_failed_gate=args.allow_failed_gate,
                          allow_protocol_mismatch=args.allow_protocol_mismatch,
-                         allow_evaluator_mismatch=args.allow_evaluator_mismatch)
+                         allow_evaluator_mismatch=args.allow_evaluator_mismatch, overwrite=args.overwrite)
 
 
 def _cmd_baseline(args) -> int:
@@ -282,35 +268,58 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_leaderboard(args) -> int:
-    from .publish import leaderboard as lb
-    root = Path(args.root)
-    if args.action == "add":
-        path = lb.add_result(args.result, root / args.track, method=args.method, role=args.role,
-                             allow_incomplete=args.allow_incomplete, replace=args.replace, notes=args.notes)
-        print(f"added {path}")
-        return 0
-    if args.action == "ls":
-        if not root.is_dir():
-            raise FileNotFoundError(f"{root}: no leaderboards folder")
-        for track in sorted(p for p in root.iterdir() if (p / "entries").is_dir()):
-            entries = lb.load_track(track)
-            print(f"{track.name:12s} {len(entries):3d} entries  ({', '.join(e['method'] for e in lb.order(entries)[:4])}"
-                  f"{', ...' if len(entries) > 4 else ''})")
-        return 0
-    from .publish.pages import build
-    tracks = [root / args.track] if args.track else sorted(p for p in root.iterdir() if (p / "entries").is_dir())
-    if not tracks:
-        raise FileNotFoundError(f"{root}: no track folders with entries/")
-    for track in tracks:
-        paths = build(track)
-        print(f"[{track.name}] wrote " + ", ".join(str(p) for p in paths.values()))
-    return 0
+    from .publish.leaderboard_commands import main_leaderboard
+    return main_leaderboard(args.action, args.root, getattr(args, "track", None), result=getattr(args, "result", None),
+                            method=getattr(args, "method", ""), role=getattr(args, "role", "method"),
+                            notes=getattr(args, "notes", ""), allow_incomplete=getattr(args, "allow_incomplete", False),
+                            replace=getattr(args, "replace", False), new_track=getattr(args, "new_track", False))
 
 
 def _cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(Path(args.out), seed=args.seed, baselines=not args.no_baselines)
     return 0
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors and exit status 2: a misspelled command or choice gets
+    its nearest spelling (difflib), any other usage error its message, both naming the command."""
+
+    def _check_value(self, action, value) -> None:
+        choices = action.choices
+        if choices is None or value in choices:
+            return
+        import difflib
+        names = [str(c) for c in choices]
+        close = difflib.get_close_matches(str(value), names, n=1, cutoff=0.6)
+        what = "command" if isinstance(action, argparse._SubParsersAction) else \
+            ("choice for " + "/".join(action.option_strings) if action.option_strings else f"{action.dest}")
+        hint = f": did you mean {close[0]!r}?" if close else f" (choose from {', '.join(names)})"
+        self.exit(2, f"{self.prog}: error: unknown {what} {value!r}{hint}\n")
+
+    def error(self, message: str):
+        """One line, ``PROG: error: MESSAGE (see PROG --help)``, and exit status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _executor_arg(spec: str) -> str:
+    """``--executor``: its syntax is checked while the arguments are parsed, before any work."""
+    from .core.parallel import parse_executor
+    try:
+        parse_executor(spec)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--executor: ")) from None
+    return spec
+
+
+H_EXECUTOR = "where per-clip work runs: serial (default), processes[:N] (N local processes) or dask://ADDRESS"
+H_STORE = "the processed store (a folder written by hoibench prepare)"
+H_SEED = "random seed (default 0)"
+H_ZIP = "write the submission as one .zip file instead of a folder"
+H_THREADS = "torch threads (default: torch's own choice)"
+H_ROOT = ("the leaderboards folder (default: the nearest leaderboards/ with track folders, in the current folder "
+          "or above; the command says which)")
+H_ACTION = "what to do: ls lists, show prints one (named next)"
 
 
 def _add_data_commands(sub) -> None:
@@ -320,74 +329,78 @@ def _add_data_commands(sub) -> None:
 
     s = sub.add_parser("representations", help="list representations, modes and versions",
                        epilog="example: hoibench representations ls")
-    s.add_argument("action", choices=["ls"])
+    s.add_argument("action", choices=["ls"], help="ls: one line per representation and mode")
     s.set_defaults(func=_cmd_representations)
 
     s = sub.add_parser("represent", help="encode a joints .npy (T,22,3) or (B,T,22,3)",
                        epilog="example: hoibench represent joints.npy --mode clean --out feats.npy")
-    s.add_argument("joints", type=Path)
-    s.add_argument("--format", choices=["hml263", "joint_level"], default="hml263")
-    s.add_argument("--mode", choices=["clean", "legacy", "legacy-hoidiff"], default="clean")
-    s.add_argument("--fps", type=float, default=20.0)
-    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("joints", type=Path, help="a .npy of joints (T, 22, 3) or (B, T, 22, 3), metres, y-up")
+    s.add_argument("--format", choices=["hml263", "joint_level"], default="hml263",
+                   help="hml263 (default; 263 values per frame) or joint_level (24 x 12)")
+    s.add_argument("--mode", choices=["clean", "legacy", "legacy-hoidiff"], default="clean",
+                   help="clean (default) or the reference code's quirks (legacy, legacy-hoidiff)")
+    s.add_argument("--fps", type=float, default=20.0, help="the joints' frame rate (default 20)")
+    s.add_argument("--out", type=Path, required=True, help="the .npy to write")
     s.set_defaults(func=_cmd_represent)
 
     s = sub.add_parser("synth", help="write the deterministic synthetic HOI dataset",
                        epilog="example: hoibench synth --out raw --clips 120 --seed 0 "
                               "--defect 3:foot_skating=1.0 --defect 5:penetration=0.02")
-    s.add_argument("--out", type=Path, required=True)
-    s.add_argument("--clips", type=int, default=24)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--out", type=Path, required=True, help="the raw-layout folder to write")
+    s.add_argument("--clips", type=int, default=24, help="how many clips (default 24; 120 for the evaluator gate)")
+    s.add_argument("--seed", type=int, default=0, help=H_SEED)
     s.add_argument("--layout", choices=["behave", "omomo", "rich", "multibody", "grab", "core4d"], default="behave",
                    help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d: "
                         "multi-body sequences in GRAB's / CORE4D's release layout (proxy body models)")
     s.add_argument("--defect", action="append", default=[],
                    help="CLIP:KIND=MAGNITUDE, KIND in foot_skating (m/s), penetration (m), lost_contact (m)")
-    s.add_argument("--executor", default="serial")
+    s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.set_defaults(func=_cmd_synth)
 
     s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich, multibody) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab"])
+    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab"],
+                   help="the raw layout to read")
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
     s.add_argument("--body-models", type=Path, default=None,
                    help="folder with smplh/ (BEHAVE) or smplx/ (OMOMO, RICH) model files: yours or the proxy "
                         "(not needed for multibody)")
-    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--out", type=Path, required=True, help="the store folder to write (rerunning resumes)")
     s.add_argument("--fps", type=float, default=20.0, help="resample to this rate, by time")
     s.add_argument("--mode", choices=["clean", "legacy"], default="clean", help="representation mode")
     s.add_argument("--split-file", type=Path, default=None, help="JSON {train: [...], test: [...]}")
-    s.add_argument("--executor", default="serial", help="serial | processes[:N] | dask://ADDRESS")
+    s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)
 
     s = sub.add_parser("splits", help="list or show the split files and their sources",
                        epilog="examples: hoibench splits ls; hoibench splits show omomo --split unseen-object")
-    s.add_argument("action", choices=["ls", "show"])
-    s.add_argument("dataset", nargs="?")
-    s.add_argument("--split", default=None)
+    s.add_argument("action", choices=["ls", "show"], help=H_ACTION)
+    s.add_argument("dataset", nargs="?", help="show: the dataset (behave, omomo, ...)")
+    s.add_argument("--split", default=None, help="show: which split file (default: the dataset's default, * in ls)")
     s.add_argument("--full", action="store_true", help="print every id")
     s.set_defaults(func=_cmd_splits)
 
     s = sub.add_parser("export", help="write a store in the HumanML3D or HOI-Diff folder layout",
                        epilog="example: hoibench export --format humanml3d data/behave out/HumanML3D")
-    s.add_argument("--format", choices=["humanml3d", "hoidiff"], default="humanml3d")
-    s.add_argument("data", type=Path)
-    s.add_argument("out", type=Path)
+    s.add_argument("--format", choices=["humanml3d", "hoidiff"], default="humanml3d",
+                   help="the folder layout to write (default humanml3d)")
+    s.add_argument("data", type=Path, help=H_STORE)
+    s.add_argument("out", type=Path, help="the folder to write")
     s.set_defaults(func=_cmd_export)
 
     s = sub.add_parser("annotate", help="contact-aware texts and semantic groups for a store",
                        epilog="examples: hoibench annotate data --preview 5; "
                               "hoibench annotate data --labels action_label.json --executor processes:2")
-    s.add_argument("data", type=Path)
+    s.add_argument("data", type=Path, help=H_STORE)
     s.add_argument("--preview", type=int, default=None, metavar="N",
                    help="print a table of N clips (timelines, texts) and write nothing")
     s.add_argument("--labels", type=Path, default=None, help="BEHAVE per-second action labels (json)")
     s.add_argument("--seed", type=int, default=0, help="paraphrase choice seed")
     s.add_argument("--spec-dir", type=Path, default=None, help="annotator spec folder (default annotators/)")
-    s.add_argument("--executor", default="serial")
-    s.add_argument("--strict", action="store_true")
+    s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
+    s.add_argument("--strict", action="store_true", help="stop at the first clip that fails")
     s.set_defaults(func=_cmd_annotate)
 
 
@@ -395,79 +408,93 @@ def _add_scoring_commands(sub) -> None:
     """Protocols, submissions, evaluators and scoring: protocols, validate, submission, train-evaluator, train-recognizer, evaluator, evaluate."""
     s = sub.add_parser("tracks", help="list or show the benchmark tracks (store kind, evaluator, metrics, protocols)",
                        epilog="examples: hoibench tracks ls; hoibench tracks show rich-cat")
-    s.add_argument("action", choices=["ls", "show"])
-    s.add_argument("name", nargs="?")
+    s.add_argument("action", choices=["ls", "show"], help=H_ACTION)
+    s.add_argument("name", nargs="?", help="show: the track")
     s.set_defaults(func=_cmd_tracks)
 
     s = sub.add_parser("protocols", help="list or show evaluation protocols",
                        epilog="examples: hoibench protocols ls; hoibench protocols show behave-clean")
-    s.add_argument("action", choices=["ls", "show"])
-    s.add_argument("name", nargs="?")
+    s.add_argument("action", choices=["ls", "show"], help=H_ACTION)
+    s.add_argument("name", nargs="?", help="show: the protocol id")
     s.set_defaults(func=_cmd_protocols)
 
     s = sub.add_parser("validate", help="check a submission against a store's test split",
                        epilog="example: hoibench validate my_method.zip --data data/behave")
-    s.add_argument("submission", type=Path)
-    s.add_argument("--data", type=Path, required=True)
-    s.add_argument("--protocol", default=None)
+    s.add_argument("submission", type=Path, help="the submission folder or .zip")
+    s.add_argument("--data", type=Path, required=True, help="the store the submission is for (" + H_STORE + ")")
+    s.add_argument("--protocol", default=None, help="protocol id (default: the store's)")
     s.set_defaults(func=_cmd_validate)
 
     s = sub.add_parser("submission", help="make submissions (from-store: the ground-truth 'real motion' row; "
-                                          "reference: the rows that bracket every metric)",
+                                          "reference: the rows that bracket every metric; prompts: what a "
+                                          "generator needs)",
+                       description="actions:\n"
+                                   "  from-store  the store's own test clips as a submission: the ground-truth row\n"
+                                   "  reference   a reference row that brackets the metrics (--kind: noisy GT, "
+                                   "static or mean pose,\n              mismatched texts, ...)\n"
+                                   "  prompts     every test id with its captions, length, fps and object: what "
+                                   "your generator needs",
                        epilog="examples:\n  hoibench submission from-store data --out gt_submission\n"
                               "  hoibench submission reference data --kind gt-noise --sigma 0.03 --out gt3cm\n"
                               "  hoibench submission reference data --kind mismatched-texts --out mismatched\n"
                               "  hoibench submission prompts data --out prompts.jsonl   # what a generator needs",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("action", choices=["from-store", "reference", "prompts"])
-    s.add_argument("data", type=Path)
-    s.add_argument("--out", type=Path, default=None, help="prompts: a .jsonl file (default: print)")
+    s.add_argument("action", choices=["from-store", "reference", "prompts"],
+                   help="from-store, reference or prompts (see above)")
+    s.add_argument("data", type=Path, help=H_STORE)
+    s.add_argument("--out", type=Path, default=None,
+                   help="from-store, reference: the submission folder (or .zip with --zip) to write; prompts: a "
+                        ".jsonl file (default: print)")
     s.add_argument("--kind", default=None,
                    choices=["gt", "gt-noise", "static-first-pose", "mean-pose", "mismatched-texts",
                             "desync", "lost_contact", "interpenetration", "static"],
                    help="reference: which row (docs/leaderboards.md; multi-body stores: gt, gt-noise, desync, "
                         "lost_contact, interpenetration, static -- docs/multibody.md)")
     s.add_argument("--sigma", type=float, default=0.01, help="gt-noise: noise std in metres (default 0.01)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=int, default=0, help="reference: seed of the noise or the shuffle (default 0)")
     s.add_argument("--samples", "-k", type=int, default=1, help="multi-body gt-noise: samples per prompt")
-    s.add_argument("--zip", action="store_true")
+    s.add_argument("--zip", action="store_true", help=H_ZIP)
     s.set_defaults(func=_cmd_submission)
 
     s = sub.add_parser("train-evaluator", help="train the contrastive text-motion evaluator on a store",
                        epilog="example: hoibench train-evaluator data --out evaluators/synthetic-tiny --size tiny")
-    s.add_argument("data", type=Path)
-    s.add_argument("--out", type=Path, required=True)
-    s.add_argument("--size", choices=["tiny", "paper"], default="tiny")
-    s.add_argument("--variant", choices=["human", "hoi"], default="human")
-    s.add_argument("--epochs", type=int, default=None)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("data", type=Path, help=H_STORE + ", annotated")
+    s.add_argument("--out", type=Path, required=True, help="the evaluator folder to write")
+    s.add_argument("--size", choices=["tiny", "paper"], default="tiny", help="tiny (default; CPU minutes) or paper")
+    s.add_argument("--variant", choices=["human", "hoi"], default="human",
+                   help="human (default: the body's 263 features) or hoi (with the object's)")
+    s.add_argument("--epochs", type=int, default=None, help="training epochs (default: the size's)")
+    s.add_argument("--seed", type=int, default=0, help=H_SEED)
     s.set_defaults(func=_cmd_train_evaluator)
 
     s = sub.add_parser("train-recognizer", help="train the multi-body action recognizer (RA, FID) on a store",
                        epilog="example: hoibench train-recognizer data --out recognizers/mb --split train")
-    s.add_argument("data", type=Path)
-    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("data", type=Path, help="a multi-body store (" + H_STORE + ")")
+    s.add_argument("--out", type=Path, required=True, help="the recognizer folder to write (new or empty)")
     s.add_argument("--split", choices=["train", "all"], default="train",
                    help="train (hoibench's protocols) or all (every split, as the SyncDiff paper)")
-    s.add_argument("--steps", type=int, default=400)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--steps", type=int, default=400, help="optimiser steps (default 400)")
+    s.add_argument("--seed", type=int, default=0, help=H_SEED)
     s.set_defaults(func=_cmd_train_recognizer)
 
     s = sub.add_parser("evaluator", help="show an evaluator card (and verify its id)",
                        epilog="example: hoibench evaluator show evaluators/synthetic-tiny")
-    s.add_argument("action", choices=["show"])
-    s.add_argument("dir", type=Path)
-    s.add_argument("--json", action="store_true")
+    s.add_argument("action", choices=["show"], help="show: print the card after verifying the folder")
+    s.add_argument("dir", type=Path, help="the evaluator folder")
+    s.add_argument("--json", action="store_true", help="print the card as JSON")
     s.set_defaults(func=_cmd_evaluator)
 
-    s = sub.add_parser("evaluate", help="score a submission under a protocol (writes a result JSON)",
+    s = sub.add_parser("evaluate", help="score a submission under a protocol (writes a result JSON with --out)",
                        epilog="example: hoibench evaluate sub.zip --data data --evaluator ev --out result.json")
-    s.add_argument("submission", type=Path)
-    s.add_argument("--data", type=Path, required=True)
-    s.add_argument("--evaluator", type=Path, required=True)
+    s.add_argument("submission", type=Path, help="the submission folder or .zip")
+    s.add_argument("--data", type=Path, required=True, help="the store the submission is for (" + H_STORE + ")")
+    s.add_argument("--evaluator", type=Path, required=True,
+                   help="the evaluator folder (hoibench train-evaluator; train-recognizer for multi-body stores)")
     s.add_argument("--protocol", default=None, help="protocol id (default: <dataset>-<mode> of the store)")
-    s.add_argument("--executor", default="serial")
-    s.add_argument("--out", type=Path, default=None)
+    s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
+    s.add_argument("--out", type=Path, default=None,
+                   help="write the result JSON here (a new file; without --out nothing is written)")
+    s.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     s.add_argument("--allow-failed-gate", action="store_true",
                    help="score with an evaluator that fails its sanity gate on this store (the result is marked)")
     s.add_argument("--allow-protocol-mismatch", action="store_true",
@@ -475,6 +502,46 @@ def _add_scoring_commands(sub) -> None:
     s.add_argument("--allow-evaluator-mismatch", action="store_true",
                    help="score with an evaluator trained on another dataset or representation (recorded)")
     s.set_defaults(func=_cmd_evaluate)
+
+
+def _add_baseline_train(bsub, names: list[str]) -> None:
+    """``hoibench baseline train``."""
+    b = bsub.add_parser("train", help="train a baseline on a store's train split")
+    b.add_argument("name", choices=names, help="the baseline")
+    b.add_argument("data", type=Path, help=H_STORE + ", annotated")
+    b.add_argument("--out", type=Path, required=True, help="the run folder to write")
+    b.add_argument("--config", choices=["tiny", "paper"], default="tiny", help="tiny (default; CPU minutes) or paper")
+    b.add_argument("--steps", type=int, default=None,
+                   help="optimiser steps (0: the untrained model); catmo: every stage's steps (0: untrained)")
+    b.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                   help="override one config field (JSON value), e.g. train.lr=5e-4; repeatable")
+    b.add_argument("--seed", type=int, default=None, help="random seed (default: the config's)")
+    b.add_argument("--mask", choices=["paper", "released"], default=None,
+                   help="chainhoi only: Kinematic-aware Decoder mask (released: the published code's additive "
+                        "float mask)")
+    b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    b.add_argument("--threads", type=int, default=None, help=H_THREADS)
+    b.set_defaults(func=_cmd_baseline)
+
+
+def _add_baseline_sample(bsub, names: list[str]) -> None:
+    """``hoibench baseline sample``."""
+    b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
+    b.add_argument("name", choices=names + ["mean-pose"], help="the baseline (mean-pose needs no run)")
+    b.add_argument("run", type=Path, nargs="?", default=None,
+                   help="run folder (chainhoi, ejim, catmo; none for mean-pose)")
+    b.add_argument("--data", type=Path, required=True, help="the store to sample its test split for")
+    b.add_argument("--out", type=Path, required=True, help="the submission folder (or .zip with --zip) to write")
+    b.add_argument("--samples", "-k", type=int, default=1,
+                   help="samples per prompt (K, at most the protocol's 30; MultiModality needs 30)")
+    b.add_argument("--seed", type=int, default=0, help=H_SEED)
+    b.add_argument("--guidance", type=float, default=None, help="classifier-free guidance scale (default: config, 2)")
+    b.add_argument("--ddim-steps", type=int, default=None, help="DDIM steps (default: config, 50)")
+    b.add_argument("--temperature", type=float, default=None, help="catmo: sampling temperature (default: config, 1)")
+    b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    b.add_argument("--threads", type=int, default=None, help=H_THREADS)
+    b.add_argument("--zip", action="store_true", help=H_ZIP)
+    b.set_defaults(func=_cmd_baseline)
 
 
 def _add_baseline_commands(sub) -> None:
@@ -488,41 +555,11 @@ def _add_baseline_commands(sub) -> None:
                               "  hoibench baseline sample mean-pose --data data --out sub-mean\n"
                               "  hoibench baseline show runs/chainhoi-tiny",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    bsub = s.add_subparsers(dest="action", required=True)
-    b = bsub.add_parser("train", help="train a baseline on a store's train split")
-    b.add_argument("name", choices=sorted(BASELINES))
-    b.add_argument("data", type=Path)
-    b.add_argument("--out", type=Path, required=True)
-    b.add_argument("--config", choices=["tiny", "paper"], default="tiny", help="tiny (default; CPU minutes) or paper")
-    b.add_argument("--steps", type=int, default=None,
-                   help="optimiser steps (0: the untrained model); catmo: every stage's steps (0: untrained)")
-    b.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
-                   help="override one config field (JSON value), e.g. train.lr=5e-4; repeatable")
-    b.add_argument("--seed", type=int, default=None)
-    b.add_argument("--mask", choices=["paper", "released"], default=None,
-                   help="chainhoi only: Kinematic-aware Decoder mask (released: the published code's additive "
-                        "float mask)")
-    b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
-    b.add_argument("--threads", type=int, default=None)
-    b.set_defaults(func=_cmd_baseline)
-    b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
-    b.add_argument("name", choices=sorted(BASELINES) + ["mean-pose"])
-    b.add_argument("run", type=Path, nargs="?", default=None,
-                   help="run folder (chainhoi, ejim, catmo; none for mean-pose)")
-    b.add_argument("--data", type=Path, required=True)
-    b.add_argument("--out", type=Path, required=True)
-    b.add_argument("--samples", "-k", type=int, default=1,
-                   help="samples per prompt (K, at most the protocol's 30; MultiModality needs 30)")
-    b.add_argument("--seed", type=int, default=0)
-    b.add_argument("--guidance", type=float, default=None, help="classifier-free guidance scale (default: config, 2)")
-    b.add_argument("--ddim-steps", type=int, default=None, help="DDIM steps (default: config, 50)")
-    b.add_argument("--temperature", type=float, default=None, help="catmo: sampling temperature (default: config, 1)")
-    b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
-    b.add_argument("--threads", type=int, default=None)
-    b.add_argument("--zip", action="store_true")
-    b.set_defaults(func=_cmd_baseline)
+    bsub = s.add_subparsers(dest="action", required=True, metavar="{train,sample,show}")
+    _add_baseline_train(bsub, sorted(BASELINES))
+    _add_baseline_sample(bsub, sorted(BASELINES))
     b = bsub.add_parser("show", help="show (and verify) a baseline run folder")
-    b.add_argument("run", type=Path)
+    b.add_argument("run", type=Path, help="the run folder")
     b.set_defaults(func=_cmd_baseline)
 
     s = sub.add_parser("import", help="turn existing generators' outputs (MDM, HOI-Diff, T2M-GPT/MoMask joints, "
@@ -531,10 +568,10 @@ def _add_baseline_commands(sub) -> None:
                               "  hoibench import joints t2mgpt_joints/ --data data --out sub --fps 20\n"
                               "  hoibench import features feats/ --data data --out sub --normalized",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("format", choices=["mdm", "hoidiff", "joints", "chois", "features"])
+    s.add_argument("format", choices=["mdm", "hoidiff", "joints", "chois", "features"], help="the outputs' format")
     s.add_argument("results", type=Path, help="results.npy (mdm, hoidiff) or a folder of files")
-    s.add_argument("--data", type=Path, required=True)
-    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--data", type=Path, required=True, help="the store the outputs are for (" + H_STORE + ")")
+    s.add_argument("--out", type=Path, required=True, help="the submission folder (or .zip with --zip) to write")
     s.add_argument("--match", choices=["id", "text"], default=None,
                    help="map entries to test ids by file name (id) or caption (text); default: text for mdm/hoidiff")
     s.add_argument("--map", type=Path, default=None, help="JSON {entry index or file stem: test id}")
@@ -543,69 +580,79 @@ def _add_baseline_commands(sub) -> None:
     s.add_argument("--fps", type=float, default=None, help="the source frame rate (default: the format's, or the store's)")
     s.add_argument("--up", choices=["y", "z"], default="y", help="joints: the source's up axis")
     s.add_argument("--normalized", action="store_true", help="features: de-normalise with the store's statistics")
-    s.add_argument("--method", default=None)
-    s.add_argument("--zip", action="store_true")
+    s.add_argument("--method", default=None, help="the method name written to submission.json")
+    s.add_argument("--zip", action="store_true", help=H_ZIP)
     s.set_defaults(func=_cmd_import)
+
+
+def _add_leaderboard_commands(sub) -> None:
+    """``hoibench leaderboard add|build|ls``."""
+    s = sub.add_parser("leaderboard", help="add results to a track and build its README, CSV and HTML page",
+                       epilog="examples:\n  hoibench leaderboard add result.json --track synthetic --method 'My method'\n"
+                              "  hoibench leaderboard build            # every track under leaderboards/\n"
+                              "  hoibench leaderboard ls",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    lsub = s.add_subparsers(dest="action", required=True, metavar="{add,build,ls}")
+    b = lsub.add_parser("add", help="add a result of `hoibench evaluate` to a track")
+    b.add_argument("result", type=Path, help="the result JSON (hoibench evaluate --out)")
+    b.add_argument("--track", required=True, help="the track folder's name under the root (an id)")
+    b.add_argument("--method", required=True, help="the row's name (its entry file is the name's slug)")
+    b.add_argument("--role", default="method", choices=["ground-truth", "reference", "baseline", "method"],
+                   help="how the row is shown (default method; the ground-truth row comes first)")
+    b.add_argument("--notes", default="", help="a note shown with the row")
+    b.add_argument("--allow-incomplete", action="store_true", help="add an incomplete result, marked as such")
+    b.add_argument("--replace", action="store_true", help="replace an entry of the same name")
+    b.add_argument("--new-track", action="store_true", help="start the track when it does not exist yet")
+    b.add_argument("--root", type=Path, default=None, help=H_ROOT)
+    b.set_defaults(func=_cmd_leaderboard)
+    b = lsub.add_parser("build", help="render README.md, leaderboard.csv, index.html and plots of tracks")
+    b.add_argument("--track", default=None, help="one track (default: every track under --root)")
+    b.add_argument("--root", type=Path, default=None, help=H_ROOT)
+    b.set_defaults(func=_cmd_leaderboard)
+    b = lsub.add_parser("ls", help="list tracks and their entries")
+    b.add_argument("--root", type=Path, default=None, help=H_ROOT)
+    b.set_defaults(func=_cmd_leaderboard)
 
 
 def _add_publish_commands(sub) -> None:
     """Comparing, publishing and looking: compare, leaderboard, render, demo."""
     s = sub.add_parser("compare", help="results side by side, with which differences are outside the CIs",
                        epilog="example: hoibench compare gt.json mine.json baseline.json --plot compare.png")
-    s.add_argument("results", type=Path, nargs="+")
+    s.add_argument("results", type=Path, nargs="+",
+                   help="result JSONs (hoibench evaluate --out) or leaderboard entries; the first is the reference")
     s.add_argument("--names", default=None, help="comma-separated row names (default: the submissions' methods)")
     s.add_argument("--plot", type=Path, default=None, help="also draw bars with CI error bars to this PNG")
     s.set_defaults(func=_cmd_compare)
 
-    s = sub.add_parser("leaderboard", help="add results to a track and build its README, CSV and HTML page",
-                       epilog="examples:\n  hoibench leaderboard add result.json --track synthetic --method 'My method'\n"
-                              "  hoibench leaderboard build            # every track under leaderboards/\n"
-                              "  hoibench leaderboard ls",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    lsub = s.add_subparsers(dest="action", required=True)
-    b = lsub.add_parser("add", help="add a result of `hoibench evaluate` to a track")
-    b.add_argument("result", type=Path)
-    b.add_argument("--track", required=True)
-    b.add_argument("--method", required=True, help="the row's name (its entry file is the name's slug)")
-    b.add_argument("--role", default="method", choices=["ground-truth", "reference", "baseline", "method"])
-    b.add_argument("--notes", default="")
-    b.add_argument("--allow-incomplete", action="store_true", help="add an incomplete result, marked as such")
-    b.add_argument("--replace", action="store_true", help="replace an entry of the same name")
-    b.add_argument("--root", type=Path, default=Path("leaderboards"))
-    b.set_defaults(func=_cmd_leaderboard)
-    b = lsub.add_parser("build", help="render README.md, leaderboard.csv, index.html and plots of tracks")
-    b.add_argument("--track", default=None, help="one track (default: every track under --root)")
-    b.add_argument("--root", type=Path, default=Path("leaderboards"))
-    b.set_defaults(func=_cmd_leaderboard)
-    b = lsub.add_parser("ls", help="list tracks and their entries")
-    b.add_argument("--root", type=Path, default=Path("leaderboards"))
-    b.set_defaults(func=_cmd_leaderboard)
+    _add_leaderboard_commands(sub)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")
-    s.add_argument("--out", type=Path, default=Path("demo-out"))
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--out", type=Path, default=Path("demo-out"), help="the folder to write (default demo-out)")
+    s.add_argument("--seed", type=int, default=0, help=H_SEED)
     s.add_argument("--no-baselines", action="store_true",
                    help="skip training the tiny ChainHOI and CATMO (~15 of the demo's ~18 minutes)")
     s.set_defaults(func=_cmd_demo)
 
     s = sub.add_parser("render", help="render a processed clip to PNG, GIF or MP4 (off-screen)",
                        epilog="examples:\n  hoibench render data/clips/Date01_Sub01_boxsmall_lift.npz --out clip.gif\n"
+                              "  hoibench render Date01_Sub01_boxsmall_lift --data data --out clip.gif\n"
                               "  hoibench render sub.zip --id Date03_Sub01_backpack_hold --data data --out cmp.gif",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     s.add_argument("clip", help="DATA/clips/<id>.npz, or a clip id together with --data, or a submission with --id")
-    s.add_argument("--data", type=Path, default=None)
+    s.add_argument("--data", type=Path, default=None, help="the store the clip id (or the submission) belongs to")
     s.add_argument("--id", default=None, help="with a submission: draw its sample for this id beside the ground truth")
     s.add_argument("--sample", type=int, default=0, help="with --id: which of the K samples (default 0)")
     s.add_argument("--out", type=Path, required=True, help=".png (middle frame), .gif or .mp4")
-    s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy")
+    s.add_argument("--body", choices=["proxy", "skeleton"], default="proxy",
+                   help="proxy (default: a body surface from the stored parameters) or skeleton")
     s.set_defaults(func=_cmd_render)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hoibench", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="command", required=True)
+    """The ``hoibench`` parser: every subcommand, every argument with its help."""
+    p = _Parser(prog="hoibench", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_data_commands, _add_scoring_commands, _add_baseline_commands, _add_publish_commands):
         add(sub)
     return p

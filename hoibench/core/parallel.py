@@ -63,7 +63,8 @@ def parse_executor(spec: str) -> ExecutorSpec:
         if not addr:
             raise ValueError("--executor: dask:// needs an address, e.g. dask://127.0.0.1:8786 or dask://local")
         return ExecutorSpec("dask", address=addr)
-    raise ValueError(f"--executor: expected serial, processes[:N] or dask://ADDRESS, got {spec!r}")
+    hint = f" (processes:{s} for {s} worker processes?)" if s.isdigit() else ""
+    raise ValueError(f"--executor: expected serial, processes[:N] or dask://ADDRESS, got {spec!r}{hint}")
 
 
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")

@@ -159,6 +159,9 @@ class Store:
             with np.load(path, allow_pickle=False) as z:
                 return {k: z[k] for k in z.files if keys is None or k in keys}
         except FileNotFoundError:
+            if clip_id not in self.clip_ids():
+                raise FileNotFoundError(f"{self.root / MANIFEST}: no clip {clip_id!r} (not an id of this store's "
+                                        f"manifest)") from None
             raise FileNotFoundError(f"{path}: missing: clip {clip_id} is in the manifest but its file is not "
                                     f"(incomplete copy? rerun `hoibench prepare`)") from None
         except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:

@@ -66,6 +66,21 @@ def backend_of(folder: str | Path) -> Backend | None:
     return None
 
 
+def peek_card(folder: str | Path, kind: str | None = None) -> dict:
+    """The card of ``folder`` (its marker file's JSON) read without loading any weights, for
+    checks that can refuse before the slow load; ``{}`` when the folder has no marker of
+    ``kind`` or it cannot be read (:func:`load_evaluator` then names the problem)."""
+    from ..core.io import read_json_file
+    backend = backend_of(folder)
+    if backend is None or (kind is not None and backend.kind != kind):
+        return {}
+    try:
+        card = read_json_file(Path(folder) / backend.marker, 8 << 20, backend.marker)
+    except (ValueError, OSError, RecursionError):
+        return {}
+    return card if isinstance(card, dict) else {}
+
+
 def load_evaluator(folder: str | Path, kind: str | None = None, **options) -> Any:
     """The evaluator in ``folder``, loaded and verified by its backend.
 
@@ -84,4 +99,4 @@ def load_evaluator(folder: str | Path, kind: str | None = None, **options) -> An
     return backend.load(folder, **options)
 
 
-__all__ = ["Backend", "register_backend", "list_backends", "get_backend", "backend_of", "load_evaluator"]
+__all__ = ["Backend", "register_backend", "list_backends", "get_backend", "backend_of", "peek_card", "load_evaluator"]

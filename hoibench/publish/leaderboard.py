@@ -141,6 +141,41 @@ def role_of(entry: dict) -> str:
     return "ground-truth" if str(entry.get("method", "")).startswith("GT") else "method"
 
 
+def is_track(folder: str | Path) -> bool:
+    """Whether ``folder`` is a leaderboard track (it holds an ``entries/`` folder)."""
+    return (Path(folder) / "entries").is_dir()
+
+
+def track_dirs(root: str | Path) -> list[Path]:
+    """The track folders under ``root`` (sorted by name; none when ``root`` is not a folder)."""
+    root = Path(root)
+    return sorted(p for p in root.iterdir() if is_track(p)) if root.is_dir() else []
+
+
+def find_root(start: str | Path | None = None) -> Path | None:
+    """The nearest ``leaderboards/`` folder holding track folders, looking in ``start`` (default:
+    the current folder) and each folder above it; None when there is none."""
+    here = Path.cwd() if start is None else Path(start)
+    here = here.resolve()
+    for folder in (here, *here.parents):
+        if track_dirs(folder / "leaderboards"):
+            return folder / "leaderboards"
+    return None
+
+
+def track_folder(root: str | Path, track: str, new_track: bool = False) -> Path:
+    """``root/track`` after checking ``track`` against the id rule and that the track exists
+    (a new one only with ``new_track``: it starts without a ground-truth row)."""
+    from ..core.ids import check_id
+    check_id(track, "--track", f"leaderboard root {root}")
+    folder = Path(root) / track
+    if not is_track(folder) and not new_track:
+        known = ", ".join(p.name for p in track_dirs(root)) or "none"
+        raise LeaderboardError(f"--track {track!r}: {root} has no such track (tracks: {known}); pass --new-track to "
+                               f"start one (it has no ground-truth row until you add one with --role ground-truth)")
+    return folder
+
+
 def load_track(track_dir: str | Path) -> list[dict]:
     """Every entry of ``track_dir/entries`` (sorted by file name)."""
     folder = Path(track_dir) / "entries"
@@ -179,6 +214,11 @@ def read_result(path: str | Path) -> dict:
         raise LeaderboardError(str(exc)) from None
 
 
+def _existing_method(path: Path, entries: list[dict]) -> str:
+    """The method name of the entry already at ``path`` (its file name when unreadable)."""
+    return next((str(e["method"]) for e in entries if e.get("_file") == path.name), path.stem)
+
+
 def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, role: str = "method",
                allow_incomplete: bool = False, replace: bool = False, notes: str = "",
                submission_meta: dict | None = None) -> Path:
@@ -211,7 +251,8 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
                                f"marked as incomplete")
     path = track_dir / "entries" / f"{slug(method)}.json"
     if path.exists() and not replace:
-        raise LeaderboardError(f"{path}: an entry named {method!r} exists already; choose another --method or "
+        raise LeaderboardError(f"{path}: field method: an entry named {_existing_method(path, existing)!r} exists "
+                               f"already (--method {method!r} has the same file name); choose another --method or "
                                f"pass --replace")
     entry = entry_from_result(result, method=method, track=track, submission_meta=submission_meta, notes=notes)
     entry["role"] = role

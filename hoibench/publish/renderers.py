@@ -23,11 +23,67 @@ RENDERERS = {"hoi": _render_hoi, "multibody": _render_multibody}
 
 
 def render_store_clip(root, clip_id: str, out, body: str | None = None) -> Path:
-    """Render clip ``clip_id`` of the store at ``root`` to ``out`` with its track's renderer."""
+    """Render clip ``clip_id`` of the store at ``root`` (a path or a
+    :class:`~hoibench.datasets.store.Store`) to ``out`` with its track's renderer."""
     from ..datasets.store import Store
     from ..tracks.registry import track_for_store
+    store = root if isinstance(root, Store) else Store(root)
+    return RENDERERS[track_for_store(store).renderer](store, store.root, clip_id, out, body=body)
+
+
+def is_submission(path: str | Path) -> bool:
+    """Whether ``path`` looks like a submission: a ``.zip`` file, or a folder with
+    ``submission.json`` or ``samples/``."""
+    path = Path(path)
+    if path.is_file():
+        return path.suffix.lower() == ".zip"
+    return path.is_dir() and ((path / "submission.json").is_file() or (path / "samples").is_dir())
+
+
+def _store_clip(store, clip_id: str, taken_for: str, expected: str) -> str:
+    """``clip_id`` after the id rule and a look-up in the store's manifest; the refusal says
+    what the argument was taken for and what was expected."""
+    from ..core.ids import check_id
+    check_id(clip_id, "clip id", taken_for)
+    ids = store.clip_ids()
+    if clip_id not in ids:
+        example = f" (e.g. {ids[0]})" if ids else ""
+        raise ValueError(f"{store.root / 'manifest.json'}: no clip {clip_id!r}: {taken_for} was taken for a clip id "
+                         f"of this store{example}; expected {expected}")
+    return clip_id
+
+
+#: what ``hoibench render`` accepts, for its refusals
+RENDER_EXPECTED = "an id of the store's manifest (with --data), DATA/clips/<id>.npz, or a submission with --id ID"
+
+
+def main_render(clip: str, data, clip_id: str | None, out, sample: int = 0, body: str = "proxy") -> Path:
+    """``hoibench render``: a stored clip (``DATA/clips/<id>.npz``, or an id with ``data``), or
+    with ``clip_id`` the submission ``clip``'s sample beside its ground truth. Refusals say
+    what ``clip`` was taken for and what was expected."""
+    from ..datasets.store import Store
+    if clip_id is not None:                    # a submission's sample beside its ground truth
+        if data is None:
+            raise ValueError("render SUB --id ID: --data DATA (the store the submission is for) is required")
+        if not Path(clip).exists():
+            raise FileNotFoundError(f"{clip}: taken for a submission (with --id) but does not exist; expected a "
+                                    f"submission folder or .zip")
+        store = Store(data)
+        _store_clip(store, clip_id, "--id", "a test id of the store the submission is for")
+        from .render import render_comparison
+        return render_comparison(clip, store, clip_id, out, sample=sample)
+    path = Path(clip)
+    if path.suffix == ".npz":
+        root, cid, taken = path.parent.parent, path.stem, f"the file name of {clip}"
+    elif data is None:
+        raise ValueError(f"render {clip}: expected DATA/clips/<id>.npz, or an id with --data DATA")
+    elif is_submission(path):
+        raise ValueError(f"render {clip} --data {data}: {clip} is a submission, taken for a clip id without --id; "
+                         f"give --id ID to draw its sample for one test id beside the ground truth")
+    else:
+        root, cid, taken = data, str(clip), f"{clip!r} (given without --id)"
     store = Store(root)
-    return RENDERERS[track_for_store(store).renderer](store, root, clip_id, out, body=body)
+    return render_store_clip(store, _store_clip(store, cid, taken, RENDER_EXPECTED), out, body=body)
 
 
-__all__ = ["RENDERERS", "render_store_clip"]
+__all__ = ["RENDERERS", "render_store_clip", "main_render", "is_submission"]

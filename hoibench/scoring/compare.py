@@ -4,14 +4,16 @@ For every metric the table shows ``mean ± 95% CI`` per result and, against the 
 whether the difference is outside the confidence intervals: ``|m_A - m_B| > ci_A + ci_B``
 (the two intervals do not overlap; a conservative test -- overlapping intervals do not prove
 the difference is noise). Results scored with another evaluator, protocol or protocol version
-than the first are compared anyway but flagged: their numbers are not on one scale.
+than the first are compared anyway but flagged, and no difference with them is starred:
+their numbers are not on one scale. Leaderboard entries (``leaderboards/<track>/entries/*.json``)
+are read too: their method and samples per prompt are shown.
 ``--plot`` draws the main metrics as bars with CI error bars.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-from .hoi import GROUPS
+from .hoi import GROUPS, shown_mean
 from .results import read_result as load_result
 
 
@@ -30,19 +32,44 @@ def outside(a: tuple[float, float], b: tuple[float, float]) -> bool:
     return abs(a[0] - b[0]) > a[1] + b[1]
 
 
+def _method(r: dict, path: str | Path) -> str:
+    """A row's name: the submission's method (a result), the entry's method (a leaderboard
+    entry), else the file's stem."""
+    return str((r.get("submission") or {}).get("method") or r.get("method") or Path(path).stem)
+
+
+def _k(r: dict):
+    """Samples per prompt of a result (``counts``) or of a leaderboard entry (top level)."""
+    return (r.get("counts") or {}).get("samples_per_prompt", r.get("samples_per_prompt"))
+
+
+def _scale(r: dict) -> tuple:
+    return r.get("evaluator_id"), r.get("protocol"), r.get("protocol_version")
+
+
+def _cell(name: str, v: tuple[float, float] | None, ref: tuple[float, float] | None, starred: bool,
+          width: int) -> str:
+    if v is None:
+        return f"{'-':>{width}s}"
+    star = "*" if starred and ref is not None and outside(v, ref) else " "
+    return f"{f'{shown_mean(name, v[0]):.4g} ± {v[1]:.2g}{star}':>{width}s}"
+
+
 def compare(paths: list[str | Path], names: list[str] | None = None) -> str:
-    """The side-by-side table (text) of the results at ``paths``."""
+    """The side-by-side table (text) of the results (or leaderboard entries) at ``paths``.
+    A difference is starred only between results on one scale (same evaluator, protocol
+    and version as the first); a tiny negative FID shows as 0, as ``evaluate`` prints it."""
     if len(paths) < 2:
         raise ValueError("compare: give at least two result files")
     results = [load_result(p) for p in paths]
-    names = names or [str(r.get("submission", {}).get("method") or Path(p).stem) for r, p in zip(results, paths)]
+    names = names or [_method(r, p) for r, p in zip(results, paths)]
     base = results[0]
-    key = lambda r: (r.get("evaluator_id"), r.get("protocol"), r.get("protocol_version"))  # noqa: E731
+    same = [_scale(r) == _scale(base) for r in results]
     lines = []
-    for n, r, p in zip(names, results, paths):
-        flag = "" if key(r) == key(base) else "  [other evaluator/protocol: not on one scale]"
+    for n, r, p, ok in zip(names, results, paths, same):
+        flag = "" if ok else "  [other evaluator/protocol: not on one scale, no *]"
         lines.append(f"{n}: {p} ({r.get('protocol')}@{r.get('protocol_version')}, evaluator "
-                     f"{str(r.get('evaluator_id'))[:12]}, K={r.get('counts', {}).get('samples_per_prompt')}, "
+                     f"{str(r.get('evaluator_id'))[:12]}, K={_k(r)}, "
                      f"{'complete' if r.get('complete') else 'INCOMPLETE'}){flag}")
     width = min(max(18, *(len(n) for n in names)), 26) + 2
     lines += ["", f"{'metric':26s}" + "".join(f"{n[:width - 2]:>{width}s}" for n in names)]
@@ -51,18 +78,12 @@ def compare(paths: list[str | Path], names: list[str] | None = None) -> str:
         if rows:
             lines.append(f"{group}:")
         for m in rows:
-            cells = []
             ref = _mc(base, m)
-            for i, r in enumerate(results):
-                v = _mc(r, m)
-                if v is None:
-                    cells.append(f"{'-':>{width}s}")
-                    continue
-                star = "*" if (i > 0 and ref is not None and outside(v, ref)) else " "
-                cells.append(f"{f'{v[0]:.4g} ± {v[1]:.2g}{star}':>{width}s}")
-            lines.append(f"  {m:24s}" + "".join(cells))
-    lines += ["", f"* outside the 95% CIs of {names[0]} (the intervals do not overlap)"]
-    if any(r.get("counts", {}).get("samples_per_prompt") == 1 for r in results):
+            lines.append(f"  {m:24s}" + "".join(_cell(m, _mc(r, m), ref, i > 0 and same[i], width)
+                                                for i, r in enumerate(results)))
+    lines += ["", f"* outside the 95% CIs of {names[0]} (the intervals do not overlap; only between results on "
+                  f"one scale)"]
+    if any(_k(r) == 1 for r in results):
         lines.append("a CI of 0 at K = 1 reflects only the protocol's resampling, not the generator's sampling "
                      "variance: sample K = 30 to compare generators")
     return "\n".join(lines)
@@ -76,7 +97,7 @@ def plot(paths: list[str | Path], out: str | Path, names: list[str] | None = Non
 
     from ..core.io import atomic_save_figure
     results = [load_result(p) for p in paths]
-    names = names or [str(r.get("submission", {}).get("method") or Path(p).stem) for r, p in zip(results, paths)]
+    names = names or [_method(r, p) for r, p in zip(results, paths)]
     metrics = [m for m in ("fid", "r_precision_top1", "mm_dist", "cd", "fsr") if any(_mc(r, m) for r in results)]
     fig, axes = plt.subplots(1, len(metrics), figsize=(3.2 * len(metrics), 0.4 * len(names) + 1.8), squeeze=False)
     for ax, m in zip(axes[0], metrics):

@@ -30,7 +30,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     complete only). The ``allow_*`` overrides apply to single-body tracks.
     """
     from ..core.parallel import map_units
-    from ..evaluator.backends import backend_of, load_evaluator
+    from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
     from ..tracks.registry import track_for_store
     from .pipeline import get_scorer
@@ -44,12 +44,14 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
                                 f"{track.name} track, scored under {track.protocol_kind} protocols "
                                 f"({', '.join(track.protocols)})")
     scorer_cls = get_scorer(track.scorer)
-    ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options)
     backend = backend_of(evaluator)
-    scorer = scorer_cls(store, proto, ev, track, submission,
-                        {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": allow_protocol_mismatch,
-                         "allow_evaluator_mismatch": allow_evaluator_mismatch,
-                         "evaluator_backend": backend.name if backend else track.evaluator_kind}, started=started)
+    options = {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": allow_protocol_mismatch,
+               "allow_evaluator_mismatch": allow_evaluator_mismatch,
+               "evaluator_backend": backend.name if backend else track.evaluator_kind}
+    # the card alone decides a mismatch: refuse it before the weights and the text encoder load
+    scorer_cls.check_fit(store, proto, peek_card(evaluator, track.evaluator_kind), options)
+    ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options)
+    scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
     scorer.prepare()
     with scorer.open_submission() as sub:
         ids = scorer.validate(sub)
@@ -65,21 +67,70 @@ def format_any(result: dict) -> str:
     return get_scorer("multibody" if result.get("kind") == "multibody" else "hoi").format_result(result)
 
 
+def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str | Path,
+                        out: str | Path | None = None, protocol: str | None = None, executor: str = "serial",
+                        overwrite: bool = False) -> None:
+    """Refuse bad arguments of ``hoibench evaluate`` before any store is read (one line each):
+    the executor spec, the protocol id, the store, evaluator and submission paths, and
+    ``--out`` (a file that is not there yet, unless ``overwrite``)."""
+    from ..core.parallel import parse_executor
+    from ..tracks.protocol import get_protocol
+    parse_executor(executor)
+    if protocol is not None:
+        get_protocol(protocol)
+    if not (Path(data) / "manifest.json").is_file():
+        raise FileNotFoundError(f"--data {data}: not a hoibench store (no manifest.json)")
+    if not Path(evaluator).is_dir():
+        raise FileNotFoundError(f"--evaluator {evaluator}: no such folder (make one with `hoibench train-evaluator "
+                                f"DATA --out EV`, or `hoibench train-recognizer` for a multi-body store)")
+    sub = Path(submission)
+    if not (sub.is_dir() or sub.is_file()):
+        what = "does not exist" if not sub.exists() else "is neither a folder nor a regular file"
+        raise FileNotFoundError(f"{submission}: {what} (expected a submission folder or .zip)")
+    if out is not None:
+        check_result_free(out, overwrite)
+
+
+def check_result_free(out: str | Path, overwrite: bool = False) -> None:
+    """Refuse ``--out`` when it is a folder, or a file already there unless ``overwrite``."""
+    path = Path(out)
+    if path.is_dir():
+        raise ValueError(f"--out {out}: is a folder; give a file name such as result.json")
+    if (path.exists() or path.is_symlink()) and not overwrite:
+        raise FileExistsError(f"--out {out}: exists already (an earlier result?); pass --overwrite to replace it, "
+                              f"or choose another file")
+
+
+def foreign_submission_line(submission: str | Path, data: str | Path) -> str | None:
+    """The line that leads ``validate``/``evaluate`` output when most submitted ids belong to
+    no test split of the store at ``data`` (a submission made for another store); None otherwise."""
+    from .submission import Submission
+    from .validate import foreign_ids_line
+    store = Store(Path(data))
+    with Submission(submission) as sub:
+        ids = list(sub.ids)
+    return foreign_ids_line(submission, data, ids, store.clip_ids("test"))
+
+
 def main_evaluate(submission, data, evaluator, out=None, protocol=None, executor="serial",
                   allow_failed_gate: bool = False, allow_protocol_mismatch: bool = False,
-                  allow_evaluator_mismatch: bool = False) -> int:
-    """``hoibench evaluate``: exit 0 when complete, 1 when incomplete or overridden."""
-    if out is not None and Path(out).is_dir():
-        raise ValueError(f"--out {out}: is a folder; give a file name such as result.json")
+                  allow_evaluator_mismatch: bool = False, overwrite: bool = False) -> int:
+    """``hoibench evaluate``: exit 0 when complete, 1 when incomplete or overridden. Every
+    argument is checked before the store is read; without ``out`` the last line says how to
+    keep the result."""
+    check_evaluate_args(submission, data, evaluator, out, protocol, executor, overwrite)
+    lead = foreign_submission_line(submission, data)
+    if lead:
+        print(lead)
     result = evaluate(submission, data, evaluator, protocol=protocol, executor=executor,
                       allow_failed_gate=allow_failed_gate, allow_protocol_mismatch=allow_protocol_mismatch,
                       allow_evaluator_mismatch=allow_evaluator_mismatch)
     if out is not None:
         atomic_write_json(out, result)
     print(format_any(result))
-    if out is not None:
-        print(f"wrote {out}")
+    print(f"wrote {out}" if out is not None else "not written: pass --out result.json to keep it")
     return 0 if result["complete"] else 1
 
 
-__all__ = ["evaluate", "format_result", "format_any", "main_evaluate", "EvaluationRefused"]
+__all__ = ["evaluate", "format_result", "format_any", "main_evaluate", "check_evaluate_args", "check_result_free",
+           "foreign_submission_line", "EvaluationRefused"]

@@ -165,6 +165,15 @@ class HOIScorer(Scorer):
     evaluator_options = {"allow_failed_gate": True}     # the gate is measured in prepare, on this store
     map_options = {"window": EMBED_BATCH}
 
+    @classmethod
+    def check_fit(cls, store, protocol, card: dict, options: dict) -> None:
+        """The fit checks of :meth:`prepare` on the card alone (before the weights load)."""
+        try:
+            _check_fit(protocol, store, card, options.get("allow_protocol_mismatch", False),
+                       options.get("allow_evaluator_mismatch", False))
+        except (AttributeError, TypeError):     # a malformed card: the loader names its field
+            return
+
     def prepare(self) -> None:
         """Fit checks, then the ground truth: captions, embeddings, the sanity gate on this store."""
         from ..evaluator.gate import gate_from_embeddings
@@ -384,6 +393,12 @@ GROUPS = (("semantic", ("r_precision_top1", "r_precision_top2", "r_precision_top
 COUNTS = ("clips", "clips_with_contact")
 
 
+def shown_mean(name: str, mean: float) -> float:
+    """A metric's mean as printed: a tiny negative FID (the reference numerics' rounding
+    below zero) shows as 0; the JSON keeps the raw value."""
+    return 0.0 if name == "fid" and -1e-6 < mean < 0 else mean
+
+
 def format_result(result: dict) -> str:
     """The result as a reader wants it: metrics grouped (semantic / physical / extras) with
     the direction (↑ higher is better, ↓ lower, ≈GT closest to the ground truth) and units,
@@ -405,8 +420,7 @@ def format_result(result: dict) -> str:
             mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
             if isinstance(mean, list):
                 mean, ci = mean[0], ci[0]
-            if name == "fid" and -1e-6 < mean < 0:
-                mean = 0.0
+            mean = shown_mean(name, mean)
             info = METRICS.get(name)
             arrow = {True: "↑", False: "↓", None: "≈GT"}[info.higher_is_better] if info else ""
             units = info.units if info else ""
@@ -431,4 +445,4 @@ def format_result(result: dict) -> str:
 
 
 
-__all__ = ["HOIScorer", "format_result", "EvaluationRefused", "EMBED_BATCH"]
+__all__ = ["HOIScorer", "format_result", "shown_mean", "EvaluationRefused", "EMBED_BATCH"]

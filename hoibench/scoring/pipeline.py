@@ -39,6 +39,11 @@ class Scorer:
         self.started = time.perf_counter() if started is None else started
         self.timings: dict[str, float] = {}
 
+    @classmethod
+    def check_fit(cls, store, protocol, card: dict, options: dict) -> None:
+        """Refuse, before the evaluator is loaded, what its ``card`` (read without weights;
+        ``{}`` when unknown) already shows does not fit the store or protocol."""
+
     # --- stages
     def prepare(self) -> None:
         """Checks that need no submission, and the ground truth's statistics."""

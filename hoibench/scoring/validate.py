@@ -14,6 +14,7 @@ import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterable
 
 import numpy as np
 
@@ -32,12 +33,16 @@ FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_se
 class ValidationReport:
     """Outcome of :func:`validation_report`: every problem, and what can be scored.
     ``complete`` is True only when there is no error at all; ``valid_ids`` are the test ids
-    whose file has no error; ``missing_ids`` the test ids without a valid file."""
+    whose file has no error; ``missing_ids`` the test ids without a valid file;
+    ``submitted_ids`` the ids the submission holds; ``lead`` the line printed first when most
+    of them belong to no test split of the store (:func:`foreign_ids_line`)."""
 
     problems: list
     test_ids: list
     valid_ids: list
     samples_per_prompt: int | None
+    submitted_ids: list = field(default_factory=list)
+    lead: str | None = None
     complete: bool = field(init=False)
 
     def __post_init__(self):
@@ -209,6 +214,20 @@ def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, 
 
 #: a submission-wide up-axis error needs at least this many clips agreeing, and a majority
 UP_AXIS_MIN_CLIPS = 3
+#: how to convert, by the up axis the files look like
+UP_FIX = {"z": ", e.g. `hoibench import joints JOINTS_DIR --data DATA --out SUB --up z` (z-up joints -> y-up)"}
+
+
+def foreign_ids_line(submission: str | Path, data: str | Path, submitted: Iterable[str],
+                     test_ids: Iterable[str]) -> str | None:
+    """The one line that leads ``validate``/``evaluate`` when most ``submitted`` ids belong to
+    no test split of the store (a submission made for another store); None otherwise."""
+    submitted, tests = sorted(set(submitted)), set(test_ids)
+    foreign = [i for i in submitted if i not in tests]
+    if not submitted or 2 * len(foreign) <= len(submitted):
+        return None
+    return (f"{submission}: these ids belong to no test split of this store ({len(foreign)} of {len(submitted)}, "
+            f"e.g. {foreign[0]!r}): is --data {data} the right store?")
 
 
 def validation_report(sub, store, split: str = "test", protocol=None,
@@ -270,12 +289,14 @@ def validation_report(sub, store, split: str = "test", protocol=None,
             if n >= min(UP_AXIS_MIN_CLIPS, len(ks)) and n > len(ks) / 2:
                 problems.append(Problem("*", "joints", f"{n} of {len(ks)} sample files look {axis}-up (their feet "
                                                        f"are the lowest joints along {axis}, not y): hoibench is y-up; "
-                                                       "rotate the motions (and objects) into y-up first"))
+                                                       "rotate the motions (and objects) into y-up first"
+                                                       + UP_FIX.get(axis, "")))
         if protocol is not None and kvals and kvals[0] <= protocol.mm_pairs:
             problems.append(Problem("*", SAMPLES_DIR, f"K = {kvals[0]} sample(s) per prompt: MultiModality needs "
                                                       f"{protocol.mm_samples} and will not be computed", "warning"))
         problems.sort(key=lambda p: (p.id != "*", p.id, p.field, p.message))
-        return ValidationReport(problems, test_ids, valid, kvals[0] if len(kvals) == 1 else None)
+        return ValidationReport(problems, test_ids, valid, kvals[0] if len(kvals) == 1 else None, sorted(found),
+                                foreign_ids_line(s.path, st.root, found, test_ids))
     finally:
         if own:
             s.close()
@@ -321,6 +342,8 @@ def main_validate(sub: str | Path, data: str | Path, protocol: str | None = None
     if as_json:
         print(json.dumps(rep.to_dict(), indent=2, sort_keys=True))
     else:
+        if rep.lead:
+            print(rep.lead)
         for p in rep.problems:
             print(p)
         state = "complete" if rep.complete else "INCOMPLETE (will not be scored as complete)"
