@@ -141,9 +141,11 @@ def test_undefined_metrics_are_named_and_infinite_ones_stop_the_run():
         _finite_rows([{"cd": 0.1}, {"cd": float("inf")}])
 
 
-def test_a_legacy_length_crop_scores_each_replication_on_its_own_windows(setup):
+def test_a_legacy_length_crop_scores_each_replication_on_its_own_windows(setup, tmp_path):
     """synthetic-legacy crops the evaluated lengths (ChainHOI's multiples of 4 at a random
-    offset): replication r's physical metrics are those of the windows drawn for (clip, r)."""
+    offset): replication r's physical metrics are those of the windows drawn for (clip, r)
+    (the shipped protocol runs one replication, as ChainHOI's eval.py; a copy runs three)."""
+    from pathlib import Path
     from hoibench.datasets.store import Store
     from hoibench.metrics.legacy_rules import replication_windows
     from hoibench.metrics.physical import clip_inputs, evaluate_physical_windows, load_groups
@@ -151,8 +153,12 @@ def test_a_legacy_length_crop_scores_each_replication_on_its_own_windows(setup):
     from hoibench.scoring.submission import Submission
     from hoibench.tracks.protocol import get_protocol
     base, data = setup
-    res = evaluate(base / "gt", data, base / "ev", protocol="synthetic-legacy", allow_protocol_mismatch=True)
-    proto = get_protocol("synthetic-legacy")
+    src = Path(get_protocol("synthetic-legacy").source).read_text()
+    three = tmp_path / "synthetic-legacy-3.yaml"
+    three.write_text(src.replace("replications: 1 ", "replications: 3 "))
+    res = evaluate(base / "gt", data, base / "ev", protocol=str(three), allow_protocol_mismatch=True)
+    proto = get_protocol(str(three))
+    assert proto.replications == 3
     cfg = proto.physical_config()
     store, sub = Store(data), Submission(base / "gt")
     motions = {cid: {k: v[0] for k, v in sub.load(cid).items()} for cid in sorted(sub.ids)}
