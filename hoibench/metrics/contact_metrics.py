@@ -4,7 +4,9 @@ hand-object contact ratio, object floating.
 Distances are signed distances (m, negative inside the object) from
 :mod:`hoibench.bodies.contact` (one raycasting scene per object template, points moved into the
 template frame, robust inside test named in the mesh report); nothing here re-implements a
-distance. The functions come in two layers:
+distance. Legacy protocols take CD's joint distances and PS's signs from ChainHOI's
+rules instead (:mod:`hoibench.bodies.reference_distance`: :func:`reference_joint_distances`,
+:func:`closest_face_frames`). The functions come in two layers:
 
 * geometry: :func:`joint_object_distances` (T, 22) and :func:`body_object_distances` (T, V);
 * metrics on those arrays (pure numpy): each returns the per-clip *sufficient statistics*
@@ -21,7 +23,8 @@ from typing import Sequence
 import numpy as np
 
 from ..core import skeleton as sk
-from ..bodies.distance import signed_distance_frames
+from ..bodies.distance import signed_distance_frames, to_template_frame
+from ..bodies.reference_distance import ClosestFaceField, contact_distance_field
 
 HANDS: tuple[int, int] = (20, 21)          # wrists
 OCD_LENGTH_TOLERANCE_FRAMES = 8            # group members within +-8 frames (ChainHOI: after cropping)
@@ -57,6 +60,16 @@ def body_object_distances(vertices, template_vertices, faces, obj_rot, obj_trans
                                             np.asarray(obj_trans)[sl], max_distance=margin_m,
                                             field=field, **options)
     return out
+
+
+def reference_joint_distances(joints, vertices, faces, obj_rot, obj_trans, variant: str = "reference"
+                              ) -> np.ndarray:
+    """Unsigned distances (T, 22) of the joints to the posed mesh as ChainHOI's CD measures them
+    (its point-to-triangle function with the edge quirk, ``variant`` of
+    :data:`hoibench.bodies.reference_distance.CONTACT_VARIANTS`), metres. CD squares them."""
+    J = np.asarray(joints, dtype=np.float64)
+    local = to_template_frame(J, obj_rot, obj_trans)
+    return contact_distance_field(vertices, faces, variant)(local.reshape(-1, 3)).reshape(J.shape[:2])
 
 
 @dataclass(frozen=True)
@@ -149,6 +162,23 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
         resolve(np.flatnonzero(~decided[frame] & (lo < contact_m)))
         touch = np.bincount(frame[hi < contact_m], minlength=T) > 0
     return SurfaceFrames(V, pen, depth, touch)
+
+
+def closest_face_frames(field: ClosestFaceField, points) -> SurfaceFrames:
+    """:class:`SurfaceFrames` (``touching`` None) of body-surface points (T, V, 3) in the
+    object's template frame under ChainHOI's PS sign rule (torchsdf's closest face,
+    :class:`hoibench.bodies.reference_distance.ClosestFaceField`): a vertex penetrates when its
+    closest face's normal says inside and it is not on the surface; every vertex is queried
+    (the rule can put far vertices inside). ``depth``: the largest distance of a penetrating
+    vertex per frame, m."""
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 3 or pts.shape[-1] != 3:
+        raise ValueError(f"points: expected shape (T, V, 3), got {pts.shape}")
+    T, V = pts.shape[:2]
+    cf = field(pts.reshape(-1, 3))
+    pen = cf.penetrating.reshape(T, V)
+    depth = np.where(pen, cf.distance.reshape(T, V), 0.0).max(axis=1) if V else np.zeros(T)
+    return SurfaceFrames(V, pen.sum(axis=1), depth, None)
 
 
 def object_lowest_point(template_vertices, obj_rot, obj_trans) -> np.ndarray:

@@ -48,6 +48,7 @@ import numpy as np
 from ..core import skeleton as sk
 from ..bodies.contact import joint_thresholds
 from ..bodies.distance import signed_distance_field, to_template_frame
+from ..bodies.reference_distance import closest_face_field
 from ..core.parallel import map_units
 from ..core.registry import load_object
 from . import METRICS
@@ -58,6 +59,19 @@ from .body_surface import PROXY_LABEL, PROXY_VERTICES, proxy_template_points, pr
 from .state import Metric, sorted_items
 
 MODES: tuple[str, ...] = ("legacy", "clean")
+#: PS sign rules: hoibench's inside test over all object parts, or ChainHOI's (torchsdf: the
+#: closest face's normal, first face on ties; :mod:`hoibench.bodies.reference_distance`)
+PS_SIGNS: tuple[str, ...] = ("inside", "closest_face")
+#: joint distances of CD/OCD: hoibench's exact ones, or ChainHOI's point-to-triangle functions
+#: with the edge quirk (BEHAVE's, OMOMO's numerics)
+CD_EDGES: tuple[str, ...] = ("exact", "reference", "reference-omomo")
+#: what a legacy result says beside PS: the released evaluation never computes it
+LEGACY_PS_NOTE = (
+    "ps: ChainHOI's released evaluation does not compute PS -- the PeneMetric calls are commented "
+    "out (src/models/chainhoi_behave.py:398 update, :331 compute; chainhoi_omomo.py:440, :363; "
+    "commit 4990160), so its published PS came from code not released; hoibench's legacy PS "
+    "follows PeneMetric.update as released (compute.py:1141-1198: torchsdf sign of the closest "
+    "face, mesh as loaded) on the proxy body instead of SMPLify.")
 
 #: names of the physical metrics (metadata: :data:`hoibench.metrics.METRICS`)
 PHYSICAL_OUTPUTS: tuple[str, ...] = tuple(n for n, i in METRICS.items() if i.kind == "physical")
@@ -79,6 +93,10 @@ class PhysicalConfig:
     (T, 22, 3) to vertices (T, V, 3). ``ocd_members`` ... ``length_crop``: ChainHOI's rules
     (:mod:`hoibench.metrics.legacy_rules`; defaults: hoibench's clean rules);
     ``fsr_canonical_mode``: the hml263 mode of ``fsr_frame="canonical"`` (HOI-Diff's, as ChainHOI).
+    ``ps_sign``, ``cd_edge``, ``mesh_repair`` (legacy protocols set the ChainHOI values; the
+    defaults are hoibench's): the PS sign rule (:data:`PS_SIGNS`), the joint distances of
+    CD/OCD (:data:`CD_EDGES`; contact IoU and the hand ratio keep hoibench's), and whether the
+    object mesh is repaired before any distance.
     """
 
     mode: str = "clean"
@@ -103,10 +121,16 @@ class PhysicalConfig:
     fsr_feet_to_floor: bool = False
     length_crop: str = "none"
     fsr_canonical_mode: str = "legacy-hoidiff"
+    ps_sign: str = "inside"                  # PS_SIGNS; "closest_face": ChainHOI (torchsdf)
+    cd_edge: str = "exact"                   # CD_EDGES; "reference*": ChainHOI's edge quirk
+    mesh_repair: bool = True                 # False: the object mesh as loaded (ChainHOI)
 
     def __post_init__(self):
         for name in lr.PHYSICAL_OPTIONS:
             lr.check_option(name, getattr(self, name))
+        for name, allowed in (("ps_sign", PS_SIGNS), ("cd_edge", CD_EDGES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name}: expected one of {allowed}, got {getattr(self, name)!r}")
         thr = self.contact_gt_threshold_m
         if thr is not None and not thr > 0:
             raise ValueError(f"contact_gt_threshold_m: expected a positive threshold, got {thr!r}")
@@ -182,14 +206,17 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     st["has_object"] = True
     R = np.asarray(inp.obj_rot, dtype=np.float64)
     t = np.asarray(inp.obj_trans, dtype=np.float64)
-    field_ = signed_distance_field(inp.template_vertices, inp.template_faces, inside_test=config.inside_test)
+    field_ = signed_distance_field(inp.template_vertices, inp.template_faces, inside_test=config.inside_test,
+                                   **({} if config.mesh_repair else {"repair": False}))
     st["inside_test"] = field_.inside_test
     d = cm.joint_object_distances(J, inp.template_vertices, inp.template_faces, R, t, field=field_)
     if inp.gt_contacts is not None:
         own = lr.select_joints(inp.gt_contacts, config.contact_joints)
         group = tuple(lr.select_joints(g, config.contact_joints) for g in inp.group_contacts)
-        st["cd_sum"], st["cd_count"] = cm.contact_distance_sums(d, own)
-        st["ocd"] = cm.optimal_contact_distance(d, own, group, config.ocd_length_tolerance, config.ocd_members)
+        d_cd = d if config.cd_edge == "exact" else \
+            cm.reference_joint_distances(J, field_.vertices, field_.faces, R, t, config.cd_edge)
+        st["cd_sum"], st["cd_count"] = cm.contact_distance_sums(d_cd, own)
+        st["ocd"] = cm.optimal_contact_distance(d_cd, own, group, config.ocd_length_tolerance, config.ocd_members)
     tau = joint_thresholds(inp.object_name, config.contact_mode, joints=J)
     pred = cm.predicted_contacts(d, tau)
     if inp.gt_contacts is not None:
@@ -205,24 +232,31 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     # parts farther than the margin from the object cannot touch it (< vertex_contact_m)
     margin = config.vertex_contact_m + 0.005
 
-    def surface(joints, sl, **what):
+    def _vertices(joints, sl):
         n = sl.stop - sl.start
-        if config.body_surface == "proxy":
-            index, points = proxy_template_points(joints, sl, field_, R, t, margin)
-            return cm.surface_frames(field_, points, index, (n, PROXY_VERTICES), config.vertex_contact_m, **what)
         verts = np.asarray(body(joints[sl]), dtype=np.float64)
         if verts.ndim != 3 or verts.shape[0] != n or verts.shape[2] != 3 or not np.isfinite(verts).all():
             raise ValueError(f"{inp.key}: body_surface {config.body_surface}: expected finite vertices "
                              f"({n}, V, 3) for {n} frames, got shape {verts.shape}")
-        return cm.surface_frames(field_, to_template_frame(verts, R[sl], t[sl]),
+        return verts
+
+    def surface(joints, sl, **what):
+        if config.body_surface == "proxy":
+            index, points = proxy_template_points(joints, sl, field_, R, t, margin)
+            return cm.surface_frames(field_, points, index, (sl.stop - sl.start, PROXY_VERTICES),
+                                     config.vertex_contact_m, **what)
+        return cm.surface_frames(field_, to_template_frame(_vertices(joints, sl), R[sl], t[sl]),
                                  contact_m=config.vertex_contact_m, **what)
 
+    closest = None if config.ps_sign == "inside" else closest_face_field(field_.vertices, field_.faces)
     chunk = 256
     for s in range(0, len(J), chunk):
         sl = slice(s, min(len(J), s + chunk))
-        if shift:
+        if shift or closest is not None:
             touching[sl] = surface(J, sl, penetration=False).touching
-            sf = surface(J - np.array([0.0, shift, 0.0]), sl, touching=False)
+            Js = J - np.array([0.0, shift, 0.0])
+            sf = surface(Js, sl, touching=False) if closest is None else cm.closest_face_frames(
+                closest, to_template_frame(_vertices(Js, sl), R[sl], t[sl]))
         else:
             sf = surface(J, sl)
             touching[sl] = sf.touching
@@ -477,6 +511,7 @@ def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: 
     return [make(cid, motions[cid], sample) for cid in sorted(motions)]
 
 
-__all__ = ["PHYSICAL_OUTPUTS", "OBJECT_OUTPUTS", "PhysicalConfig", "ClipInput", "clip_physical_stats", "PhysicalMetrics",
-           "window_input", "clip_window_stats", "evaluate_physical_windows",
+__all__ = ["PHYSICAL_OUTPUTS", "OBJECT_OUTPUTS", "PS_SIGNS", "CD_EDGES", "LEGACY_PS_NOTE", "PhysicalConfig",
+           "ClipInput", "clip_physical_stats", "PhysicalMetrics", "window_input", "clip_window_stats",
+           "evaluate_physical_windows",
            "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs", "clip_input_factory"]

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..metrics import METRICS, make_pools
 from ..metrics import legacy_rules
-from ..metrics.physical import PhysicalConfig
+from ..metrics.physical import CD_EDGES, PS_SIGNS, PhysicalConfig
 
 PROTOCOLS_DIR = Path(__file__).resolve().parent / "protocols"
 MODES: tuple[str, ...] = ("legacy", "clean")
@@ -190,7 +190,8 @@ class Protocol:
             gmd_height_m=float(p["fsr_gmd"]["height_m"]), gmd_speed_mps=float(p["fsr_gmd"]["speed_mps"]),
             gmd_window_frames=int(p["fsr_gmd"]["window_frames"]),
             vertex_contact_m=float(p["vertex_contact_m"]), floor_tolerance_m=float(p["floor_tolerance_m"]),
-            floor_shift=bool(p["floor_shift"]), **options)
+            floor_shift=bool(p["floor_shift"]), **options,
+            **{k: p[k] for k in _PHYSICAL_OPTIONAL if k in p})   # optional keys; absent: hoibench's
 
 
 # ====================================================================== loading
@@ -226,6 +227,22 @@ def _listed_metrics(d: dict, known: list, where: str) -> tuple:
     if unknown:
         raise ValueError(f"{where}: field 'metrics' names unknown metrics {unknown}; known: {known}")
     return metrics
+
+
+#: optional keys of a protocol's ``physical`` mapping: (type, allowed values or None); absent
+#: keys take :class:`PhysicalConfig`'s defaults (hoibench's rules), so files without them keep
+#: their meaning and hash
+_PHYSICAL_OPTIONAL: dict[str, tuple[type, tuple | None]] = {
+    "ps_sign": (str, PS_SIGNS), "cd_edge": (str, CD_EDGES), "mesh_repair": (bool, None)}
+
+
+def _physical_optional(phys: dict, where: str) -> None:
+    """Check the optional physical keys present; ValueError naming the file and the field."""
+    for key, (kind, allowed) in _PHYSICAL_OPTIONAL.items():
+        if key in phys:
+            v = _need(phys, key, kind, where)
+            if allowed is not None and v not in allowed:
+                raise ValueError(f"{where}: field {key!r} must be one of {allowed}, got {v!r}")
 
 
 def _positive(v, key: str, where: str):
@@ -269,6 +286,7 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
                       ("fsr", dict), ("fsr_gmd", dict), ("vertex_contact_m", float),
                       ("floor_tolerance_m", float), ("floor_shift", bool)):
         _need(phys, key, kind, f"{w}: physical")
+    _physical_optional(phys, f"{w}: physical")
     for key in ("height_m", "displacement_m"):
         _need(phys["fsr"], key, float, f"{w}: physical.fsr")
     _check_reference_rules(phys, f"{w}: physical")
