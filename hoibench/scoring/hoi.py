@@ -342,6 +342,9 @@ class HOIScorer(Scorer):
                     undefined[name] = ("not applicable: the scored clips have no object (human-only store, e.g. "
                                        "RICH's static scenes); object metrics need an object mesh and pose")
         notes = self.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
+        if proto.physical_config().ps_sign == "closest_face" and "ps" not in undefined:
+            from ..metrics.physical import LEGACY_PS_NOTE
+            notes.append(LEGACY_PS_NOTE)
         timings = self.timings
         timings["replications_s"] = time.perf_counter() - self._t4
         timings["total_s"] = time.perf_counter() - self.started
