@@ -172,11 +172,6 @@ def test_a_legacy_length_crop_scores_each_replication_on_its_own_windows(setup, 
     for r in (0, 1):
         exp = want[r].compute()
         for name in ("cd", "ocd", "ps", "fsr", "jitter_mps3"):
-            # CD/OCD within 1e-4: with ChainHOI's CD distances (cd_edge: reference) the scorer's CD
-            # of replication 1 differs from this direct computation by 1.7e-5 relative (2.1e-8
-            # m^2), deterministically (open item in docs/metrics.md); every other metric agrees
-            # exactly
-            rel = 1e-4 if name in ("cd", "ocd") else 0
-            assert res["per_replication"][r].get(name, float("nan")) == pytest.approx(exp[name], rel=rel, abs=0,
+            assert res["per_replication"][r].get(name, float("nan")) == pytest.approx(exp[name], rel=0, abs=0,
                                                                                       nan_ok=True), (r, name)
     assert len({row["jitter_mps3"] for row in res["per_replication"]}) > 1      # windows differ by replication

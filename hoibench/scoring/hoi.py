@@ -309,7 +309,8 @@ class HOIScorer(Scorer):
         :func:`hoibench.metrics.legacy_loops.run_loop`) on this submission's embeddings: one
         caption per clip drawn with the protocol's seed, sample 0 as the generated motions,
         the first ``mm_samples`` samples for MultiModality when K allows, the protocol's
-        replications; the physical metrics of replication r use sample ``r mod K``."""
+        replications; the physical metrics of replication r are those of its own length windows
+        (a length-cropping protocol) or of sample ``r mod K``."""
         from ..metrics.legacy_loops import LOOPS, run_loop
         proto, K = self.proto, self.K
         rng = np.random.default_rng(proto.seed_for("caption", 0))
@@ -326,7 +327,7 @@ class HOIScorer(Scorer):
         rows = []
         for r, row in enumerate(result.rows()):
             k = proto.sample_index(r, K)
-            row.update({key: float(v) for key, v in physical[k].items()
+            row.update({key: float(v) for key, v in physical[r if self.windowed else k].items()
                         if isinstance(v, (int, float)) and not isinstance(v, bool)})
             rows.append(row)
         return rows
