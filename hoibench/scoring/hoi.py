@@ -298,8 +298,7 @@ class HOIScorer(Scorer):
                 sel = [where[c] for c in proto.multimodality_ids(ids, r)]
                 row["multimodality"] = em.multimodality(gen[:proto.mm_samples, sel].transpose(1, 0, 2),
                                                         proto.mm_pairs, proto.seed_for("multimodality", r))
-            row.update({key: float(v) for key, v in physical[r if self.windowed else k].items()
-                        if isinstance(v, (int, float)) and not isinstance(v, bool)})
+            row.update(self._physical_row(physical, r))
             per_rep.append(row)
         self._t4 = t4
         return per_rep
@@ -312,7 +311,7 @@ class HOIScorer(Scorer):
         replications; the physical metrics of replication r are those of its own length windows
         (a length-cropping protocol) or of sample ``r mod K``."""
         from ..metrics.legacy_loops import LOOPS, run_loop
-        proto, K = self.proto, self.K
+        proto = self.proto
         rng = np.random.default_rng(proto.seed_for("caption", 0))
         text = np.stack([t[int(rng.integers(len(t)))] for t in text_sets])
         samples = self.gen[:proto.mm_samples] if self.mm_ok else None
@@ -326,11 +325,15 @@ class HOIScorer(Scorer):
         self.notes += [f"{proto.embedding_loop} loop: {n}" for n in result.notes]
         rows = []
         for r, row in enumerate(result.rows()):
-            k = proto.sample_index(r, K)
-            row.update({key: float(v) for key, v in physical[r if self.windowed else k].items()
-                        if isinstance(v, (int, float)) and not isinstance(v, bool)})
+            row.update(self._physical_row(physical, r))
             rows.append(row)
         return rows
+
+    def _physical_row(self, physical: dict, r: int) -> dict:
+        """Replication r's physical metrics: its own length windows' (a length-cropping
+        protocol) or sample ``r mod K``'s, numbers only."""
+        m = physical[r if self.windowed else self.proto.sample_index(r, self.K)]
+        return {key: float(v) for key, v in m.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
     def summary(self, rows: list[dict]) -> dict:
         from ..tracks.protocol import summarize_replications
