@@ -201,6 +201,18 @@ def _cmd_train_evaluator(args) -> int:
 
 def _cmd_evaluator(args) -> int:
     from .evaluator import main_show
+    from .evaluator.backends import import_options, list_backends
+    if args.action == "ls":
+        for b in list_backends():
+            how = "hoibench evaluator import " + b.name if b.importer else "made by its own command"
+            print(f"{b.name:12s} {b.kind:12s} {b.description} ({how})")
+        return 0
+    if args.action == "import":
+        from .evaluator.commands import main_import
+        files = {k: getattr(args, k) for k in import_options()}
+        return main_import(args.dir, args.out, files)
+    if args.dir is None:
+        raise ValueError("evaluator show: give the evaluator folder (hoibench evaluator show EV)")
     return main_show(args.dir, as_json=args.json)
 
 
@@ -477,11 +489,19 @@ def _add_scoring_commands(sub) -> None:
     s.add_argument("--seed", type=int, default=0, help=H_SEED)
     s.set_defaults(func=_cmd_train_recognizer)
 
-    s = sub.add_parser("evaluator", help="show an evaluator card (and verify its id)",
-                       epilog="example: hoibench evaluator show evaluators/synthetic-tiny")
-    s.add_argument("action", choices=["show"], help="show: print the card after verifying the folder")
-    s.add_argument("dir", type=Path, help="the evaluator folder")
+    from .evaluator.backends import import_options
+    s = sub.add_parser("evaluator", help="show an evaluator card, list backends, import a published evaluator",
+                       epilog="examples: hoibench evaluator show evaluators/synthetic-tiny; hoibench evaluator ls; "
+                              "hoibench evaluator import t2m --checkpoint finest.tar --glove glove --meta meta --out ev")
+    s.add_argument("action", choices=["show", "ls", "import"],
+                   help="show: print the card after verifying the folder; ls: the evaluator backends; "
+                        "import KIND: write an evaluator folder from a published evaluator's files")
+    s.add_argument("dir", nargs="?", default=None,
+                   help="show: the evaluator folder; import: the backend (hoibench evaluator ls)")
     s.add_argument("--json", action="store_true", help="print the card as JSON")
+    s.add_argument("--out", type=Path, help="import: the evaluator folder to write (must not exist)")
+    for option, text in import_options().items():
+        s.add_argument("--" + option.replace("_", "-"), dest=option, type=Path, default=None, help="import: " + text)
     s.set_defaults(func=_cmd_evaluator)
 
     s = sub.add_parser("evaluate", help="score a submission under a protocol (writes a result JSON with --out)",

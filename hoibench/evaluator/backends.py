@@ -10,7 +10,12 @@ recognizers). :func:`load_evaluator` is the one entry point: it recognises the f
 returns the backend's object.
 
 Adding a backend (for example one that imports a published evaluator) is one
-:func:`register_backend` call here with its loader module.
+:func:`register_backend` call here with its loader module. A backend that imports a
+published evaluator also names an ``importer`` (``"module:function"``, called as
+``importer(out, **files)`` and returning the new folder's evaluator id) and the files it
+reads (:class:`ImportFile`: ``hoibench evaluator import KIND --checkpoint ... --out EV``).
+Its folders carry ``card.json`` with ``"backend": NAME``; :func:`backend_of` dispatches on
+that field before it looks at marker files.
 """
 from __future__ import annotations
 
@@ -22,14 +27,26 @@ from ..core.registry import Registry, load_object
 
 
 @dataclass(frozen=True)
+class ImportFile:
+    """One input of an importer: ``option`` is its keyword (``--option`` on the command line)."""
+
+    option: str
+    help: str
+    required: bool = True
+
+
+@dataclass(frozen=True)
 class Backend:
-    """An evaluator kind: ``marker`` is the file whose presence identifies its folders."""
+    """An evaluator kind: ``marker`` is the file whose presence identifies its folders
+    (a ``card.json`` whose ``backend`` field names this backend also does)."""
 
     name: str
     kind: str
     marker: str
     loader: str
     description: str
+    importer: str | None = None
+    import_files: tuple[ImportFile, ...] = ()
 
     def load(self, folder: str | Path, **options) -> Any:
         return load_object(self.loader, __package__)(folder, **options)
@@ -57,9 +74,27 @@ def get_backend(name: str) -> Backend:
     return _BACKENDS.get(name)
 
 
+def _declared_backend(folder: Path) -> Backend | None:
+    """The backend named by ``folder/card.json``'s ``backend`` field (None without one)."""
+    from ..core.io import read_json_file
+    try:
+        card = read_json_file(folder / "card.json", 8 << 20, "card.json")
+    except (ValueError, OSError, RecursionError):
+        return None
+    name = card.get("backend") if isinstance(card, dict) else None
+    if isinstance(name, str) and name in _BACKENDS:
+        return _BACKENDS.get(name)
+    return None
+
+
 def backend_of(folder: str | Path) -> Backend | None:
-    """The backend whose marker file ``folder`` holds (None when none does)."""
+    """The backend of ``folder``: the one its ``card.json`` names in ``backend``, else the
+    one whose marker file it holds (None when none does)."""
     folder = Path(folder)
+    if (folder / "card.json").is_file():
+        declared = _declared_backend(folder)
+        if declared is not None:
+            return declared
     for b in _BACKENDS.values():
         if (folder / b.marker).is_file():
             return b
@@ -99,4 +134,37 @@ def load_evaluator(folder: str | Path, kind: str | None = None, **options) -> An
     return backend.load(folder, **options)
 
 
-__all__ = ["Backend", "register_backend", "list_backends", "get_backend", "backend_of", "peek_card", "load_evaluator"]
+def import_evaluator(name: str, out: str | Path, **files) -> str:
+    """Write an evaluator folder at ``out`` from a published evaluator's files with backend
+    ``name``'s importer; return its evaluator id. ``files``: the backend's
+    :class:`ImportFile` options (paths); a missing required one is a one-line error."""
+    if name not in _BACKENDS:
+        raise ValueError(f"evaluator import: unknown backend {name!r}; known: {', '.join(_BACKENDS)}")
+    backend = get_backend(name)
+    if backend.importer is None:
+        importable = [b.name for b in _BACKENDS.values() if b.importer]
+        raise ValueError(f"evaluator import: {name!r} is made by its own command, not imported "
+                         f"(importable: {', '.join(importable) or 'none'})")
+    known = {f.option for f in backend.import_files}
+    unknown = sorted(k for k, v in files.items() if v is not None and k not in known)
+    if unknown:
+        raise ValueError(f"evaluator import {name}: --{unknown[0].replace('_', '-')} is not read by this backend "
+                         f"(it reads {', '.join('--' + f.option.replace('_', '-') for f in backend.import_files)})")
+    missing = [f.option for f in backend.import_files if f.required and files.get(f.option) is None]
+    if missing:
+        raise ValueError(f"evaluator import {name}: --{missing[0].replace('_', '-')} is required "
+                         f"({next(f.help for f in backend.import_files if f.option == missing[0])})")
+    given = {k: Path(v) for k, v in files.items() if v is not None}
+    return load_object(backend.importer, __package__)(Path(out), **given)
+
+
+def import_options() -> dict[str, str]:
+    """Every importer option of every registered backend -> its help (for the command line)."""
+    out: dict[str, str] = {}
+    for b in _BACKENDS.values():
+        for f in b.import_files:
+            out.setdefault(f.option, f"{f.help} [{b.name}]" if f.option not in out else out[f.option])
+    return out
+
+
+__all__ = ["Backend", "ImportFile", "import_evaluator", "import_options", "register_backend", "list_backends", "get_backend", "backend_of", "peek_card", "load_evaluator"]
