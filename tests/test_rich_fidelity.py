@@ -203,7 +203,27 @@ def test_multi_scan_scenes_use_the_meta_scan_or_the_shipped_mapping_never_a_gues
     assert rich.transform_path(data, seq, "scan_chair_scene_camcoord").name == "LectureHall_chair_multicam2world.json"
     # an unknown LectureHall sequence is not guessed: the scene file does not exist, the clip fails naming it
     assert rich.transform_path(data, "LectureHall_099_newaction1").name == "LectureHall_multicam2world.json"
-    # a missing variant in a one-scan scene falls back to the scene's file
+    # a missing variant in a one-scan-file scene falls back to the scene's file: Gym's table
+    # sequences use Gym_multicam2world.json when Gym_table_multicam2world.json is absent ...
     (data / "multicam2world" / "Gym_table_multicam2world.json").unlink()
-    assert rich.transform_path(data, "Gym_011_cooking2").name == "Gym_table_multicam2world.json"
+    assert rich.transform_path(data, "Gym_011_cooking2").name == "Gym_multicam2world.json"
+    # ... but LectureHall, which ships both variants, never falls back
+    (data / "multicam2world" / "LectureHall_multicam2world.json").write_text("{}")
+    (data / "multicam2world" / "LectureHall_yoga_multicam2world.json").unlink()
+    assert rich.transform_path(data, seq).name == "LectureHall_yoga_multicam2world.json"
     assert rich.transform_path(data, "BBQ_001_guitar", "scan_other_camcoord").name == "BBQ_multicam2world.json"
+
+
+def test_gym_table_fallback_is_named_in_the_prepare_warnings(tmp_path):
+    data = tmp_path / "data"
+    (data / "multicam2world").mkdir(parents=True)
+    (data / "multicam2world" / "Gym_multicam2world.json").write_text("{}")
+    for seq in ("Gym_010_cooking1", "Gym_012_cooking2", "Gym_011_pushup1"):
+        (data / "bodies" / "test" / seq).mkdir(parents=True)
+    assert rich.scene_fallbacks(tmp_path) == {"Gym_table": ["Gym_010_cooking1", "Gym_012_cooking2"]}
+    lines = [w for w in rich.prepare_warnings(tmp_path, tmp_path / "no-models") if "multicam2world" in w]
+    assert len(lines) == 1 and "Gym_010_cooking1, Gym_012_cooking2" in lines[0]
+    assert "Gym_multicam2world.json" in lines[0] and "pushup" not in lines[0]
+    # with the variant present there is nothing to warn about
+    (data / "multicam2world" / "Gym_table_multicam2world.json").write_text("{}")
+    assert rich.scene_fallbacks(tmp_path) == {}

@@ -28,7 +28,10 @@ folder holds one pickle per subject. Facts (rich_toolkit's ``smplx2images.py``,
   three decimals, so not exactly orthonormal). LectureHall has two scans (chair / yoga):
   the json is chosen from the meta file's scan name (``scan_<v>[_scene]_camcoord`` ->
   ``<Scene>_<v>_multicam2world.json``), else from the same mapping shipped as
-  ``rich_scans.json``, else ``<Scene>_multicam2world.json`` (never guessed by action);
+  ``rich_scans.json``, else ``<Scene>_multicam2world.json`` (never guessed by action).
+  Gym's table sequences name a ``scan_table_camcoord`` whose ``Gym_table_multicam2world.json``
+  the release's README does not list: when it is absent they use ``Gym_multicam2world.json``,
+  and the manifest's warnings name them (LectureHall ships both variants: never a fallback);
 * ``human_scene_contact`` pickles hold ``contact`` (6890,) per-vertex 0/1 labels in **SMPL**
   topology (plus SMPL-X distance fields hoibench does not read);
 * frame ids are 5-digit, start anywhere and may skip.
@@ -88,7 +91,8 @@ from .sequence import BodyParams, HOISequence
 
 __all__ = ["SOURCE_FPS", "CLIP_LENGTHS", "LABEL", "SequenceError", "ContactMapUnavailable", "split_runs",
            "cut_lengths", "vertex_joint_map", "joint_contacts", "contact_joint_map", "read_deftrafo", "read_frame",
-           "load_clip", "prepare_warnings", "prepare_jobs", "transform_path", "shipped_scans"]
+           "load_clip", "prepare_warnings", "prepare_jobs", "transform_path", "shipped_scans",
+           "scene_fallbacks"]
 
 SOURCE_FPS = 30.0
 CLIP_LENGTHS = (192, 128, 64)
@@ -294,12 +298,44 @@ def contact_joint_map(body_models: str) -> tuple[np.ndarray, str]:
 
 def prepare_warnings(root: str | Path, body_models: str | Path) -> list[str]:
     """Dataset-level warnings for ``hoibench prepare`` (recorded in the manifest): clips are
-    prepared without contact labels when no model files map them to joints."""
+    prepared without contact labels when no model files map them to joints; sequences whose
+    scan's ``multicam2world`` variant is absent use their scene's file (:func:`scene_fallbacks`)."""
+    out = []
     try:
         contact_joint_map(str(Path(body_models)))
     except ContactMapUnavailable as exc:
-        return [f"rich: clips are prepared WITHOUT contact labels: {exc}"]
-    return []
+        out.append(f"rich: clips are prepared WITHOUT contact labels: {exc}")
+    try:
+        fallbacks = scene_fallbacks(root)
+    except FileNotFoundError:
+        fallbacks = {}
+    for variant, seqs in sorted(fallbacks.items()):
+        scene = variant.split("_")[0]
+        out.append(f"rich: multicam2world/{variant}_multicam2world.json is absent; {', '.join(seqs)} use "
+                   f"multicam2world/{scene}_multicam2world.json (the release's README lists only that file)")
+    return out
+
+
+def scene_fallbacks(root: str | Path) -> dict[str, list[str]]:
+    """``{"<Scene>_<v>": [sequence, ...]}``: sequences under ``bodies/`` whose scan names a
+    ``multicam2world`` variant that is absent, so that :func:`transform_path` gives them the
+    scene's file (one-scan-file scenes only; see :data:`MULTI_SCAN_SCENES`)."""
+    root = Path(root)
+    data_root = _data_root(root)
+    meta = read_meta(_resource_dir(root, data_root))
+    scans = {seq: info.get("scan") for (seq, _), info in meta.items()}
+    out: dict[str, list[str]] = {}
+    for split_path in sorted(p for p in (data_root / "bodies").iterdir() if p.is_dir()):
+        for seq_path in sorted(p for p in split_path.iterdir() if p.is_dir()):
+            seq = seq_path.name
+            scan = scans.get(seq) or shipped_scans().get(seq)
+            m = _SCAN_VARIANT.match(scan) if scan else None
+            if m is None:
+                continue
+            variant = f"{seq.split('_')[0]}_{m.group(1)}"
+            if transform_path(data_root, seq, scan).name != f"{variant}_multicam2world.json":
+                out.setdefault(variant, []).append(seq)
+    return out
 
 
 # --------------------------------------------------------------------------- reading
@@ -684,8 +720,10 @@ def shipped_scans() -> dict[str, str]:
     return dict(data["scans"])
 
 
-#: Scenes with more than one scan: their transform is never guessed.
-MULTI_SCAN_SCENES = ("LectureHall", "Gym")
+#: Scenes whose release ships a ``multicam2world`` file per scan (chair / yoga): a missing
+#: variant there is an error, never the scene's file. Gym's table scan has no file listed in
+#: the release's README, so Gym's table sequences fall back to ``Gym_multicam2world.json``.
+MULTI_SCAN_SCENES = ("LectureHall",)
 
 
 def transform_path(data_root: Path, seq: str, scan: str | None = None) -> Path:
