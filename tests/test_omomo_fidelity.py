@@ -89,6 +89,12 @@ def release(tmp_path_factory):
     vac["obj_bottom_scale"] = np.full(T, 1.0, np.float32)
     data[max(keys) + 1] = vac
     info["vacuum"] = vac["seq_name"]
+    # 3b. a second vacuum sequence: the same top scale, another bottom scale
+    vac2 = {k: np.array(v, copy=True) if isinstance(v, np.ndarray) else v for k, v in vac.items()}
+    vac2["seq_name"] = f"{sub}_vacuum_001"
+    vac2["obj_bottom_scale"] = np.full(T, 1.25, np.float32)
+    data[max(keys) + 2] = vac2
+    info["vacuum2"] = vac2["seq_name"]
     _box_obj(root / "captured_objects" / "vacuum_cleaned_simplified_top.obj", (0.04, 0.04, 1.0), (0.3, 0.1, 0.5))
     _box_obj(root / "captured_objects" / "vacuum_cleaned_simplified_bottom.obj", (0.3, 0.25, 0.08), (0.3, 0.1, 0.04))
     # 4. betas past the tenth (OMOMO has 16)
@@ -173,7 +179,8 @@ def test_two_part_objects_store_every_part_with_its_own_pose(release, prepared):
     assert name not in errors
     clip = store.load(name)
     prov = json.loads(str(clip["provenance"]))
-    assert [str(x) for x in clip["object_parts"]] == ["vacuum", "vacuum_bottom"]
+    # one top scale in the release: "vacuum"; two bottom scales: each bottom named by its own
+    assert [str(x) for x in clip["object_parts"]] == ["vacuum", "vacuum_bottom_s1.000000"]
     assert str(clip["object_name"]) == "vacuum"
     np.testing.assert_array_equal(clip["parts_rot"][0], clip["obj_rot"])
     np.testing.assert_array_equal(clip["parts_trans"][0], clip["obj_trans"])
@@ -192,6 +199,23 @@ def test_two_part_objects_store_every_part_with_its_own_pose(release, prepared):
     from hoibench.representations import hoi269
     enc = hoi269.encode(clip["joints"], clip["parts_rot"][0], clip["parts_trans"][0], mode="clean", fps=30.0)
     np.testing.assert_allclose(clip["hoi269"], enc, atol=1e-5)
+
+
+def test_two_part_templates_are_named_by_each_parts_own_scale(release, prepared):
+    root, info = release
+    store, _, errors = prepared
+    a, b = store.load(info["vacuum"]), store.load(info["vacuum2"])
+    assert [str(x) for x in b["object_parts"]] == ["vacuum", "vacuum_bottom_s1.250000"]
+    assert str(a["object_parts"][0]) == str(b["object_parts"][0])           # one top template
+    va, _ = store.object_template(str(a["object_parts"][1]))
+    vb, _ = store.object_template(str(b["object_parts"][1]))
+    np.testing.assert_allclose(vb, 1.25 * va, atol=1e-5)                  # each bottom at its own scale
+    seq = _seq(info, info["vacuum2"])
+    prov = json.loads(str(b["provenance"]))
+    path = root / "captured_objects" / "vacuum_cleaned_simplified_bottom.obj"
+    want = _omomo_vertices(path, seq["obj_bottom_rot"], seq["obj_bottom_trans"], seq["obj_bottom_scale"],
+                           prov["floor_shift_m"])
+    np.testing.assert_allclose(_posed(store, b, 1), want, atol=2e-5)
 
 
 def test_a_missing_part_template_fails_that_sequence_naming_the_file(release, tmp_path):

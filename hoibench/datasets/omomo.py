@@ -53,7 +53,10 @@ Conversion (per sequence):
    per name); the category stays in the provenance. Two-part objects (vacuum, mop:
    ``obj_bottom_*`` keys, ``_top`` / ``_bottom`` templates) keep both parts
    (:class:`~hoibench.datasets.sequence.ObjectPart`): the top is the clip's object (the
-   representations and metrics use it), the bottom ``<object>_bottom`` a second part.
+   representations and metrics use it), the bottom ``<object>_bottom`` a second part. Each
+   part is named by its own scale (``obj_scale`` for the top, ``obj_bottom_scale`` for the
+   bottom: ``<object>_bottom_s<scale>`` when the release has several bottom scales), so two
+   sequences with one top scale and two bottom scales keep two bottom templates.
 5. Time: 30 fps, resampled by time to ``fps`` (poses by quaternion slerp, translations
    linearly).
 6. Text: the sentence of ``<seq_name>.json`` as one sequence-level text, source "omomo"
@@ -68,7 +71,7 @@ import json
 import re
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -100,7 +103,7 @@ _SEQ_KEYS = {"trans": (3,), "root_orient": (3,), "pose_body": (63,), "obj_rot": 
 OBJECT_SCALE_TOL_M = 1e-3
 #: in every clip's checksum: a store prepared by an older loader (unmerged templates, no
 #: object parts) is rebuilt on the next ``prepare`` instead of being kept.
-LOADER_VERSION = "omomo-loader-0.6"
+LOADER_VERSION = "omomo-loader-0.7"
 #: OMOMO's two-part objects: a top (the handle the hands hold) and an articulated bottom,
 #: ``<object>_cleaned_simplified_{top,bottom}.obj`` posed by ``obj_*`` and ``obj_bottom_*``.
 TWO_PART_SUFFIXES = ("top", "bottom")
@@ -353,13 +356,14 @@ def _rigid_part(name: str, where: str, obj: str, part: str, pname: str, prefix: 
 
 
 def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
-                  fps: float = SOURCE_FPS, text_file: str | None = None, object_name: str | None = None,
+                  fps: float = SOURCE_FPS, text_file: str | None = None, object_name: str | Sequence[str] | None = None,
                   source: str = "", gt_file: str | None = None) -> HOISequence:
     """Convert one OMOMO sequence dict (an entry of the joblib pickle) into a canonical
     :class:`HOISequence` at ``fps`` (see the module docstring).
 
     ``object_name`` overrides the template name stored with the clip (default: the object
-    of ``seq_name``). Raises :class:`SequenceError` naming the sequence, key or file.
+    of ``seq_name``; a two-part object's bottom is ``<name>_bottom``); a sequence of names
+    names every part (top, bottom). Raises :class:`SequenceError` naming the sequence, key or file.
     """
     if not isinstance(seq, dict):
         raise SequenceError(f"{source or 'omomo'}: expected a sequence dict, got {type(seq).__name__}")
@@ -386,10 +390,13 @@ def load_sequence(seq: dict, objects_root: str | Path, body_models: str | Path,
     # time: resample every track by time
     src_t = np.arange(T) / SOURCE_FPS
     dst = resample_times(src_t, fps)
-    base = object_name or obj
+    named = not isinstance(object_name, str) and object_name is not None
+    base = obj if named else (object_name or obj)
     parts = []
-    for prefix, (R_src, o_t, scale), part in zip(prefixes, obj_poses, TWO_PART_SUFFIXES if two_part else ("",)):
-        pname = base if part in ("", "top") else f"{base}_{part}"
+    for k, (prefix, (R_src, o_t, scale), part) in enumerate(zip(prefixes, obj_poses,
+                                                              TWO_PART_SUFFIXES if two_part else ("",))):
+        pname = (object_name[k] if named and k < len(object_name) else
+                 base if part in ("", "top") else f"{base}_{part}")
         parts.append(_rigid_part(name, where, obj, part, pname, prefix, R_src, o_t, scale, objects_root, src_t, dst))
     pose = np.concatenate([arr["root_orient"], arr["pose_body"]], 1).reshape(T, NUM_JOINTS, 3)
     pose = _slerp_resample(src_t, dst, pose).reshape(len(dst), 3 * NUM_JOINTS)
@@ -488,12 +495,27 @@ def _sequence_sha(seq: Any, files: list[Path], extra: str) -> str:
     return file_sha256(files, extra=h.hexdigest() + extra)
 
 
-def _scale_of(seq: Any) -> float | None:
+def _scale_of(seq: Any, prefix: str = "obj") -> float | None:
+    """The mean ``<prefix>_scale`` of a sequence, rounded to 1e-6 (None when absent or bad)."""
     try:
-        s = np.asarray(seq["obj_scale"], dtype=np.float64).reshape(-1)
+        s = np.asarray(seq[f"{prefix}_scale"], dtype=np.float64).reshape(-1)
         return round(float(s.mean()), 6) if s.size and np.isfinite(s).all() else None
     except Exception:
         return None
+
+
+def _part_names(obj: str, seq: Any, scales: dict[tuple[str, str], set]) -> str | tuple[str, ...] | None:
+    """Template names of a sequence's parts: ``<object>[_bottom]``, with ``_s<scale>`` (the
+    part's own mean scale) when that part appears with several scales in the release; one
+    name for a one-part object, (top, bottom) for a two-part one."""
+    if not obj:
+        return None
+    two_part = isinstance(seq, dict) and any(str(k).startswith("obj_bottom") for k in seq)
+    names = []
+    for prefix, base in ((("obj", obj), ("obj_bottom", f"{obj}_bottom")) if two_part else (("obj", obj),)):
+        s = _scale_of(seq, prefix) if isinstance(seq, dict) else None
+        names.append(f"{base}_s{s:.6f}" if s is not None and len(scales.get((obj, prefix), ())) > 1 else base)
+    return tuple(names) if two_part else names[0]
 
 
 def _seq_name(seq: Any) -> str | None:
@@ -556,13 +578,14 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     splits = load_split_file(split_file) if split_file else None
     entries, source_jobs = _read_entries(data_root, out, config.mode)
 
-    # one template name per (object, scale): the store keeps one template per name
-    scales: dict[str, set] = {}
+    # one template name per (object, part, scale): the store keeps one template per name
+    scales: dict[tuple[str, str], set] = {}
     for cid, seq, _ in entries:
         m = _NAME.match(cid)
-        s = _scale_of(seq) if isinstance(seq, dict) else None
-        if m and s is not None:
-            scales.setdefault(m.group(2), set()).add(s)
+        for prefix in ("obj", "obj_bottom"):
+            s = _scale_of(seq, prefix) if isinstance(seq, dict) else None
+            if m and s is not None:
+                scales.setdefault((m.group(2), prefix), set()).add(s)
 
     jobs, sources = [], []
     for cid, seq, origin in entries:
@@ -575,8 +598,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
             continue
         m = _NAME.match(cid)
         obj = m.group(2) if m else ""
-        s = _scale_of(seq) if isinstance(seq, dict) else None
-        obj_name = f"{obj}_s{s:.6f}" if obj and s is not None and len(scales.get(obj, ())) > 1 else (obj or None)
+        obj_name = _part_names(obj, seq, scales)
         text_file = str(text_dir / f"{cid}.json") if text_dir is not None and (text_dir / f"{cid}.json").exists() else None
         gt = data_root / GT_DIR / f"{cid}.npz"
         gt_file = str(gt) if gt.exists() else None
