@@ -104,6 +104,68 @@ REFERENCE_ROWS = (("GT + 1 cm noise", "gt-noise", {"sigma": 0.01}), ("GT + 3 cm 
                   ("mismatched texts", "mismatched-texts", {}))
 
 
+def shorten(text: str, width: int = 120) -> str:
+    """``text`` cut at a word boundary to at most ``width`` characters, ``...`` marking a cut."""
+    text = " ".join(text.split())
+    if len(text) <= width:
+        return text
+    cut = text[: width - 4].rsplit(" ", 1)[0]
+    return cut + " ..."
+
+
+class LogWatch:
+    """Follows one training log: :meth:`poll` prints its newest line when it changed and at
+    most every ``every_s`` seconds, once prefixed by ``[name]`` (a line that already starts
+    with it is not prefixed again), and one line when the process has ended."""
+
+    def __init__(self, name: str, path: Path, every_s: float = 10.0):
+        self.name, self.path, self.every_s = name, Path(path), every_s
+        self.shown: str | None = None
+        self.last = float("-inf")
+        self.ended = False
+
+    def newest(self) -> str | None:
+        try:
+            lines = self.path.read_text(errors="replace").strip().splitlines()
+        except OSError:
+            return None
+        line = lines[-1].strip() if lines else None
+        prefix = f"[{self.name}]"
+        if line and line.startswith(prefix):
+            line = line[len(prefix):].strip()
+        return line
+
+    def poll(self, returncode: int | None, elapsed_s: float) -> None:
+        if self.ended:
+            return
+        now = time.perf_counter()
+        line = self.newest()
+        if returncode is None and now - self.last < self.every_s:
+            return
+        if line and line != self.shown:
+            print(f"  [{self.name}] {shorten(line)}", flush=True)
+            self.shown, self.last = line, now
+        if returncode is not None:
+            self.ended = True
+            state = "finished" if returncode == 0 else f"FAILED (exit {returncode})"
+            print(f"  [{self.name}] {state} after {elapsed_s:.0f} s", flush=True)
+
+
+class ThrottledLog:
+    """A ``log`` callable that prints at most one line every ``every_s`` seconds, and every
+    line that reports a written file (``wrote ...``)."""
+
+    def __init__(self, every_s: float = 10.0, indent: str = "  "):
+        self.every_s, self.indent = every_s, indent
+        self.last = float("-inf")
+
+    def __call__(self, line: str) -> None:
+        now = time.perf_counter()
+        if " wrote " in f" {line}" or now - self.last >= self.every_s:
+            self.last = now
+            print(self.indent + shorten(line), flush=True)
+
+
 def _fresh(path: Path) -> Path:
     """Remove the demo's own output from an earlier run (submissions go to new folders only)."""
     import shutil
@@ -164,15 +226,13 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
             procs[name] = (subprocess.Popen([sys.executable, "-m", "hoibench.cli", "baseline", "train", name,
                                              str(data), "--out", str(out / "runs" / f"{name}-tiny"), "--threads", "1"],
                                             stdout=log, stderr=subprocess.STDOUT), log)
-        last = time.perf_counter()
+        watch = {name: LogWatch(name, out / "runs" / f"{name}.log") for name in procs}
         while any(p.poll() is None for p, _ in procs.values()):
-            time.sleep(2)
-            if time.perf_counter() - last >= 60:
-                last = time.perf_counter()
-                for name, (p, _) in procs.items():
-                    lines = (out / "runs" / f"{name}.log").read_text().strip().splitlines()
-                    print(f"  [{name}] {lines[-1][:110] if lines else 'starting'}", flush=True)
+            time.sleep(1)
+            for name, (p, _) in procs.items():
+                watch[name].poll(p.poll(), time.perf_counter() - t1)
         for name, (p, log) in procs.items():
+            watch[name].poll(p.returncode, time.perf_counter() - t1)
             log.close()
             if p.returncode != 0:
                 tail = (out / "runs" / f"{name}.log").read_text().strip().splitlines()[-1:]
@@ -181,10 +241,11 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
         t2 = time.perf_counter()
         from .baselines.sampler import sample
         from .scoring.submission import validation_report
-        print("[baselines] sampled, validated and scored:")
+        print("[baselines] sampling the test split with each baseline, then validating and scoring (progress "
+              "every 10 s):", flush=True)
         for name, label in (("chainhoi", "ChainHOI tiny"), ("catmo", "CATMO tiny")):
             sub = _fresh(out / "submissions" / f"{name}-tiny")
-            sample(out / "runs" / f"{name}-tiny", data, sub, seed=seed, log=None)
+            sample(out / "runs" / f"{name}-tiny", data, sub, seed=seed, log=ThrottledLog())
             rep = validation_report(sub, data)
             if not rep.complete:
                 raise RuntimeError(f"{sub}: the {label} submission did not validate: {rep.problems[:2]}")

@@ -163,7 +163,7 @@ class HOIScorer(Scorer):
 
     name = "hoi"
     evaluator_options = {"allow_failed_gate": True}     # the gate is measured in prepare, on this store
-    map_options = {"window": EMBED_BATCH}
+    map_options = {"window": EMBED_BATCH, "progress": "evaluate"}
 
     @classmethod
     def check_fit(cls, store, protocol, card: dict, options: dict) -> None:
