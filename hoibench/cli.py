@@ -260,6 +260,11 @@ def _cmd_import(args) -> int:
     if rep["missing_ids"]:
         print(f"  missing: {len(rep['missing_ids'])} test ids without samples (e.g. {rep['missing_ids'][0]}): the "
               f"submission is incomplete")
+    if rep.get("human_only"):
+        print("  human-only: the results carry no object motion for this human-object store; submission.json has "
+              "flags.human_only, so evaluate scores the embedding metrics, FSR and jitter on the human and "
+              "reports the object metrics (CD, OCD, PS, penetration, ...) as not applicable; the leaderboard marks "
+              "the row human-only (for object metrics import with --format hoidiff or chois)")
     if rep["unmatched_entries"]:
         print(f"  unmatched: {len(rep['unmatched_entries'])} entries (e.g. {rep['unmatched_entries'][0]!r})")
     if rep["ambiguous_texts"]:

@@ -175,3 +175,39 @@ def test_a_legacy_length_crop_scores_each_replication_on_its_own_windows(setup, 
             assert res["per_replication"][r].get(name, float("nan")) == pytest.approx(exp[name], rel=0, abs=0,
                                                                                       nan_ok=True), (r, name)
     assert len({row["jitter_mps3"] for row in res["per_replication"]}) > 1      # windows differ by replication
+
+
+# ---------------------------------------------------------------- a human-only method on an HOI store
+def test_a_human_only_submission_is_scored_on_the_human_and_marked(setup, tmp_path):
+    """An MDM-style submission (joints only) on a human-object store: refused without the
+    flag (the error says how), scored with it -- the embedding metrics equal those of the
+    same joints with the GT object (a 'human' evaluator reads the 263 human channels), FSR
+    is measured, every object metric is 'not applicable: human-only submission'."""
+    from hoibench.scoring.evaluate import evaluate
+    from hoibench.scoring.submission import validation_report
+    base, data = setup
+    sub = tmp_path / "human"
+    shutil.copytree(base / "gt", sub)
+    for f in sorted((sub / "samples").glob("*.npz")):
+        z = dict(np.load(f))
+        np.savez(f, joints=z["joints"])
+    rep = validation_report(sub, data)
+    assert not rep.complete and any("flags.human_only" in p.message for p in rep.errors)
+    meta = json.loads((sub / "submission.json").read_text())
+    meta.setdefault("flags", {})["human_only"] = True
+    (sub / "submission.json").write_text(json.dumps(meta))
+    assert validation_report(sub, data).complete
+    res = evaluate(sub, data, base / "ev")
+    full = evaluate(base / "gt", data, base / "ev")
+    assert res["complete"] and res["human_only"] is True and res["submission"]["flags"]["human_only"] is True
+    for m in ("fid", "r_precision_top1", "mm_dist", "diversity", "fsr"):
+        assert res["metrics"][m]["mean"] == pytest.approx(full["metrics"][m]["mean"], abs=1e-6), m
+    for m in ("cd", "ocd", "ps"):
+        assert m not in res["metrics"] or res["metrics"][m].get("mean") is None
+        assert res["undefined_metrics"][m].startswith("not applicable: human-only submission")
+    # the flag with object arrays is a contradiction, named per file
+    bad = tmp_path / "contradiction"
+    shutil.copytree(base / "gt", bad)
+    (bad / "submission.json").write_text(json.dumps(meta))
+    errs = validation_report(bad, data).errors
+    assert errs and all(p.field in ("obj_rot", "obj_rotvec", "obj_trans") for p in errs)

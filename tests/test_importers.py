@@ -87,6 +87,10 @@ def test_mdm_and_hoidiff_results_equal_the_direct_submission(gt, template_store,
     same_samples(sub, direct(tmp_path, expect, "direct"), ids, atol=1e-5)
     meta = json.loads((sub / "submission.json").read_text())
     assert meta["source"]["import"]["match"] == "text" and meta["flags"]["uses_gt_length"] is True
+    # MDM generates no object: on this human-object store the submission says so, and validates
+    assert rep["human_only"] is (fmt == "mdm") and meta["flags"].get("human_only", False) is (fmt == "mdm")
+    from hoibench.scoring.submission import validation_report
+    assert validation_report(sub, template_store).complete
 
 
 def test_missing_prompts_are_reported_and_a_mapping_file_maps_entries(gt, template_store, tmp_path):

@@ -128,3 +128,17 @@ def test_evaluate_prints_groups_arrows_units_and_zero_for_tiny_negative_fid():
     assert "↓" in fid and " 0 ± " in fid and "squared embedding distance" in fid
     assert any(line.strip().startswith("r_precision_top1") and "↑" in line for line in lines)
     assert "counts: clips 34" in text and "undefined: ocd, ps: no group" in text
+
+
+def test_a_human_only_row_is_marked_on_every_page(track, tmp_path):
+    r = result(0.4, 0.5)
+    r["submission"]["flags"]["human_only"] = True
+    p = tmp_path / "mdm.json"
+    p.write_text(json.dumps(r))
+    lb.add_result(p, track, method="MDM (human only)")
+    paths = build(track)
+    row = next(line for line in paths["README.md"].read_text().splitlines() if "MDM (human only)" in line)
+    assert "human-only (object metrics n/a)" in row
+    assert "human-only (object metrics n/a)" in paths["index.html"].read_text()
+    other = next(line for line in paths["README.md"].read_text().splitlines() if "Model A" in line)
+    assert "human-only" not in other

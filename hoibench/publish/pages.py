@@ -47,6 +47,8 @@ def _flags(e: dict, entries: list[dict] = ()) -> list[str]:
         out += [f"comparable with {c}" for c in comparable_citations(e, list(entries))]
     if not e.get("complete", True):
         out.append("incomplete")
+    if (e.get("flags") or {}).get("human_only") is True:
+        out.append("human-only (object metrics n/a)")
     if e.get("samples_per_prompt") and e["samples_per_prompt"] > 1:
         out.append(f"K = {e['samples_per_prompt']}")
     if e.get("missing_ids"):

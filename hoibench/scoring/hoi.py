@@ -217,6 +217,12 @@ class HOIScorer(Scorer):
             raise EvaluationRefused(f"{self.submission}: no valid test id to score ({len(report.errors)} error(s)); "
                                     f"run hoibench validate for the list")
         self.meta = dict(sub.meta or {})
+        flags = self.meta.get("flags") if isinstance(self.meta.get("flags"), dict) else {}
+        self.human_only = flags.get("human_only") is True
+        if self.human_only and getattr(self.ev, "variant", "human") == "hoi":
+            raise EvaluationRefused(f"{self.submission}: submission.json: flags.human_only is set, but evaluator "
+                                    f"{self.ev.id} embeds human and object channels (variant 'hoi'); score a "
+                                    f"human-only submission with a 'human' evaluator (train-evaluator --variant human)")
         self.timings["validate_s"] = time.perf_counter() - t2
         self.K = K = int(report.samples_per_prompt or 1)
         self.ks_physical = sorted({proto.sample_index(r, K) for r in range(proto.replications)})
@@ -339,12 +345,16 @@ class HOIScorer(Scorer):
         from ..tracks.protocol import summarize_replications
         proto, ids, report, ev, store, meta = self.proto, self.ids, self.report, self.ev, self.store, self.meta
         per_rep, undefined = _finite_rows(rows)
-        if not any(self.rows[cid].get("object") for cid in ids):     # human-only: no object to measure against
+        human_store = not any(self.rows[cid].get("object") for cid in ids)
+        if human_store or self.human_only:      # no object to measure against, or none generated
             from ..metrics.physical import OBJECT_OUTPUTS
+            why = ("not applicable: the scored clips have no object (human-only store, e.g. RICH's static scenes); "
+                   "object metrics need an object mesh and pose" if human_store else
+                   "not applicable: human-only submission (flags.human_only: the method generates no object "
+                   "motion); the embedding metrics, FSR and jitter are scored on the human")
             for name in OBJECT_OUTPUTS:
                 if name in undefined:
-                    undefined[name] = ("not applicable: the scored clips have no object (human-only store, e.g. "
-                                       "RICH's static scenes); object metrics need an object mesh and pose")
+                    undefined[name] = why
         notes = self.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
         if proto.physical_config().ps_sign == "closest_face" and "ps" not in undefined:
             from ..metrics.physical import LEGACY_PS_NOTE
@@ -366,7 +376,8 @@ class HOIScorer(Scorer):
             "dataset": store.manifest["dataset"], "store_config_sha256": store.manifest.get("config_sha256"),
             "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version"),
                            "flags": {k: flags[k] for k in ("uses_gt_length", "samples_per_prompt",
-                                                           "checkpoint_selection") if k in flags}},
+                                                           "checkpoint_selection", "human_only") if k in flags}},
+            "human_only": bool(self.human_only),
             "counts": {"test_ids": len(report.test_ids), "scored_ids": len(ids), "samples_per_prompt": self.K,
                        "missing_ids": report.missing_ids, "errors": len(report.errors),
                        "warnings": len(report.warnings)},

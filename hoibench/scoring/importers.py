@@ -324,10 +324,18 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
               "unmatched_entries": matcher.unmatched, "ambiguous_texts": sorted(set(matcher.ambiguous)),
               "samples_per_prompt": sorted(K), "conversions": conversions}
     gt_len = {cid: len(store.load(cid, keys=("joints",))["joints"]) for cid in samples}
+    has_object = {c["id"] for c in store.manifest["clips"] if c.get("object")}
+    without = sorted(c for c in samples if c in has_object and "obj_trans" not in samples[c])
+    human_only = bool(without)
+    if human_only and len(without) < sum(c in has_object for c in samples):
+        raise ImportProblem(f"{results}: {len(without)} entries carry no object motion (e.g. {without[0]}) and "
+                            f"others do; a submission is human-only for every clip or for none")
+    report["human_only"] = human_only
     meta = {"method": method or f"imported {fmt} results", "version": "", "url": "",
             "representation": store.manifest.get("representations", {}).get("hml263", ""), "fps": store_fps,
             "flags": {"uses_gt_length": all(len(a["joints"][0]) == gt_len[c] for c, a in samples.items()),
-                      "samples_per_prompt": max(K), "checkpoint_selection": "unknown"},
+                      "samples_per_prompt": max(K), "checkpoint_selection": "unknown",
+                      **({"human_only": True} if human_only else {})},
             "source": {"import": {**conversions, "results": str(results), "missing_ids": len(report["missing_ids"]),
                                   "unmatched_entries": len(matcher.unmatched)}, "toolkit_version": __version__}}
     if len(K) > 1:

@@ -25,7 +25,7 @@ from .validate_arrays import ClipContext, check_arrays
 
 ACCEPTED_DTYPES = (np.dtype("float32"), np.dtype("float64"))
 REQUIRED_FIELDS = {"method": str, "version": str, "representation": str, "fps": (int, float)}
-FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_selection": str}
+FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_selection": str, "human_only": bool}
 
 
 # ====================================================================== validation
@@ -135,11 +135,18 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Probl
                                  "warning"))
     if "joints" not in headers:
         probs.append(Problem(sid, "joints", "missing: every sample file needs joints (K, T, 22, 3)"))
-    if ctx.has_object:
+    if ctx.has_object and ctx.human_only:      # a human-only method on an HOI store: joints only
+        for k in ("obj_rot", "obj_rotvec", "obj_trans"):
+            if k in headers:
+                probs.append(Problem(sid, k, "flags.human_only is set in submission.json but this file has object "
+                                             "arrays: drop them, or the flag to have them scored"))
+    elif ctx.has_object:
+        hint = (" (a human-only method: set flags.human_only in submission.json -- hoibench import mdm|joints does "
+                "-- and the object metrics are reported as not applicable)")
         if "obj_trans" not in headers:
-            probs.append(Problem(sid, "obj_trans", "missing: the object's translation (K, T, 3) is required"))
+            probs.append(Problem(sid, "obj_trans", "missing: the object's translation (K, T, 3) is required" + hint))
         if "obj_rot" not in headers and "obj_rotvec" not in headers:
-            probs.append(Problem(sid, "obj_rot", "missing: give obj_rot (K, T, 3, 3) or obj_rotvec (K, T, 3)"))
+            probs.append(Problem(sid, "obj_rot", "missing: give obj_rot (K, T, 3, 3) or obj_rotvec (K, T, 3)" + hint))
         if "obj_rot" in headers and "obj_rotvec" in headers:
             probs.append(Problem(sid, "obj_rot", "both obj_rot and obj_rotvec given: give exactly one"))
     else:       # human-only clip (RICH): joints only; object arrays are checked but measure nothing
@@ -268,7 +275,8 @@ def validation_report(sub, store, split: str = "test", protocol=None,
             if sid not in found or sid in refused:
                 continue
             ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
-                              bool(flags.get("uses_gt_length", False)) is True, cap, mode)
+                              bool(flags.get("uses_gt_length", False)) is True, cap, mode,
+                              human_only=flags.get("human_only") is True)
             probs, K, up = _check_clip(s, sid, ctx)
             problems += probs
             if K is not None:

@@ -42,6 +42,7 @@ class ClipContext:
     uses_gt_length: bool
     max_samples: int
     mode: str = "clean"            # representation mode used to encode (hoi269 clean|legacy)
+    human_only: bool = False       # flags.human_only: joints only on an HOI store (object metrics n/a)
 
 
 def check_arrays(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> tuple[list[Problem], str | None]:
@@ -179,7 +180,7 @@ def encode_sample(arrays: Mapping[str, np.ndarray], k: int, mode: str, fps: floa
 
 
 def _check_encodes(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> list[Problem]:
-    if "joints" not in arrays or (ctx.has_object and "obj_trans" not in arrays):
+    if "joints" not in arrays or (ctx.has_object and not ctx.human_only and "obj_trans" not in arrays):
         return []
     for k in range(len(arrays["joints"])):
         try:
