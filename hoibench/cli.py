@@ -253,7 +253,8 @@ def _cmd_import(args) -> int:
     from .scoring.importers import import_results
     path, rep = import_results(args.format, args.results, args.data, args.out, match=args.match, mapping=args.map,
                                trust_pickle=args.trust_pickle, fps=args.fps, up=args.up, normalized=args.normalized,
-                               method=args.method, as_zip=args.zip)
+                               method=args.method, as_zip=args.zip, body_models=args.body_models,
+                               model_type=args.model_type, gender=args.gender)
     conv = rep["conversions"]
     print(f"wrote {path}: {rep['matched']}/{rep['test_ids']} test ids, K = {rep['samples_per_prompt'][0]} "
           f"(matched by {conv['match']}; {conv['source_fps']:g} -> {conv['store_fps']:g} fps; up {conv['up_axis']})")
@@ -593,7 +594,8 @@ def _add_baseline_commands(sub) -> None:
                               "  hoibench import joints t2mgpt_joints/ --data data --out sub --fps 20\n"
                               "  hoibench import features feats/ --data data --out sub --normalized",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("format", choices=["mdm", "hoidiff", "joints", "chois", "features"], help="the outputs' format")
+    s.add_argument("format", choices=["mdm", "hoidiff", "joints", "chois", "features", "params"],
+                   help="the outputs' format (params: per-frame SMPL/SMPL-H/SMPL-X parameters, posed with --body-models)")
     s.add_argument("results", type=Path, help="results.npy (mdm, hoidiff) or a folder of files")
     s.add_argument("--data", type=Path, required=True, help="the store the outputs are for (" + H_STORE + ")")
     s.add_argument("--out", type=Path, required=True, help="the submission folder (or .zip with --zip) to write")
@@ -603,8 +605,14 @@ def _add_baseline_commands(sub) -> None:
     s.add_argument("--trust-pickle", action="store_true",
                    help="read MDM/HOI-Diff results.npy, a pickle: only for files you produced yourself")
     s.add_argument("--fps", type=float, default=None, help="the source frame rate (default: the format's, or the store's)")
-    s.add_argument("--up", choices=["y", "z"], default="y", help="joints: the source's up axis")
+    s.add_argument("--up", choices=["y", "z"], default="y", help="joints, params: the source's up axis")
     s.add_argument("--normalized", action="store_true", help="features: de-normalise with the store's statistics")
+    s.add_argument("--body-models", type=Path, default=None,
+                   help="params: the folder with your smplh/, smplx/ or smpl/ model files")
+    s.add_argument("--model-type", choices=["smplh", "smplx", "smpl"], default="smplh",
+                   help="params: the body model the parameters are for (default smplh)")
+    s.add_argument("--gender", choices=["neutral", "male", "female"], default="neutral",
+                   help="params: the model gender when a file has no 'gender' field (default neutral)")
     s.add_argument("--method", default=None, help="the method name written to submission.json")
     s.add_argument("--zip", action="store_true", help=H_ZIP)
     s.set_defaults(func=_cmd_import)

@@ -16,6 +16,9 @@ chois      a folder of CHOIS ``.npz`` files ``<id>[_<r>].npz`` with ``global_jpo
            z up, 30 fps; the first 22 joints (SMPL-H body order) are kept
 features   a folder of ``<id>.npy`` hml263 (T, 263) or hoi269 (T, 269) rows, or (K, T, D);
            ``--normalized``: de-normalised with the store's train statistics first
+params     a folder of ``<id>[_<r>].npz`` per-frame SMPL / SMPL-H / SMPL-X parameters
+           (``poses`` or ``root_orient`` + ``pose_body``, ``betas``, ``trans``, optional object
+           pose), posed with ``--body-models`` (:mod:`hoibench.scoring.import_params`)
 =========  ==================================================================================
 
 Prompts are mapped to test ids by id (file names, ``--match id``), by text (``--match text``:
@@ -44,7 +47,7 @@ from .. import __version__
 from ..datasets.store import Store
 from .submission import write_submission
 
-FORMATS = ("mdm", "hoidiff", "joints", "chois", "features")
+FORMATS = ("mdm", "hoidiff", "joints", "chois", "features", "params")
 SOURCE_FPS = {"mdm": 20.0, "hoidiff": 20.0, "chois": 30.0}
 _REP = re.compile(r"^(.*?)(?:_(\d+))?$")
 
@@ -263,7 +266,8 @@ def read_features(folder: Path, ids: list[str], store: Store, normalized: bool) 
 def import_results(fmt: str, results: str | Path, data: str | Path, out: str | Path, *, match: str | None = None,
                    mapping: str | Path | None = None, trust_pickle: bool = False, fps: float | None = None,
                    up: str = "y", normalized: bool = False, method: str | None = None,
-                   as_zip: bool = False) -> tuple[Path, dict]:
+                   as_zip: bool = False, body_models: str | Path | None = None, model_type: str = "smplh",
+                   gender: str = "neutral") -> tuple[Path, dict]:
     """Write the submission; return (path, report: matched, missing ids, unmatched entries,
     ambiguous texts, conversions)."""
     if fmt not in FORMATS:
@@ -288,10 +292,13 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
         entries = read_mdm(results, trust_pickle, fmt == "hoidiff")
     elif fmt in ("joints", "chois"):
         entries = read_joint_files(results, ids, "z" if fmt == "chois" else up, fmt == "chois")
+    elif fmt == "params":
+        from .import_params import read_param_files
+        entries = read_param_files(results, ids, up, body_models, model_type, gender)
     else:
         entries = read_features(results, ids, store, normalized)
     if not entries:
-        raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt == 'chois' else '.npy'} sample files "
+        raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt in ('chois', 'params') else '.npy'} sample files "
                             f"or entries found)")
     src_fps = float(fps) if fps is not None else SOURCE_FPS.get(fmt, store_fps)
     if not (np.isfinite(src_fps) and 1 <= src_fps <= 1000):
@@ -319,7 +326,8 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
     K = {len(a["joints"]) for a in samples.values()}
     conversions = {"format": fmt, "match": how, "source_fps": src_fps, "store_fps": store_fps,
                    "resampled": abs(src_fps - store_fps) > 1e-9, "up_axis": "z -> y" if (fmt == "chois" or up == "z")
-                   else "y", "normalized_features": bool(normalized) if fmt == "features" else None}
+                   else "y", "normalized_features": bool(normalized) if fmt == "features" else None,
+                   **({"body_model": model_type, "default_gender": gender} if fmt == "params" else {})}
     report = {"matched": len(samples), "test_ids": len(ids), "missing_ids": sorted(set(ids) - set(samples)),
               "unmatched_entries": matcher.unmatched, "ambiguous_texts": sorted(set(matcher.ambiguous)),
               "samples_per_prompt": sorted(K), "conversions": conversions}
