@@ -21,3 +21,20 @@ def template_store(tmp_path_factory):
     _, data, _ = build_synthetic_store(tmp_path_factory.mktemp("template_store"), 48, seed=0)
     write_template_texts(data)
     return data
+
+
+@pytest.fixture(scope="session")
+def annotated_store_with_evaluator(tmp_path_factory):
+    """(base folder, 120-clip annotated synthetic store, tiny evaluator folder that passes its
+    gate), built once per session for the modules that score end to end (read-only: tests
+    that change the store or evaluator work on a copy)."""
+    pytest.importorskip("smplx")
+    pytest.importorskip("transformers")
+    from hoibench.datasets.synthetic_store import build_synthetic_store
+    from hoibench.evaluator import main_train_evaluator
+    from hoibench.text.annotate import annotate_store
+    base = tmp_path_factory.mktemp("scored_store")
+    _, data, _ = build_synthetic_store(base, 120, seed=0)
+    annotate_store(data)
+    assert main_train_evaluator(data, base / "ev", size="tiny", seed=0) == 0
+    return base, data, base / "ev"

@@ -12,7 +12,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "hoibench"
 
 #: the stages in import order: a module may import its own stage and earlier ones
 STAGES = ("core", "bodies", "representations", "datasets", "text", "metrics", "tracks", "evaluator", "scoring",
-          "baselines", "publish")
+          "baselines", "publish", "challenge")
 #: modules at the top of the package: the version and entry points, above every stage
 TOP_MODULES = {"hoibench", "hoibench.cli", "hoibench.demo"}
 MAX_MODULE_LINES = 850

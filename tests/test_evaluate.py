@@ -12,16 +12,13 @@ pytest.importorskip("open3d")
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
-    from hoibench.text.annotate import annotate_store
-    from hoibench.datasets.synthetic_store import build_synthetic_store
-    from hoibench.evaluator import main_train_evaluator
-    from hoibench.scoring.submission import from_store
+def setup(annotated_store_with_evaluator, tmp_path_factory):
+    import shutil as sh
 
+    from hoibench.scoring.submission import from_store
+    shared, data, ev = annotated_store_with_evaluator
     base = tmp_path_factory.mktemp("evaluate")
-    _, data, _ = build_synthetic_store(base, 120, seed=0)
-    annotate_store(data)
-    assert main_train_evaluator(data, base / "ev", size="tiny", seed=0) == 0
+    sh.copytree(ev, base / "ev")
     from_store(data, base / "gt")
     return base, data
 

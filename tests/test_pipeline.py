@@ -71,22 +71,19 @@ pytest.importorskip("open3d")
 
 
 @pytest.fixture(scope="module")
-def stores(tmp_path_factory):
+def stores(annotated_store_with_evaluator, tmp_path_factory):
     """A single-body store with an evaluator and its GT submission; a multi-body store with a
     recognizer and its GT submission."""
     from hoibench.datasets.multibody import prepare_jobs, write_synthetic_layout, dataset_name
     from hoibench.datasets.store import PrepareConfig, prepare
-    from hoibench.datasets.synthetic_store import build_synthetic_store
-    from hoibench.evaluator import main_train_evaluator
     from hoibench.evaluator.recognizer import train_recognizer
     from hoibench.scoring.multibody import write_multibody_submission
     from hoibench.scoring.submission import from_store
-    from hoibench.text.annotate import annotate_store
 
+    import shutil as sh
     base = tmp_path_factory.mktemp("pipeline")
-    _, data, _ = build_synthetic_store(base, 120, seed=0)
-    annotate_store(data)
-    assert main_train_evaluator(data, base / "ev", size="tiny", seed=0, epochs=2) == 0
+    _, data, ev = annotated_store_with_evaluator
+    sh.copytree(ev, base / "ev")
     from_store(data, base / "gt")
     raw, mdata = base / "mraw", base / "mdata"
     write_synthetic_layout(raw, 27, seed=0)

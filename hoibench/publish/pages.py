@@ -35,6 +35,8 @@ def fmt(m: dict | None) -> str:
     if -1e-6 < mean < 0:
         mean = 0.0
     digits = 3 if abs(mean) >= 0.01 or mean == 0 else 5
+    if "ci95" in m and m["ci95"] is None:          # a hosted row: the engine keeps means only
+        return f"{mean:.{digits}f} (no CI)"
     return f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
 
