@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.geometry import axis_angle_to_matrix
+from .import_common import ImportProblem, _group_files
 
 #: the z-up -> y-up rotation, p_y = F p_z: (x, y, z) -> (x, z, -y)
 Z_TO_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -41,7 +42,6 @@ _MAX_FRAMES = 100_000
 
 
 def _problem(msg: str) -> Exception:
-    from .importers import ImportProblem
     return ImportProblem(msg)
 
 
@@ -158,7 +158,6 @@ def read_param_files(folder: Path, ids: list[str], up: str, body_models, model_t
                      gender: str) -> list[tuple[str, str, dict]]:
     """``(key, "", arrays)`` per file group (``<id>.npz`` / ``<id>_<r>.npz``): samples stacked
     (K, T, ...) and cut to the shortest."""
-    from .importers import _group_files
     if body_models is None:
         raise _problem("--body-models: required for params (the folder with smplh/, smplx/ or smpl/ model files)")
     if model_type not in MODEL_TYPES:

@@ -37,7 +37,6 @@ MDM's and HOI-Diff's files are pickles: loading one can run code. They are read 
 from __future__ import annotations
 
 import json
-import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -49,11 +48,9 @@ from .submission import write_submission
 
 FORMATS = ("mdm", "hoidiff", "joints", "chois", "features", "params")
 SOURCE_FPS = {"mdm": 20.0, "hoidiff": 20.0, "chois": 30.0}
-_REP = re.compile(r"^(.*?)(?:_(\d+))?$")
 
 
-class ImportProblem(ValueError):
-    """An input that cannot be imported (names the file and the field)."""
+from .import_common import ImportProblem, _group_files  # noqa: E402,F401  (re-exported)
 
 
 # ------------------------------------------------------------------------------ conversions
@@ -189,23 +186,6 @@ def read_mdm(path: Path, trust_pickle: bool, with_object: bool) -> list[tuple[st
             arrays.update(obj_rotvec=o[..., :3], obj_trans=o[..., 3:])
         out.append((str(i), str(d["text"][entries[0]]), arrays))
     return out
-
-
-def _group_files(folder: Path, ext: str, ids: list[str]) -> dict[str, list[Path]]:
-    """``<id>.ext`` / ``<id>_<r>.ext`` files grouped by stem (the id when it is a test id)."""
-    if not folder.is_dir():
-        raise ImportProblem(f"{folder}: not a folder of {ext} files")
-    idset = set(ids)
-    groups: dict[str, list[tuple[int, Path]]] = defaultdict(list)
-    for p in sorted(folder.glob(f"*{ext}")):
-        stem = p.name[:-len(ext)]
-        if stem in idset:
-            groups[stem].append((0, p))
-            continue
-        m = _REP.match(stem)
-        base, rep = m.group(1), m.group(2)
-        groups[base if rep is not None else stem].append((int(rep or 0), p))
-    return {k: [p for _, p in sorted(v)] for k, v in groups.items()}
 
 
 def read_joint_files(folder: Path, ids: list[str], up: str, chois: bool) -> list[tuple[str, str, dict]]:
