@@ -137,3 +137,242 @@ def build(root: Path, extras: bool = True) -> dict:
     sd = lightning_state_dict(roberta)
     return {"checkpoint": write_checkpoint(root / "checkpoint" / "behave_t2m" / "epoch=24-step=325.ckpt", sd, extras),
             "text_model": roberta, "stats": write_stats(root / "dataset" / "behave_t2m"), "state_dict": sd}
+
+
+# --------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory):
+    """(inputs, evaluator folder, evaluator id) of one import of the fixture."""
+    root = tmp_path_factory.mktemp("chainhoi")
+    files = build(root)
+    eid = import_evaluator("chainhoi", root / "ev", checkpoint=files["checkpoint"], text_model=files["text_model"],
+                           stats=files["stats"])
+    return files, root / "ev", eid
+
+
+def _import(tmp_path: Path, files: dict, **override) -> str:
+    args = {k: files[k] for k in ("checkpoint", "text_model", "stats")}
+    args.update(override)
+    return import_evaluator("chainhoi", tmp_path / "ev", **args)
+
+
+def _one_line(exc) -> str:
+    msg = str(exc.value)
+    assert "\n" not in msg
+    return msg
+
+
+# --------------------------------------------------------------------------- reference values
+def test_embeddings_match_chainhois_own_evaluator_code(imported):
+    """Motion and text embeddings equal those of ChainHOI's evaluator code on the same
+    weights and inputs (module docstring; measured max |diff|: 0 for both on this
+    machine, allowed 1e-5)."""
+    files, ev_dir, eid = imported
+    ref = np.load(REF)
+    ev = load_evaluator(ev_dir, kind="contrastive")
+    assert ev.id == eid and type(ev).__name__ == "ChainHOIEvaluator"
+    clips = motions()
+    # the reference floors lengths to multiples of 4 and cuts at 196; these lengths are already
+    # multiples of 4 except the 210-frame clip, which the evaluator cuts to its first 196 rows
+    assert [min(len(c), 196) for c in clips] == ref["motion_lengths"].tolist()
+    m = ev.embed_motion(clips)
+    t = ev.embed_text(list(ref["captions"]), tokens=[["unused/X"]] * 3)
+    assert m.dtype == np.float32 and m.shape == (4, 512) and t.shape == (3, 512)
+    assert np.abs(m - ref["motion_embeddings"]).max() <= 1e-5
+    assert np.abs(t - ref["text_embeddings"]).max() <= 1e-5
+    assert np.array_equal(ev.tokenize(list(ref["captions"]))["input_ids"].numpy(), ref["text_input_ids"])
+    assert np.allclose(np.linalg.norm(m, axis=1), 1, atol=1e-6) and np.allclose(np.linalg.norm(t, axis=1), 1,
+                                                                                   atol=1e-6)
+
+
+def test_embeddings_do_not_depend_on_batching_or_on_the_object_columns(imported):
+    _, ev_dir, _ = imported
+    ev = load_evaluator(ev_dir)
+    clips = motions()
+    together = ev.embed_motion(clips)
+    alone = np.concatenate([ev.embed_motion([c]) for c in clips])
+    human = ev.embed_motion([c[:, :263] for c in clips], batch_size=2)
+    assert np.abs(together - alone).max() < 1e-5 and np.abs(together - human).max() < 1e-5
+    # a padded (N, T, D) batch with lengths is read like the list
+    padded = np.zeros((2, 40, 269), np.float32)
+    padded[0], padded[1, :24] = clips[0], clips[1]
+    assert np.abs(ev.embed_motion(padded, [40, 24]) - together[:2]).max() < 1e-5
+    # the text of one caption is the same alone and in a batch padded to 32 tokens
+    assert np.abs(ev.embed_text(CAPTIONS[:1]) - ev.embed_text(CAPTIONS)[:1]).max() < 1e-5
+
+
+# --------------------------------------------------------------------------- the folder
+def test_the_folder_is_an_ordinary_evaluator_folder_of_backend_chainhoi(imported):
+    files, ev_dir, eid = imported
+    assert backend_of(ev_dir).name == "chainhoi"
+    card = peek_card(ev_dir, "contrastive")
+    assert card["backend"] == "chainhoi" and card["evaluator_id"] == eid
+    assert card["config"]["width"] == WIDTH and card["config"]["layers"] == LAYERS
+    assert card["config"]["heads"] == 8 and card["config"]["max_positions"] == 256
+    assert card["dataset"]["name"] == "behave" and card["dataset"]["representation"] == "hml263-legacy-hoidiff-1.0"
+    mean = np.load(files["stats"] / "Mean_local.npy")
+    assert card["normalization"]["mean"] == [float(x) for x in mean[:263]]
+    assert card["normalization"]["file_entries"] == 269
+    # the RoBERTa weights come from the checkpoint, not the folder (which has none here)
+    from safetensors.numpy import load_file
+    w = load_file(str(ev_dir / "weights.safetensors"))
+    key = "text_encoder.pooler.dense.weight"
+    assert np.array_equal(w[key], files["state_dict"]["motion_clip." + key].numpy())
+    assert "logit_scale" not in w and not any(k.startswith("motion_clip.") for k in w)
+
+
+def test_import_is_deterministic_and_reads_checkpoints_without_their_pickled_objects(imported, tmp_path):
+    """Same files, same id; a checkpoint without the Lightning extras (so loadable by plain
+    weights_only) holds the same weights."""
+    files, ev_dir, eid = imported
+    assert _import(tmp_path / "a", files) == eid
+    plain = write_checkpoint(tmp_path / "plain.ckpt", files["state_dict"], extras=False)
+    _import(tmp_path / "b", files, checkpoint=plain)
+    assert (tmp_path / "b" / "ev" / "weights.safetensors").read_bytes() == (ev_dir / "weights.safetensors").read_bytes()
+
+
+def test_store_mismatches_judge_the_dataset_and_representation_it_was_trained_for(imported):
+    _, ev_dir, _ = imported
+    card = peek_card(ev_dir)
+    behave = {"dataset": "behave", "config": {"fps": 20, "mode": "legacy-hoidiff"},
+              "representations": {"hml263": "hml263-legacy-hoidiff-1.0"},
+              "stats": {"hml263": {"sha256": "0" * 64}}, "clips": [{"id": "a", "split": "train"}]}
+    assert store_mismatches(card, behave) == []      # its own statistics: the store's are not compared
+    omomo = {**behave, "dataset": "omomo"}
+    assert any("dataset 'behave'" in r for r in store_mismatches(card, omomo))
+    clean = {**behave, "config": {"fps": 20, "mode": "clean"}, "representations": {"hml263": "hml263-clean-1.0"}}
+    reasons = store_mismatches(card, clean)
+    assert any("hml263-legacy-hoidiff-1.0" in r for r in reasons) and any("mode" in r for r in reasons)
+
+
+def test_a_result_scored_with_it_is_comparable_with_chainhois_paper_rows(imported):
+    """What ``hoibench evaluate`` records as the backend (``backend_of(EV).name``) makes a
+    behave-legacy row comparable with ChainHOI's checked-in rows; another backend does not."""
+    from hoibench.publish.leaderboard import comparable, entry_from_result, read_entry
+    _, ev_dir, eid = imported
+    paper = read_entry(Path(__file__).parent.parent / "leaderboards" / "behave" / "entries"
+                       / "reported-chainhoi-chainhoi.json")
+    result = {"protocol": "behave-legacy", "evaluator_id": eid, "evaluator_backend": backend_of(ev_dir).name,
+              "metrics": {"fid": {"mean": 1.0, "ci95": 0.0}}, "complete": True}
+    assert comparable(entry_from_result(result, method="m", track="behave"), paper)
+    assert not comparable(entry_from_result({**result, "evaluator_backend": "contrastive"}, method="m",
+                                            track="behave"), paper)
+
+
+# --------------------------------------------------------------------------- refusals
+def test_missing_and_truncated_checkpoints_are_refused_in_one_line(imported, tmp_path):
+    files, _, _ = imported
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, checkpoint=tmp_path / "none.ckpt")
+    assert "none.ckpt" in _one_line(e) and "no such file" in str(e.value)
+    data = files["checkpoint"].read_bytes()
+    cut = tmp_path / "cut.ckpt"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, checkpoint=cut)
+    assert "cut.ckpt" in _one_line(e) and "truncated" in str(e.value)
+    assert not (tmp_path / "ev" / "card.json").exists()
+
+
+def test_a_checkpoint_that_would_run_code_is_refused_and_runs_nothing(imported, tmp_path):
+    import os
+
+    files, _, _ = imported
+    marker = tmp_path / "ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (os.system, (f"touch {marker}",))
+
+    bad = tmp_path / "bad.ckpt"
+    torch.save({"state_dict": files["state_dict"], "callbacks": Payload()}, bad)
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, checkpoint=bad)
+    assert "bad.ckpt" in _one_line(e) and "blocked" in str(e.value)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("edit, needles", [
+    ("shape", ("motion_clip.motion_encoder.transformer.layers.1.linear1.weight", "(100, 32)", "(128, 32)")),
+    ("missing", ("motion_clip.motion_encoder.ln_post.bias", "no ")),
+    ("extra", ("unexpected", "motion_clip.motion_encoder.extra")),
+    ("prefix", ("'model.head'", "motion_clip.")),
+    ("text", ("motion_clip.text_encoder.pooler.dense.weight", "(768, 10)", "(768, 768)")),
+])
+def test_checkpoint_keys_and_shapes_are_checked_before_loading(imported, tmp_path, edit, needles):
+    files, _, _ = imported
+    sd = OrderedDict(files["state_dict"])
+    if edit == "shape":
+        sd["motion_clip.motion_encoder.transformer.layers.1.linear1.weight"] = torch.zeros(100, 32)
+    elif edit == "missing":
+        del sd["motion_clip.motion_encoder.ln_post.bias"]
+    elif edit == "extra":
+        sd["motion_clip.motion_encoder.extra"] = torch.zeros(3)
+    elif edit == "prefix":
+        sd["model.head"] = torch.zeros(3)
+    else:
+        sd["motion_clip.text_encoder.pooler.dense.weight"] = torch.zeros(768, 10)
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, checkpoint=write_checkpoint(tmp_path / "edited.ckpt", sd))
+    msg = _one_line(e)
+    assert "edited.ckpt" in msg and all(n in msg for n in needles), msg
+
+
+def test_missing_statistics_and_text_files_are_named(imported, tmp_path):
+    files, _, _ = imported
+    stats = tmp_path / "behave_t2m"
+    shutil.copytree(files["stats"], stats)
+    (stats / "Std_local.npy").unlink()
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, stats=stats)
+    assert "Std_local.npy is missing" in _one_line(e)
+    np.save(stats / "Std_local.npy", np.zeros(269, np.float32))
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, stats=stats)
+    assert "Std_local.npy" in _one_line(e) and "positive" in str(e.value)
+    text = tmp_path / "roberta"
+    shutil.copytree(files["text_model"], text)
+    (text / "merges.txt").unlink()
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, text_model=text)
+    assert "merges.txt is missing" in _one_line(e)
+    unnamed = tmp_path / "stats"
+    shutil.copytree(files["stats"], unnamed)
+    with pytest.raises(ValueError) as e:         # a tiny evaluator: the dataset comes from the folder name
+        _import(tmp_path, files, stats=unnamed)
+    assert "BEHAVE's or OMOMO's" in _one_line(e)
+
+
+def test_a_modified_folder_is_refused_on_load(imported, tmp_path):
+    _, ev_dir, _ = imported
+    copy = tmp_path / "ev"
+    shutil.copytree(ev_dir, copy)
+    vocab = copy / "text_model" / "vocab.json"
+    vocab.write_text(vocab.read_text().replace('"<unk>": 3', '"<unk>": 4'))
+    with pytest.raises(ValueError) as e:
+        load_evaluator(copy)
+    assert "vocab.json" in _one_line(e)
+    shutil.rmtree(copy)
+    shutil.copytree(ev_dir, copy)
+    card = json.loads((copy / "card.json").read_text())
+    card["dataset"]["name"] = "omomo"
+    (copy / "card.json").write_text(json.dumps(card))
+    with pytest.raises(ValueError) as e:
+        load_evaluator(copy)
+    assert "dataset" in _one_line(e) and "id mismatch" in str(e.value)
+
+
+def test_the_command_line_imports_and_shows_it(imported, tmp_path, capsys):
+    from hoibench.cli import main
+    files, _, eid = imported
+    out = tmp_path / "ev-cli"
+    assert main(["evaluator", "import", "chainhoi", "--checkpoint", str(files["checkpoint"]), "--text-model",
+                 str(files["text_model"]), "--stats", str(files["stats"]), "--out", str(out)]) == 0
+    assert eid in capsys.readouterr().out
+    assert main(["evaluator", "show", str(out)]) == 0
+    shown = capsys.readouterr().out
+    assert "chainhoi" in shown and "id verified" in shown and "behave" in shown
+    assert main(["evaluator", "import", "chainhoi", "--checkpoint", str(tmp_path / "x.ckpt"), "--text-model",
+                 str(files["text_model"]), "--stats", str(files["stats"]), "--out", str(tmp_path / "ev2")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "x.ckpt" in err[0]

@@ -74,7 +74,7 @@ SOURCE = {"paper": "ChainHOI (Zeng et al., CVPR 2025)", "code": "https://github.
 TRAINED_ON = {"features": "hml263", "representation": "hml263-legacy-hoidiff-1.0", "fps": 20,
               "mode": "legacy-hoidiff"}
 
-__all__ = ["BACKEND", "ChainHOIImportError", "import_chainhoi", "load_chainhoi", "verify_chainhoi_folder",
+__all__ = ["BACKEND", "ChainHOIImportError", "import_chainhoi", "load_chainhoi", "verify_chainhoi_folder", "verify_folder",
            "read_stats", "architecture", "summary"]
 
 
@@ -362,6 +362,10 @@ def verify_chainhoi_folder(folder: str | Path) -> tuple[dict, bytes]:
             raise EvaluatorIntegrityError(f"{path}: sha256 differs from the card's text_encoder.files_sha256 "
                                           f"(modified after import); import the evaluator again")
     return card, data
+
+
+#: the name ``hoibench evaluator show`` looks for in a backend's loader module
+verify_folder = verify_chainhoi_folder
 
 
 def _load_text(folder: Path):
