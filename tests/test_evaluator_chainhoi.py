@@ -209,7 +209,8 @@ def test_the_folder_is_an_ordinary_evaluator_folder_of_backend_chainhoi(imported
     assert card["backend"] == "chainhoi" and card["evaluator_id"] == eid
     assert card["config"]["width"] == WIDTH and card["config"]["layers"] == LAYERS
     assert card["config"]["heads"] == 8 and card["config"]["max_positions"] == 256
-    assert card["dataset"]["name"] == "behave" and card["dataset"]["representation"] == "hml263-legacy-hoidiff-1.0"
+    assert card["dataset"]["name"] == "behave" and card["dataset"]["representation"] == "hoi269-legacy-1.0"
+    assert card["dataset"]["features"] == "hoi269" and card["dataset"]["fps"] == 20
     mean = np.load(files["stats"] / "Mean_local.npy")
     assert card["normalization"]["mean"] == [float(x) for x in mean[:263]]
     assert card["normalization"]["file_entries"] == 269
@@ -235,14 +236,19 @@ def test_store_mismatches_judge_the_dataset_and_representation_it_was_trained_fo
     _, ev_dir, _ = imported
     card = peek_card(ev_dir)
     behave = {"dataset": "behave", "config": {"fps": 20, "mode": "legacy-hoidiff"},
-              "representations": {"hml263": "hml263-legacy-hoidiff-1.0"},
+              "representations": {"hml263": "hml263-legacy-hoidiff-1.0", "hoi269": "hoi269-legacy-1.0"},
               "stats": {"hml263": {"sha256": "0" * 64}}, "clips": [{"id": "a", "split": "train"}]}
     assert store_mismatches(card, behave) == []      # its own statistics: the store's are not compared
+    # a store prepared in mode legacy holds the same hoi269 rows (body part: HOI-Diff's)
+    legacy = {**behave, "config": {"fps": 20, "mode": "legacy"},
+              "representations": {"hml263": "hml263-legacy-1.0", "hoi269": "hoi269-legacy-1.0"}}
+    assert store_mismatches(card, legacy) == []
     omomo = {**behave, "dataset": "omomo"}
     assert any("dataset 'behave'" in r for r in store_mismatches(card, omomo))
-    clean = {**behave, "config": {"fps": 20, "mode": "clean"}, "representations": {"hml263": "hml263-clean-1.0"}}
-    reasons = store_mismatches(card, clean)
-    assert any("hml263-legacy-hoidiff-1.0" in r for r in reasons) and any("mode" in r for r in reasons)
+    clean = {**behave, "config": {"fps": 20, "mode": "clean"},
+             "representations": {"hml263": "hml263-clean-1.0", "hoi269": "hoi269-clean-1.0"}}
+    assert any("hoi269-legacy-1.0" in r and "hoi269-clean-1.0" in r for r in store_mismatches(card, clean))
+    assert any("fps" in r for r in store_mismatches(card, {**behave, "config": {"fps": 30, "mode": "legacy"}}))
 
 
 def test_a_result_scored_with_it_is_comparable_with_chainhois_paper_rows(imported):

@@ -36,11 +36,14 @@ of the RoBERTa folder's ``config.json`` and tokenizer files, each sha256 recorde
 card and checked on load). Its evaluator id covers the weights and the card.
 
 Which data it fits. The evaluator was trained on HOI-Diff's processing of BEHAVE (or
-OMOMO) at 20 fps; the card says so (``dataset``: name, ``features: hml263``,
-``representation: hml263-legacy-hoidiff-1.0``, ``fps: 20``, ``mode: legacy-hoidiff``), so
-:func:`hoibench.evaluator.card.store_mismatches` refuses it on another dataset or a store
-prepared in another mode. Its normalisation is its own (no store statistics hash is
-compared) and its training split is unknown to hoibench (not compared either). The
+OMOMO) at 20 fps: the 269 ``new_joint_vecs_local`` columns, of which it reads the 263 body
+columns. In hoibench these are the ``hoi269-legacy-1.0`` rows of a store prepared in a
+legacy mode (their body part is ``hml263-legacy-hoidiff-1.0``), which is what the scorer
+embeds for object stores. The card says so (``dataset``: name, ``features: hoi269``,
+``representation: hoi269-legacy-1.0``, ``fps: 20``, and for reading
+``body_representation``), so :func:`hoibench.evaluator.card.store_mismatches` refuses it on
+another dataset or a clean store. Its normalisation is its own (no store statistics hash
+is compared) and its training split is unknown to hoibench (not compared either). The
 dataset is read from the architecture (384 wide, 8 layers: BEHAVE; 512 wide, 6 layers:
 OMOMO); other sizes take it from the statistics folder's name (``behave...`` /
 ``omomo...``), and a disagreement between the two is refused.
@@ -71,8 +74,8 @@ SOURCE = {"paper": "ChainHOI (Zeng et al., CVPR 2025)", "code": "https://github.
           "commit": "4990160", "module": "src/models/evaluator/MotionCLIP (MotionCLIP: BEHAVE, MotionCLIP2: OMOMO)",
           "normalisation": "src/data/behave_omomo.py + src/data/humanml/hoidataset.py (Mean_local/Std_local)"}
 #: the data the released evaluators were trained on (HOI-Diff's BEHAVE / OMOMO processing)
-TRAINED_ON = {"features": "hml263", "representation": "hml263-legacy-hoidiff-1.0", "fps": 20,
-              "mode": "legacy-hoidiff"}
+TRAINED_ON = {"features": "hoi269", "representation": "hoi269-legacy-1.0", "fps": 20,
+              "body_representation": "hml263-legacy-hoidiff-1.0"}
 
 __all__ = ["BACKEND", "ChainHOIImportError", "import_chainhoi", "load_chainhoi", "verify_chainhoi_folder", "verify_folder",
            "read_stats", "architecture", "summary"]
@@ -425,7 +428,8 @@ def summary(card: dict, verified: bool | None = None) -> str:
         f"{cfg.get('max_positions')} positions, first {cfg.get('max_frames')} frames; output {cfg.get('output_dim')}",
         f"  text: {te.get('name')} ({te.get('layers')} layers, {te.get('hidden_size')} wide, weights from the "
         f"checkpoint), {cfg.get('text_max_tokens')} tokens, pooler_output",
-        f"  trained for: {ds.get('name')} {ds.get('representation')} at {ds.get('fps')} fps",
+        f"  trained for: {ds.get('name')} {ds.get('representation')} (body columns: "
+        f"{ds.get('body_representation')}) at {ds.get('fps')} fps",
         f"  checkpoint: {ck.get('file')} sha256 {str(ck.get('sha256', ''))[:12]}",
         f"  normalisation: {json.dumps((card.get('normalization') or {}).get('source'))} "
         f"({(card.get('normalization') or {}).get('folder')})"])
