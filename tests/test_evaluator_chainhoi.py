@@ -382,3 +382,40 @@ def test_the_command_line_imports_and_shows_it(imported, tmp_path, capsys):
                  str(files["text_model"]), "--stats", str(files["stats"]), "--out", str(tmp_path / "ev2")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "x.ckpt" in err[0]
+
+
+def test_a_checkpoint_without_a_lightning_state_dict_is_refused(imported, tmp_path):
+    files, _, _ = imported
+    plain = tmp_path / "plain.pt"
+    torch.save({"model": files["state_dict"]}, plain)
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, checkpoint=plain)
+    assert "plain.pt" in _one_line(e) and "no 'state_dict'" in str(e.value)
+    listed = tmp_path / "list.pt"
+    torch.save([1, 2], listed)
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, checkpoint=listed)
+    assert "list.pt" in _one_line(e) and "holds a list" in str(e.value)
+
+
+def test_position_ids_saved_by_older_transformers_are_accepted_only_when_they_are_positions(imported, tmp_path):
+    files, ev_dir, _ = imported
+    sd = OrderedDict(files["state_dict"])
+    sd["motion_clip.text_encoder.embeddings.position_ids"] = torch.arange(40)[None]
+    _import(tmp_path / "a", files, checkpoint=write_checkpoint(tmp_path / "old.ckpt", sd))
+    assert (tmp_path / "a" / "ev" / "weights.safetensors").read_bytes() == (ev_dir / "weights.safetensors").read_bytes()
+    sd["motion_clip.text_encoder.embeddings.position_ids"] = torch.arange(40)[None].flip(1)
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path / "b", files, checkpoint=write_checkpoint(tmp_path / "odd.ckpt", sd))
+    assert "odd.ckpt" in _one_line(e) and "position_ids" in str(e.value)
+
+
+def test_the_dataset_comes_from_the_released_sizes_and_must_agree_with_the_statistics_folder(tmp_path):
+    from hoibench.evaluator.published_chainhoi import _dataset
+    assert _dataset({"width": 384, "layers": 8}, tmp_path / "stats") == "behave"
+    assert _dataset({"width": 512, "layers": 6}, tmp_path / "omomo") == "omomo"
+    assert _dataset({"width": 32, "layers": 2}, tmp_path / "OMOMO_data") == "omomo"
+    with pytest.raises(ValueError, match="OMOMO's but the checkpoint is the BEHAVE evaluator"):
+        _dataset({"width": 384, "layers": 8}, tmp_path / "omomo")
+    with pytest.raises(ValueError, match="BEHAVE's but the checkpoint is the OMOMO evaluator"):
+        _dataset({"width": 512, "layers": 6}, tmp_path / "behave_t2m")

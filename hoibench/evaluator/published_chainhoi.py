@@ -349,6 +349,9 @@ def verify_chainhoi_folder(folder: str | Path) -> tuple[dict, bytes]:
     for k in _CONFIG_INTS:
         if not isinstance(cfg.get(k), int) or isinstance(cfg.get(k), bool) or cfg[k] < 1:
             raise CorruptEvaluatorFile(f"{cpath}: field config.{k}: expected a positive integer")
+    if cfg["max_frames"] + 1 > cfg["max_positions"]:
+        raise CorruptEvaluatorFile(f"{cpath}: field config.max_frames: {cfg['max_frames']} frames need "
+                                   f"{cfg['max_frames'] + 1} positions, the model has {cfg['max_positions']}")
     for k in ("mean", "std"):
         v = norm.get(k)
         if not (isinstance(v, list) and len(v) == MOTION_DIM and all(isinstance(x, (int, float)) for x in v)):
