@@ -67,8 +67,9 @@ register_backend(Backend("recognizer", "recognizer", "recognizer.json", ".recogn
 register_backend(Backend("chainhoi", "contrastive", "card.json", ".published_chainhoi:load_chainhoi",
                          "ChainHOI's published MotionCLIP evaluator (RoBERTa + motion transformer)",
                          ".published_chainhoi:import_chainhoi", (
-                             ImportFile("checkpoint", "the evaluator's Lightning .ckpt (ChainHOI: checkpoint/behave_t2m/"
-                                        "epoch=24-step=325.ckpt or checkpoint/omomo/epoch=273-step=9590.ckpt)"),
+                             ImportFile("checkpoint", "the evaluator's Lightning .ckpt (ChainHOI: "
+                                        "checkpoint/behave_t2m/epoch=24-step=325.ckpt or "
+                                        "checkpoint/omomo/epoch=273-step=9590.ckpt)"),
                              ImportFile("text_model", "a local roberta-base folder (config.json, vocab.json, "
                                         "merges.txt)"),
                              ImportFile("stats", "ChainHOI's dataset folder holding Mean_local.npy and Std_local.npy "

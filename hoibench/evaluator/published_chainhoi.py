@@ -77,7 +77,8 @@ SOURCE = {"paper": "ChainHOI (Zeng et al., CVPR 2025)", "code": "https://github.
 TRAINED_ON = {"features": "hoi269", "representation": "hoi269-legacy-1.0", "fps": 20,
               "body_representation": "hml263-legacy-hoidiff-1.0"}
 
-__all__ = ["BACKEND", "ChainHOIImportError", "import_chainhoi", "load_chainhoi", "verify_chainhoi_folder", "verify_folder",
+__all__ = ["BACKEND", "ChainHOIImportError", "import_chainhoi", "load_chainhoi", "verify_chainhoi_folder",
+           "verify_folder",
            "read_stats", "architecture", "summary"]
 
 
