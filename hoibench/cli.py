@@ -399,7 +399,8 @@ def _add_data_commands(sub) -> None:
                         "(not needed for multibody)")
     s.add_argument("--out", type=Path, required=True, help="the store folder to write (rerunning resumes)")
     s.add_argument("--fps", type=float, default=20.0, help="resample to this rate, by time")
-    s.add_argument("--mode", choices=["clean", "legacy"], default="clean", help="representation mode")
+    s.add_argument("--mode", choices=["clean", "legacy", "legacy-hoidiff"], default="clean",
+                   help="representation mode (legacy-hoidiff: HOI-Diff's features, for behave-legacy/omomo-legacy)")
     s.add_argument("--split-file", type=Path, default=None, help="JSON {train: [...], test: [...]}")
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")

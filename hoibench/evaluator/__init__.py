@@ -15,6 +15,10 @@ Modules, one job each:
 ``errors``     one-line ``ValueError`` subclasses naming the file and field
 ``train``      training with checkpoints and exact resume
 ``commands``   ``main_train_evaluator`` / ``main_show`` for the CLI
+``backends``   the registry of evaluator kinds; ``load_evaluator`` dispatches on it
+``published_chainhoi``, ``chainhoi_model``  the ``chainhoi`` backend: ChainHOI's published
+               MotionCLIP evaluator (import, checks, folder, loader; network, embedding API)
+``safe_checkpoint``  reading published torch checkpoints with ``weights_only``
 
 Typical use::
 

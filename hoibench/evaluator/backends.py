@@ -64,6 +64,16 @@ register_backend(Backend("contrastive", "contrastive", "card.json", ".card:load_
                          "hoibench's contrastive text-motion evaluator (hoibench train-evaluator)"))
 register_backend(Backend("recognizer", "recognizer", "recognizer.json", ".recognizer:load_recognizer",
                          "the multi-body action recognizer (hoibench train-recognizer)"))
+register_backend(Backend("chainhoi", "contrastive", "card.json", ".published_chainhoi:load_chainhoi",
+                         "ChainHOI's published MotionCLIP evaluator (RoBERTa + motion transformer)",
+                         ".published_chainhoi:import_chainhoi", (
+                             ImportFile("checkpoint", "the evaluator's Lightning .ckpt (ChainHOI: "
+                                        "checkpoint/behave_t2m/epoch=24-step=325.ckpt or "
+                                        "checkpoint/omomo/epoch=273-step=9590.ckpt)"),
+                             ImportFile("text_model", "a local roberta-base folder (config.json, vocab.json, "
+                                        "merges.txt)"),
+                             ImportFile("stats", "ChainHOI's dataset folder holding Mean_local.npy and Std_local.npy "
+                                        "(dataset/behave_t2m or dataset/omomo)"))))
 
 
 def list_backends() -> list[Backend]:

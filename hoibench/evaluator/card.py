@@ -360,7 +360,10 @@ def store_mismatches(evaluator, store_manifest: dict) -> list[str]:
     evaluator's features; normalisation statistics sha256 (the store's train-split
     ``stats/hml263``); and, for cards that record them, fps, mode and the train split's clip
     ids (another train split may contain the clips being scored). The manifest hash itself
-    is not compared: the same data prepared into another folder differs only in paths."""
+    is not compared: the same data prepared into another folder differs only in paths.
+    An imported published evaluator's card names the dataset, features, representation
+    and fps it was trained for, and no store statistics hash (it normalises with its own
+    statistics), so only those are compared."""
     card = evaluator if isinstance(evaluator, dict) else getattr(evaluator, "card", {}) or {}
     eid = str(card.get("evaluator_id", "?"))[:12]
     ds = card.get("dataset") or {}

@@ -46,8 +46,12 @@ def main_show(dir, as_json: bool = False) -> int:
     the folder verifies; 1 when its id does not match (modified: the summary is printed with
     the error naming the file and field); 2, with one line and no summary, when it is not an
     evaluator folder or a file cannot be read (corrupt ``card.json`` or ``weights.safetensors``)."""
+    from .backends import backend_of
     from .card import read_card, summary, verify_folder
     from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
+    backend = backend_of(dir)
+    if backend is not None and backend.importer is not None:
+        return _show_imported(dir, backend, as_json)
     try:
         card = read_card(dir)
     except EvaluatorIntegrityError as exc:
@@ -62,6 +66,30 @@ def main_show(dir, as_json: bool = False) -> int:
     except EvaluatorIntegrityError as exc:
         ok, err = False, exc
     print(json.dumps(card, indent=1, sort_keys=True) if as_json else summary(card, ok))
+    if not ok:
+        print(f"hoibench evaluator: error: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _show_imported(dir, backend, as_json: bool) -> int:
+    """``main_show`` for a folder written by an importer: its loader module's ``verify_folder``
+    (-> card, weights bytes) and ``summary(card, verified)`` (the raw card without one)."""
+    from importlib import import_module
+
+    from .backends import peek_card
+    from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
+    mod = import_module(backend.loader.split(":")[0], __package__)
+    try:
+        card, _ = mod.verify_folder(dir)
+        ok, err = True, None
+    except CorruptEvaluatorFile as exc:
+        print(f"hoibench evaluator: error: {exc}", file=sys.stderr)
+        return 2
+    except EvaluatorIntegrityError as exc:
+        card, ok, err = peek_card(dir), False, exc
+    show = getattr(mod, "summary", None)
+    print(json.dumps(card, indent=1, sort_keys=True) if as_json or show is None else show(card, ok))
     if not ok:
         print(f"hoibench evaluator: error: {err}", file=sys.stderr)
         return 1
