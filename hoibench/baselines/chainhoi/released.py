@@ -137,7 +137,9 @@ class _PositionTable(nn.Module):
         self.dropout = nn.Dropout(dropout)
 
     def forward(self, x):                                   # (B, L, C)
-        return self.dropout(x + self.embed[:x.shape[1], 0][None])
+        L = x.shape[1]
+        table = self.embed[:, 0] if L <= self.embed.shape[0] else sincos_table(L, x.shape[-1])[:, 0].to(x)
+        return self.dropout(x + table[:L][None])
 
 
 class _TimeMLP(nn.Module):
@@ -330,3 +332,48 @@ class ReleasedDenoiser(nn.Module):
         for blk in self.blocks:
             h = blk(h, valid, gn_valid, text, text_valid, obj, obj_valid)
         return _zero_pad(self.output_proj(h), gn_valid).permute(0, 2, 3, 1)
+
+
+# ------------------------------------------------------------------------------ full model
+class ReleasedChainHOI(nn.Module):
+    """Text input, PointNet++ object encoder and the released denoiser behind the interface
+    every hoibench baseline model has (``encode_text``, ``encode_object``, ``forward``).
+
+    ``denoiser.*`` and ``points.*`` hold the public ``gcn_denoiser.*`` and ``objEmbedding.*``
+    weights under the same keys. Text: the public code feeds frozen CLIP token states (512);
+    here sentence-encoder token states pass ``Linear(text_width, cond_dim)`` (``minilm``), or a
+    trainable word-token encoder of width ``cond_dim`` (``tokens``). A dropped text (``keep``
+    False) leaves only the time token in the text memory.
+    """
+
+    def __init__(self, cfg: ReleasedConfig, vocab: int = 0, text_width: int = 0):
+        super().__init__()
+        from ..layers import TokenTextEncoder
+        from .pointnet2 import PointNet2MSG
+        self.cfg = cfg
+        if cfg.text_encoder == "tokens":
+            if vocab < 2:
+                raise ValueError("ChainHOI: the 'tokens' text encoder needs a vocabulary (>= 2 entries)")
+            self.text_tokens = TokenTextEncoder(vocab, cfg.cond_dim, cfg.heads, cfg.text_layers, cfg.dropout)
+            self.text_proj = nn.Identity()
+        else:
+            if text_width < 1:
+                raise ValueError("ChainHOI: the 'minilm' text encoder needs text_width (its hidden size)")
+            self.text_tokens = None
+            self.text_proj = nn.Linear(text_width, cfg.cond_dim)
+        self.points = PointNet2MSG()
+        self.denoiser = ReleasedDenoiser(cfg)
+
+    def encode_text(self, text: torch.Tensor, text_pad: torch.Tensor) -> torch.Tensor:
+        return self.text_tokens(text, text_pad) if self.text_tokens is not None else self.text_proj(text)
+
+    def encode_object(self, points: torch.Tensor) -> torch.Tensor:
+        """(B, 16, 512) tokens from (B, P, 3) template vertices."""
+        return self.points(points)
+
+    def forward(self, x: torch.Tensor, t: torch.Tensor, keep: torch.Tensor, text_tokens: torch.Tensor,
+                text_pad: torch.Tensor, obj_tokens: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
+        if valid is None:
+            valid = torch.ones(x.shape[:2], dtype=torch.bool, device=x.device)
+        text_valid = ~text_pad & keep[:, None]
+        return self.denoiser(x, valid, t, text_tokens, text_valid, obj_tokens)
