@@ -86,6 +86,9 @@ class ReleasedConfig:
         if self.base_dim % self.gn_groups or width < 6:
             raise ValueError(f"model.base_dim ({self.base_dim}) must be divisible by model.gn_groups "
                              f"({self.gn_groups}) and the last width >= 6")
+        if self.object_tokens != 16 or self.object_points < 16:
+            raise ValueError(f"model.object_tokens: PointNet++ (MSG) gives 16 object tokens from >= 16 points, got "
+                             f"object_tokens {self.object_tokens}, object_points {self.object_points}")
         if self.time_dim % 2:
             raise ValueError(f"model.time_dim: expected an even integer, got {self.time_dim}")
 
