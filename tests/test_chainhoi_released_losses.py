@@ -108,8 +108,10 @@ def test_ball_query_takes_the_first_points_inside_and_repeats_the_first():
 
 
 def test_pointnet2_msg_size_and_shapes():
-    """2,078,176 parameters: the public ``PointNet2SemSegMSG`` (src/models/nets/points_encoder.py)
-    counted from its layer definitions (1x1 convs without bias + BatchNorm weight and bias)."""
+    """2,078,176 parameters: the public ``PointNet2SemSegMSG`` (Huanggh531/ChainHOI @ 4990160,
+    src/models/nets/points_encoder.py, with erikwijmans/Pointnet2_PyTorch's
+    pointnet2_ops/pointnet2_modules.py @ 5b98379) instantiated outside the project, its CUDA
+    operators replaced by parameter-free stand-ins; same state-dict keys and shapes."""
     m = PointNet2MSG()
     assert sum(p.numel() for p in m.parameters()) == 2_078_176
     torch.manual_seed(0)
