@@ -67,6 +67,7 @@ class ClipItem:
     contacts: np.ndarray                # (L, 8) bool, interaction joints
     object_name: str
     captions: list[str] = field(default_factory=list)
+    joint_contacts: np.ndarray | None = None   # (L, 22) bool, every joint (ChainHOI released's L_h)
 
 
 def words(text: str) -> list[str]:
@@ -146,10 +147,14 @@ def clip_item(store: Store, cid: str, captions: list[str]) -> ClipItem:
     rows = clip["joint_level"]
     L = rows.shape[0]
     if "contacts" in clip:
-        contacts = np.asarray(clip["contacts"], bool)[:L][:, list(INTERACTION_JOINTS[:])]
+        every = np.zeros((L, 22), bool)
+        c = np.asarray(clip["contacts"], bool)[:L]
+        every[:len(c)] = c
+        contacts = every[:, list(INTERACTION_JOINTS[:])]
     else:
+        every = np.zeros((L, 22), bool)
         contacts = np.zeros((L, len(INTERACTION_JOINTS)), bool)
-    return ClipItem(cid, rows, contacts, str(clip["object_name"]), captions)
+    return ClipItem(cid, rows, contacts, str(clip["object_name"]), captions, every)
 
 
 def captioned_ids(store: Store, split: str) -> tuple[list[tuple[str, list[str]]], list[str]]:
@@ -173,9 +178,46 @@ def read_split(data: str | Path, split: str) -> tuple[Store, list[ClipItem], lis
     return store, [clip_item(store, cid, texts) for cid, texts in found], missing
 
 
-def object_points(store: Store, names: set[str], n: int) -> dict[str, np.ndarray]:
+def vertex_points(vertices: np.ndarray, n: int, seed_text: str) -> np.ndarray:
+    """(n, 3) float32: ``n`` template vertices drawn without replacement (all of them, then
+    repeats, when the mesh has fewer), seeded by ``seed_text`` -- ChainHOI released's
+    PointNet++ input (its 512 sampled mesh vertices)."""
+    v = np.asarray(vertices, np.float32)
+    seed = int.from_bytes(hashlib.sha256(("vertices:" + seed_text).encode()).digest()[:8], "little")
+    rng = np.random.default_rng(seed)
+    if len(v) >= n:
+        pick = np.sort(rng.choice(len(v), size=n, replace=False))
+    else:
+        pick = np.concatenate([np.arange(len(v)), rng.choice(len(v), size=n - len(v))])
+    return v[pick]
+
+
+def input_points(vertices: np.ndarray, faces: np.ndarray, n: int, name: str, source: str = "surface") -> np.ndarray:
+    """The point-encoder input of a template: ``surface`` samples or mesh ``vertices``."""
+    if source == "vertices":
+        return vertex_points(vertices, n, name)
+    return surface_points(vertices, faces, n, name)
+
+
+def object_points(store: Store, names: set[str], n: int, source: str = "surface") -> dict[str, np.ndarray]:
     out = {}
     for name in sorted(names):
         v, f = store.object_template(name)
-        out[name] = surface_points(v, f, n, name)
+        out[name] = input_points(v, f, n, name, source)
     return out
+
+
+def grouped_stats(clips: list[np.ndarray]) -> JointStats:
+    """HumanML3D-style grouped statistics in the joint-level layout: the hoi269 rows of the
+    clips get :func:`~hoibench.representations.normalization.compute_stats` (per-feature
+    mean, std averaged within each feature group); the four global-root values (node 0,
+    channels 7..10) and the zero padding keep mean 0, std 1 (left unnormalised)."""
+    from ..representations import joint_level, normalization
+    if not clips:
+        raise ValueError("no train clips with joint_level rows: cannot compute normalisation statistics")
+    st = normalization.compute_stats([joint_level.to_hoi269(c.reshape(-1, 24, 12)).astype(np.float64) for c in clips],
+                                     "clean")
+    mean = joint_level.from_hoi269(st.mean[None].astype(np.float64), global_root=np.zeros((1, 4)))[0]
+    std = joint_level.from_hoi269(st.std[None].astype(np.float64), global_root=np.ones((1, 4)))[0]
+    std = np.where(std == 0, 1.0, std)
+    return JointStats(mean.astype(np.float32), std.astype(np.float32))

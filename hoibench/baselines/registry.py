@@ -53,6 +53,12 @@ class Spec:
     def model_config(self) -> type:
         return self._mod().ModelConfig
 
+    def config_class(self, config: dict) -> type:
+        """The model-config class of a run card's ``config`` (a baseline with several config
+        families, such as ChainHOI ``released``, names it through ``config_class``)."""
+        chooser = getattr(self._mod(), "config_class", None)
+        return chooser(config) if chooser is not None else self.model_config
+
     def build_model(self, cfg, vocab: int, text_width: int):
         return self._mod().build_model(cfg, vocab, text_width)
 

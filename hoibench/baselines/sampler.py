@@ -76,7 +76,7 @@ class LoadedRun:
         self.card, data = verified or ckpt.verify_run(self.folder, baseline)
         self.id = self.card[ckpt.ID_KEY]
         self.spec = get_spec(self.card["baseline"])
-        self.config = RunConfig.from_dict(self.card["config"], self.spec.model_config,
+        self.config = RunConfig.from_dict(self.card["config"], self.spec.config_class(self.card["config"]),
                                           f"{self.folder / ckpt.CARD}: config")
         tensors = load_tensors(data)
         self.stats = D.JointStats(tensors.pop("stats.mean").numpy(), tensors.pop("stats.std").numpy())
@@ -88,6 +88,7 @@ class LoadedRun:
         self.model.to(self.device).eval()
         self.diffusion = GaussianDiffusion(self.config.diffusion)
         self.object_points = self.config.model.object_points
+        self.object_source = getattr(self.config.model, "object_source", "surface")
 
     def check_store(self, store: Store) -> None:
         """:class:`StoreMismatch` when ``store``'s hoi269 statistics or representation differ
@@ -225,7 +226,8 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
                 name = str(clip["object_name"])
                 if name not in points_cache:
                     v, f = store.object_template(name)
-                    points_cache[name] = D.surface_points(v, f, loaded.object_points, name)
+                    points_cache[name] = D.input_points(v, f, loaded.object_points, name,
+                                                        getattr(loaded, "object_source", "surface"))
                 points = points_cache[name]
             T = int(clip["joints"].shape[0])
             arrays = loaded.generate_sample(caps[0].text, points, T, samples, (seed, "sample", cid), **opts)

@@ -15,7 +15,7 @@ import hashlib
 import json
 import shutil
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -53,6 +53,7 @@ class TrainingSet:
     contact_points: dict[str, np.ndarray]   # object -> (contact_points, 3)
     vocab: list[str]
     missing_texts: list[str]
+    meshes: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # object -> (vertices, faces)
 
 
 def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
@@ -61,11 +62,14 @@ def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
     if not items:
         raise ValueError(f"{data}: no train clips with captions and >= {cfg.train.min_frames} rows; annotate the store "
                          f"first (`hoibench annotate {data}`)")
-    stats = D.JointStats.from_rows([it.rows for it in items])
+    source = getattr(cfg.model, "object_source", "surface")      # "vertices": ChainHOI released
+    rows = [it.rows for it in items]
+    stats = D.grouped_stats(rows) if source == "vertices" else D.JointStats.from_rows(rows)
     names = {it.object_name for it in items}
     vocab = D.build_vocab([c for it in items for c in it.captions])
-    return TrainingSet(store, items, stats, D.object_points(store, names, cfg.model.object_points),
-                       D.object_points(store, names, cfg.train.contact_points), vocab, missing)
+    meshes = {n: store.object_template(n) for n in sorted(names)} if source == "vertices" else {}
+    return TrainingSet(store, items, stats, D.object_points(store, names, cfg.model.object_points, source),
+                       D.object_points(store, names, cfg.train.contact_points), vocab, missing, meshes)
 
 
 def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner, device) -> dict:
@@ -73,13 +77,14 @@ def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner
     rng = np.random.default_rng(_seed(cfg.train.seed, "batch", step))
     B, W = cfg.train.batch_size, cfg.train.max_frames
     pick = rng.integers(0, len(ts.items), B)
-    wins, conts, caps, pts, cpts = [], [], [], [], []
+    wins, conts, caps, pts, cpts, starts = [], [], [], [], [], []
     for i in pick:
         it = ts.items[i]
         L = len(it.rows)
         a = int(rng.integers(0, L - W + 1)) if L > W else 0
         n = min(L, W)
         wins.append(ts.stats.normalize(D.recentre_window(it.rows, a, n)))
+        starts.append(a)
         conts.append(it.contacts[a:a + n])
         caps.append(it.captions[int(rng.integers(0, len(it.captions)))])
         pts.append(ts.points[it.object_name])
@@ -92,8 +97,30 @@ def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner
         x0[b, :len(w)], valid[b, :len(w)], contacts[b, :len(c)] = w, True, c
     tt, tpad = text(caps, device)
     f = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(device)   # noqa: E731
-    return {"x0": f(x0), "valid": f(valid), "contacts": f(contacts), "text": tt, "text_pad": tpad,
-            "points": f(np.stack(pts)), "contact_points": f(np.stack(cpts))}
+    batch = {"x0": f(x0), "valid": f(valid), "contacts": f(contacts), "text": tt, "text_pad": tpad,
+             "points": f(np.stack(pts)), "contact_points": f(np.stack(cpts))}
+    if ts.meshes:
+        batch.update({k: f(v) for k, v in mesh_batch(ts, [ts.items[i] for i in pick], wins, starts, Lmax).items()})
+    return batch
+
+
+def mesh_batch(ts: TrainingSet, items: list, wins: list, starts: list[int], Lmax: int) -> dict[str, np.ndarray]:
+    """Template meshes (vertices padded by repeating vertex 0, faces by repeating face 0) and
+    per-joint contact labels (B, Lmax, 22) of the batch's windows."""
+    meshes = [ts.meshes[it.object_name] for it in items]
+    nv, nf = max(len(v) for v, _ in meshes), max(len(fc) for _, fc in meshes)
+    B = len(items)
+    verts, vvalid = np.zeros((B, nv, 3), np.float32), np.zeros((B, nv), bool)
+    faces = np.zeros((B, nf, 3), np.int64)
+    joint_contacts = np.zeros((B, Lmax, 22), bool)
+    for b, ((v, fc), it, w, a) in enumerate(zip(meshes, items, wins, starts)):
+        verts[b] = v[0]
+        verts[b, :len(v)], vvalid[b, :len(v)] = v, True
+        faces[b] = fc[0]
+        faces[b, :len(fc)] = fc
+        if it.joint_contacts is not None:
+            joint_contacts[b, :len(w)] = it.joint_contacts[a:a + len(w)]
+    return {"mesh_vertices": verts, "mesh_vertex_valid": vvalid, "mesh_faces": faces, "joint_contacts": joint_contacts}
 
 
 def build_model(spec: Spec, cfg: RunConfig, text: TextConditioner, seed: int):
@@ -317,7 +344,8 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
                                    f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
         opt.zero_grad(set_to_none=True)
         losses["loss"].backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
+        if cfg.train.grad_clip > 0:                      # 0: no clipping (ChainHOI released)
+            torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
         opt.step()
         ema.update(model)
         step += 1

@@ -9,16 +9,39 @@ import torch
 
 from ..diffusion import GaussianDiffusion, masked_mse
 from ..joint_losses import contact_loss, denoise, object_loss
-from .config import ModelConfig, preset  # noqa: F401  (the spec's preset and model config)
+from .config import ModelConfig  # noqa: F401  (the spec's model config)
+from .config import preset as _preset
 from .model import ChainHOI
+from .released_config import ReleasedConfig, released_preset
 
 
-def build_model(cfg, vocab: int, text_width: int) -> ChainHOI:
+def preset(name: str = "tiny"):
+    """``paper``, ``tiny`` (:mod:`.config`) or ``released`` (:mod:`.released_config`)."""
+    if name == "released":
+        return released_preset()
+    if name not in ("paper", "tiny"):
+        raise ValueError(f"unknown ChainHOI config {name!r}; choose 'paper', 'released' or 'tiny'")
+    return _preset(name)
+
+
+def config_class(config: dict) -> type:
+    """The model-config class of a run card's ``config`` (``released`` runs carry ``model.variant``)."""
+    model = config.get("model") if isinstance(config, dict) else None
+    return ReleasedConfig if isinstance(model, dict) and model.get("variant") == "released" else ModelConfig
+
+
+def build_model(cfg, vocab: int, text_width: int):
+    if isinstance(cfg.model, ReleasedConfig):
+        from .released import ReleasedChainHOI
+        return ReleasedChainHOI(cfg.model, vocab=vocab, text_width=text_width)
     return ChainHOI(cfg.model, vocab=vocab, text_width=text_width)
 
 
 def losses(model, diffusion: GaussianDiffusion, batch: dict, cfg, mean: torch.Tensor, std: torch.Tensor,
            generator: torch.Generator) -> dict[str, torch.Tensor]:
+    if isinstance(cfg.model, ReleasedConfig):
+        from . import released_losses
+        return released_losses.losses(model, diffusion, batch, cfg, mean, std, generator)
     pred, x0 = denoise(model, diffusion, batch, cfg, generator)
     valid = batch["valid"]
     l_diff = masked_mse(pred, x0, valid)
