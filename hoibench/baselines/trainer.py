@@ -15,7 +15,7 @@ import hashlib
 import json
 import shutil
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -53,6 +53,7 @@ class TrainingSet:
     contact_points: dict[str, np.ndarray]   # object -> (contact_points, 3)
     vocab: list[str]
     missing_texts: list[str]
+    contact_mesh: dict[str, np.ndarray] = field(default_factory=dict)   # object -> (F, 3, 3) ("exact" L_h)
 
 
 def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
@@ -64,8 +65,9 @@ def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
     stats = D.JointStats.from_rows([it.rows for it in items])
     names = {it.object_name for it in items}
     vocab = D.build_vocab([c for it in items for c in it.captions])
+    mesh = D.object_triangles(store, names) if cfg.train.contact_distance == "exact" else {}
     return TrainingSet(store, items, stats, D.object_points(store, names, cfg.model.object_points),
-                       D.object_points(store, names, cfg.train.contact_points), vocab, missing)
+                       D.object_points(store, names, cfg.train.contact_points), vocab, missing, mesh)
 
 
 def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner, device) -> dict:
@@ -92,8 +94,11 @@ def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner
         x0[b, :len(w)], valid[b, :len(w)], contacts[b, :len(c)] = w, True, c
     tt, tpad = text(caps, device)
     f = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(device)   # noqa: E731
-    return {"x0": f(x0), "valid": f(valid), "contacts": f(contacts), "text": tt, "text_pad": tpad,
-            "points": f(np.stack(pts)), "contact_points": f(np.stack(cpts))}
+    batch = {"x0": f(x0), "valid": f(valid), "contacts": f(contacts), "text": tt, "text_pad": tpad,
+             "points": f(np.stack(pts)), "contact_points": f(np.stack(cpts))}
+    if ts.contact_mesh:
+        batch["contact_mesh"] = f(D.stack_meshes([ts.contact_mesh[ts.items[i].object_name] for i in pick]))
+    return batch
 
 
 def build_model(spec: Spec, cfg: RunConfig, text: TextConditioner, seed: int):
