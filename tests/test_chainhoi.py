@@ -272,6 +272,11 @@ def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, te
     assert rep.complete, [p for p in rep.problems][:3]
     meta = json.loads((sub / "submission.json").read_text())
     assert meta["source"]["checkpoint_id"] == tiny_run[1].checkpoint_id and meta["flags"]["samples_per_prompt"] == 2
+    budget = meta["source"]["training"]                  # the run's training budget travels with its samples
+    card = json.loads((tiny_run[0] / "card.json").read_text())
+    assert budget["steps"] == 4 and budget["parameters"] == card["summary"]["parameters"] > 0
+    assert budget["wall_seconds"] > 0 and budget["hardware"].startswith("CPU")
+    assert budget["text_encoder"] == {"encoder": "tokens"}
     other = tmp_path / "other"
     shutil.copytree(template_store, other)
     with np.load(other / "stats" / "hoi269.npz") as z:

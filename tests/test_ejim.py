@@ -102,7 +102,7 @@ def test_masked_joints_receive_no_attention_and_no_update():
 
 
 def test_progressive_masking_in_the_model_follows_the_rule():
-    cfg = preset("tiny").replace(**{"model.modules": 3, "model.mask_k": 4}).model
+    cfg = preset("micro").replace(**{"model.modules": 3, "model.mask_k": 4}).model
     torch.manual_seed(0)
     model = EJIM(cfg, vocab=10).eval()
     x = torch.randn(2, 6, 24, 12)
@@ -141,7 +141,7 @@ def test_dib_scores_are_the_attention_weights_without_dropout():
 def test_progressive_masks_do_not_depend_on_the_dropout_draw():
     """Attention dropout (0.5) in the first module's DIB #2, no other dropout: the outputs
     differ between draws and from sampling's, the joints that DIB chooses do not."""
-    cfg = preset("tiny").replace(**{"model.modules": 3, "model.object_points": 64, "model.object_knn": 8}).model
+    cfg = preset("micro").replace(**{"model.modules": 3, "model.object_points": 64, "model.object_knn": 8}).model
     torch.manual_seed(0)
     model = EJIM(cfg, vocab=10)
     model.modules_[0].dib2.attn.dropout = 0.5

@@ -357,7 +357,8 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
                                                      f"({cid[:12]})")
         except ImportError:              # a GPU machine with only torch, numpy and safetensors
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
-    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev), "resumed_from": start,
+    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
+                                            "hardware": ckpt.hardware(dev), "resumed_from": start,
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)

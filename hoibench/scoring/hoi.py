@@ -124,6 +124,15 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
     flush()
 
 
+def _text_encoder(ev) -> dict:
+    """The evaluator's pretrained text encoder (name and weights' sha256) as its card names it:
+    a leaderboard flags a generator conditioned on the same weights."""
+    te = getattr(ev, "card", {}).get("text_encoder") if isinstance(getattr(ev, "card", None), dict) else None
+    if not isinstance(te, dict):
+        return {}
+    return {k: te[k] for k in ("name", "weights_sha256", "fine_tuned") if k in te}
+
+
 def _finite_rows(per_rep: list[dict]) -> tuple[list[dict], dict]:
     """Drop undefined (NaN: 0/0) values from the replication rows, recording which; an
     infinite value raises naming the metric and the replication."""
@@ -360,6 +369,7 @@ class HOIScorer(Scorer):
             "submission_complete": bool(report.complete),
             "overrides": overrides,
             "evaluator_id": ev.id, "evaluator_variant": ev.variant,
+            "evaluator_text_encoder": _text_encoder(ev),
             "evaluator_backend": self.options.get("evaluator_backend", "contrastive"), "evaluator_gate": self.gate,
             "representation": store.manifest["representations"], "toolkit": "hoibench",
             "toolkit_version": __version__,

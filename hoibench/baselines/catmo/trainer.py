@@ -429,7 +429,7 @@ def _write_result(out: Path, model: CATMO, data_: CD.CatmoData, cfg: CatmoConfig
         except ImportError:
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curves are in the card)")
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
-                                            "stage_seconds": stage_seconds})
+                                            "hardware": ckpt.hardware(dev), "stage_seconds": stage_seconds})
     drop_checkpoint(cpath)
     card = json.loads((out / ckpt.CARD).read_text())
     mv, ct = reports.get("test", reports["train"])["motion"], reports.get("test", reports["train"])["contact"]
