@@ -96,3 +96,18 @@ def test_rows_state_their_training_budget_and_a_shared_text_encoder_is_flagged()
     row = next(csv.DictReader(io.StringIO(write_csv([shared]))))
     assert row["train_steps"] == "1500" and row["train_parameters"] == "1783436"
     assert row["train_hardware"] == "CPU Xeon, 2 thread(s)" and row["conditioner_text_encoder"] == "minilm"
+
+
+def test_scoring_notes_a_generator_conditioned_on_the_evaluators_text_encoder():
+    from types import SimpleNamespace
+    from hoibench.scoring.hoi import _shares_text_encoder, _text_encoder
+    ev = SimpleNamespace(card={"text_encoder": {"name": "all-MiniLM-L6-v2", "weights_sha256": "m" * 64,
+                                                "pooling": "mean", "fine_tuned": True}})
+    assert _text_encoder(ev) == {"name": "all-MiniLM-L6-v2", "weights_sha256": "m" * 64, "fine_tuned": True}
+    meta = {"source": {"training": {"text_encoder": {"encoder": "minilm", "weights_sha256": "m" * 64}}}}
+    assert _shares_text_encoder(meta, ev) == "all-MiniLM-L6-v2"
+    meta_tokens = {"source": {"training": {"text_encoder": {"encoder": "tokens"}}}}
+    assert _shares_text_encoder(meta_tokens, ev) == "" and _shares_text_encoder({}, ev) == ""
+    other = SimpleNamespace(card={"text_encoder": {"name": "roberta", "weights_sha256": "r" * 64}})
+    assert _shares_text_encoder(meta, other) == "" and _text_encoder(SimpleNamespace(card=None)) == {}
+
