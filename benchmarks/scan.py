@@ -56,7 +56,7 @@ def main() -> None:
     except ImportError:
         print("(mambapy not installed: pip install mambapy to compare)")
     sizes = {"EJIM paper temporal (B 32 x 23 joints, 196 frames, 256 x 16)": (32 * 23 // 8, 196, 256, 16),
-             "EJIM tiny temporal (B 8 x 23 joints, 96 frames, 16 x 4)": (8 * 23, 96, 16, 4)}
+             "EJIM micro temporal (B 8 x 23 joints, 96 frames, 16 x 4)": (8 * 23, 96, 16, 4)}
     print(f"# threads {torch.get_num_threads()}, load {os.getloadavg()[0]:.2f}, torch {torch.__version__}; "
           f"best of 3, seconds (paper row: 1/8 of a batch)")
     print("| tensor | scan | forward | forward + backward | max error vs loop |")

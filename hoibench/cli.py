@@ -550,8 +550,9 @@ def _add_baseline_train(bsub, names: list[str]) -> None:
     b.add_argument("name", choices=names, help="the baseline")
     b.add_argument("data", type=Path, help=H_STORE + ", annotated")
     b.add_argument("--out", type=Path, required=True, help="the run folder to write")
-    b.add_argument("--config", choices=["tiny", "paper", "released"], default="tiny",
-                   help="tiny (default; CPU minutes), paper, or released (chainhoi only: the public code's network)")
+    b.add_argument("--config", default="tiny",
+                   help="a named config: tiny (default; CPU minutes), paper, or the baseline's own "
+                        "(chainhoi: released, the public code's network; ejim: micro)")
     b.add_argument("--steps", type=int, default=None,
                    help="optimiser steps (0: the untrained model); catmo: every stage's steps (0: untrained)")
     b.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",

@@ -114,8 +114,11 @@ def test_padded_latents_reach_neither_the_decoder_nor_the_gradient():
     with torch.no_grad():
         zq = m.quantizer.lookup(m.encode(x))
         assert zq[0, 2:].abs().sum() > 0
+        zq = m.quantizer.lookup(m.quantizer.indices(m.encoder(x, valid.repeat_interleave(4, 1))))
         zq[0, 2:] = 0
-        torch.testing.assert_close(m(x, valid)["out"], m.decoder(zq))
+        out = m(x, valid)["out"]
+        torch.testing.assert_close(out, m.decoder(zq, valid))
+        assert out[0, 8:].abs().max() == 0                  # padded rows come back as zeros
 
 
 # ------------------------------------------------------------------ intertwined GPT
@@ -210,8 +213,33 @@ def test_sampling_draws_only_legal_codes_and_is_seeded():
     assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])
     assert not (torch.equal(a[0], c[0]) and torch.equal(a[1], c[1]))
     assert a[0].shape == (3, 5) and (a[0] < 7).all() and ((a[1] >= 0) & (a[1] < 3)).all()
-    with pytest.raises(ValueError, match="max_units"):
-        gpt.sample(cond, 6, torch.Generator())
+    with pytest.raises(ValueError, match="units"):
+        gpt.sample(cond, 0, torch.Generator())
+
+
+def test_sampling_past_the_positional_table_slides_a_window_of_whole_units():
+    """12 units from a GPT whose table holds 5: the draws equal those of a reference that runs
+    the full forward over [condition; the window's tokens] for every draw, the window dropping
+    its oldest 2 units (hop = max_units // 2) whenever the next input would pass the table;
+    the first 5 units are those of a 5-unit sample."""
+    torch.manual_seed(0)
+    gpt = IntertwinedGPT(7, 3, 4, 16, 2, 2, 2, 0.0, 5).eval()
+    cond = torch.randn(2, 4)
+    m, c = gpt.sample(cond, 12, torch.Generator().manual_seed(9))
+    g = torch.Generator().manual_seed(9)
+    tokens, start = [], 0
+    with torch.no_grad():
+        for j in range(24):
+            while j - start > 10:                       # inputs at positions 1..j-start, table 0..10
+                start += 4
+            window = torch.stack(tokens[start:], 1) if j > start else torch.zeros(2, 0, dtype=torch.long)
+            logits = gpt(cond, window)[:, -1]
+            lo, hi = (0, 7) if j % 2 == 0 else (7, 10)
+            tokens.append(torch.multinomial(torch.softmax(logits[:, lo:hi], -1), 1, generator=g)[:, 0] + lo)
+    ref = torch.stack(tokens, 1)
+    assert torch.equal(m, ref[:, 0::2]) and torch.equal(c, ref[:, 1::2] - 7)
+    m5, c5 = gpt.sample(cond, 5, torch.Generator().manual_seed(9))
+    assert torch.equal(m[:, :5], m5) and torch.equal(c[:, :5], c5)
 
 
 # ------------------------------------------------------------------ config
@@ -283,6 +311,18 @@ def test_sampling_is_deterministic_and_independent_of_other_clips(tiny_run, temp
     two = sample(tiny_run[0], template_store, tmp_path / "two", limit=3, log=None)
     first = st.clip_ids("test")[0]
     assert (one / "samples" / f"{first}.npz").read_bytes() == (two / "samples" / f"{first}.npz").read_bytes()
+
+
+def test_a_clip_longer_than_the_gpt_table_is_generated(tiny_run, template_store):
+    from hoibench.baselines.catmo.sampler import LoadedCatmo
+    run = LoadedCatmo(tiny_run[0])
+    assert run.config.gpt.max_units * run.config.vq.unit < 300
+    pts = np.random.default_rng(0).normal(size=(run.object_points, 3)).astype(np.float32) * 0.2
+    out = run.generate("a person lifts the box", pts, 300, 1, (0, "long"))
+    assert out["joints"].shape == (1, 300, 22, 3) and np.isfinite(out["joints"]).all()
+    assert out["obj_trans"].shape == (1, 300, 3) and np.isfinite(out["obj_trans"]).all()
+    short = run.generate("a person lifts the box", pts, 200, 1, (0, "long"))
+    np.testing.assert_allclose(out["joints"][:, :150], short["joints"][:, :150], atol=1e-4)
 
 
 def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, template_store, tmp_path):

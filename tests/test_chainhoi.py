@@ -159,9 +159,13 @@ def test_a_training_step_reduces_the_loss_on_a_fixed_batch(template_store):
     assert before["contact"] > 0                              # the contact term is active on this data
 
 
-def test_contact_loss_is_the_gated_squared_distance(template_store):
-    """L_h of a batch whose prediction is the GT equals a brute-force computation."""
-    cfg = small_config(**{"train.lambda_object": 0.0})
+@pytest.mark.parametrize("distance", ["samples", "exact"])
+def test_contact_loss_is_the_gated_squared_distance(template_store, distance):
+    """L_h of a batch whose prediction is the GT equals a brute-force computation: the nearest
+    surface sample, or the exact distance to the posed template mesh
+    (:func:`hoibench.bodies.reference_distance.exact_triangle_distance`, float64)."""
+    from hoibench.bodies.reference_distance import exact_triangle_distance
+    cfg = small_config(**{"train.lambda_object": 0.0, "train.contact_distance": distance})
     ts = training_set(template_store, cfg)
     batch = make_batch(ts, cfg, 3, TextConditioner("tokens", 32, ts.vocab), "cpu")
 
@@ -186,10 +190,16 @@ def test_contact_loss_is_the_gated_squared_distance(template_store):
             surf = batch["contact_points"][b].double().numpy() @ R.T + raw[b, i, 23, 3:6].numpy()
             joints = interaction_positions(raw[b:b + 1, i:i + 1])[0, 0].numpy()
             for k in range(8):
-                if batch["contacts"][b, i, k]:
+                if not batch["contacts"][b, i, k]:
+                    continue
+                if distance == "samples":
                     total += ((surf - joints[k]) ** 2).sum(1).min()
-                    count += 1
-    assert count > 0
+                else:
+                    tri = batch["contact_mesh"][b].double().numpy() @ R.T + raw[b, i, 23, 3:6].numpy()
+                    total += exact_triangle_distance(joints[k][None], tri.reshape(-1, 3),
+                                                     np.arange(3 * len(tri)).reshape(-1, 3))[0] ** 2
+                count += 1
+    assert count > 0 and ("contact_mesh" in batch) == (distance == "exact")
     assert float(losses["contact"]) == pytest.approx(total / count, rel=1e-4)
 
 
@@ -262,6 +272,11 @@ def test_sample_writes_a_valid_submission_and_refuses_another_store(tiny_run, te
     assert rep.complete, [p for p in rep.problems][:3]
     meta = json.loads((sub / "submission.json").read_text())
     assert meta["source"]["checkpoint_id"] == tiny_run[1].checkpoint_id and meta["flags"]["samples_per_prompt"] == 2
+    budget = meta["source"]["training"]                  # the run's training budget travels with its samples
+    card = json.loads((tiny_run[0] / "card.json").read_text())
+    assert budget["steps"] == 4 and budget["parameters"] == card["summary"]["parameters"] > 0
+    assert budget["wall_seconds"] > 0 and budget["hardware"].startswith("CPU")
+    assert budget["text_encoder"] == {"encoder": "tokens"}
     other = tmp_path / "other"
     shutil.copytree(template_store, other)
     with np.load(other / "stats" / "hoi269.npz") as z:

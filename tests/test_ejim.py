@@ -102,7 +102,7 @@ def test_masked_joints_receive_no_attention_and_no_update():
 
 
 def test_progressive_masking_in_the_model_follows_the_rule():
-    cfg = preset("tiny").replace(**{"model.modules": 3, "model.mask_k": 4}).model
+    cfg = preset("micro").replace(**{"model.modules": 3, "model.mask_k": 4}).model
     torch.manual_seed(0)
     model = EJIM(cfg, vocab=10).eval()
     x = torch.randn(2, 6, 24, 12)
@@ -113,6 +113,55 @@ def test_progressive_masking_in_the_model_follows_the_rule():
     counts = [m.sum(-1) for m in model.last_masks]
     assert [int(c.min()) for c in counts] == [4, 8, 12] and [int(c.max()) for c in counts] == [4, 8, 12]
     assert all(torch.equal(a & b, a) for a, b in zip(model.last_masks, model.last_masks[1:]))   # cumulative
+
+
+def test_dib_scores_are_the_attention_weights_without_dropout():
+    torch.manual_seed(0)
+    dib = DIB(8, 2, 0.5)
+    h, o = torch.randn(2, 3, 23, 8), torch.randn(2, 3, 8)
+    masked = torch.zeros(2, 3, 23, dtype=torch.bool)
+    masked[..., [2, 7]] = True
+    dib.eval()
+    tok = dib.norm(torch.cat([o[:, :, None], h], 2).reshape(6, 24, 8))
+    keymask = torch.cat([torch.zeros(2, 3, 1, dtype=torch.bool), masked], 2).reshape(6, 24)
+    with torch.no_grad():
+        _, w = dib.attn(tok, tok, tok, key_padding_mask=keymask, need_weights=True, average_attn_weights=True)
+        s_eval = dib(h, o, masked)[2]
+    torch.testing.assert_close(s_eval, w[:, 0, 1:].reshape(2, 3, 23))     # PyTorch's weights in eval mode
+    dib.train()
+    with torch.no_grad():
+        outs = [dib(h, o, masked) for _ in range(2)]                      # two dropout draws
+        _, wt = dib.attn(tok, tok, tok, key_padding_mask=keymask, need_weights=True)
+    assert not torch.allclose(outs[0][0], outs[1][0])                    # dropout acted on the update
+    assert (wt[:, 0, 1:].reshape(2, 3, 23) - s_eval).abs().max() > 1e-3   # and on PyTorch's returned weights
+    torch.testing.assert_close(outs[0][2], s_eval)
+    torch.testing.assert_close(outs[1][2], s_eval)
+
+
+def test_progressive_masks_do_not_depend_on_the_dropout_draw():
+    """Attention dropout (0.5) in the first module's DIB #2, no other dropout: the outputs
+    differ between draws and from sampling's, the joints that DIB chooses do not."""
+    cfg = preset("micro").replace(**{"model.modules": 3, "model.object_points": 64, "model.object_knn": 8}).model
+    torch.manual_seed(0)
+    model = EJIM(cfg, vocab=10)
+    model.modules_[0].dib2.attn.dropout = 0.5
+    x = torch.randn(2, 6, 24, 12)
+    ids, pad = torch.randint(1, 10, (2, 4)), torch.zeros(2, 4, dtype=torch.bool)
+    with torch.no_grad():
+        text, obj = model.encode_text(ids, pad), model.encode_object(torch.randn(2, cfg.object_points, 3))
+
+    def run(train: bool, seed: int):
+        model.train(train)
+        torch.manual_seed(seed)
+        with torch.no_grad():
+            out = model(x, torch.tensor([5, 900]), torch.ones(2, dtype=torch.bool), text, pad, obj)
+        return out, [m.clone() for m in model.last_masks]
+
+    ref_out, ref = run(False, 0)
+    for seed in (1, 2):
+        out, masks = run(True, seed)
+        assert not torch.allclose(out, ref_out)                         # dropout acted
+        assert torch.equal(masks[0], ref[0]) and int(masks[0].sum()) == 2 * 6 * cfg.mask_k
 
 
 def small_config(**over):

@@ -88,6 +88,9 @@ def test_result_records_the_submission_flags_and_is_strict_json(setup, tmp_path)
     meta = json.loads((base / "gt" / "submission.json").read_text())
     assert res["submission"]["flags"] == meta["flags"] != {}
     assert res["evaluator_gate"]["passed"] and res["overrides"] == []
+    card = json.loads((base / "ev" / "card.json").read_text())["text_encoder"]
+    assert res["evaluator_text_encoder"]["weights_sha256"] == card["weights_sha256"] and card["weights_sha256"]
+    assert not any("conditioned on the evaluator" in n for n in res["notes"])    # the GT conditions on nothing
     for name, s in res["metrics"].items():
         assert np.all(np.isfinite(s["mean"])), name
 

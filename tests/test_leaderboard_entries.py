@@ -72,3 +72,42 @@ def test_no_checked_in_row_is_comparable_until_a_published_evaluator_scores_one(
         assert not any(comparable(e, p) for e in entries for p in papers)
     assert all(p.get("comparable_with", {}).get("evaluator_backend") == "chainhoi"
                for p in load_track(root / "behave") if p["source"] == "reported")
+
+
+def test_rows_state_their_training_budget_and_a_shared_text_encoder_is_flagged():
+    import csv
+    import io
+    from hoibench.publish.pages import _flags, budget, write_csv
+    training = {"steps": 1500, "parameters": 1_783_436, "wall_seconds": 612.0, "hardware": "CPU Xeon, 2 thread(s)",
+                "text_encoder": {"encoder": "minilm", "weights_sha256": "m" * 64}}
+    own = {**RESULT, "complete": True, "counts": {**RESULT["counts"], "missing_ids": []},
+           "evaluator_text_encoder": {"name": "all-MiniLM-L6-v2", "weights_sha256": "m" * 64}}
+    shared = {**entry_from_result(own, method="ChainHOI paper", track="synthetic",
+                                  submission_meta={"source": {"training": training}}), "role": "baseline"}
+    assert budget(shared) == "1,500 steps, 1.78 M params, 10.2 min, CPU Xeon, 2 thread(s)"
+    assert _flags(shared) == ["conditioned on the evaluator's text encoder"]
+    tokens = {**shared, "submission_source": {"training": {**training, "text_encoder": {"encoder": "tokens"}}}}
+    assert _flags(tokens) == []
+    other = {**shared, "evaluator_text_encoder": {"weights_sha256": "r" * 64}}
+    assert _flags(other) == []
+    bare = {**shared, "submission_source": {}}
+    assert budget(bare) == "not stated" and _flags(bare) == ["training budget not stated"]
+    assert budget({**bare, "role": "method"}) == "" and _flags({**bare, "role": "method"}) == []
+    row = next(csv.DictReader(io.StringIO(write_csv([shared]))))
+    assert row["train_steps"] == "1500" and row["train_parameters"] == "1783436"
+    assert row["train_hardware"] == "CPU Xeon, 2 thread(s)" and row["conditioner_text_encoder"] == "minilm"
+
+
+def test_scoring_notes_a_generator_conditioned_on_the_evaluators_text_encoder():
+    from types import SimpleNamespace
+    from hoibench.scoring.hoi import _shares_text_encoder, _text_encoder
+    ev = SimpleNamespace(card={"text_encoder": {"name": "all-MiniLM-L6-v2", "weights_sha256": "m" * 64,
+                                                "pooling": "mean", "fine_tuned": True}})
+    assert _text_encoder(ev) == {"name": "all-MiniLM-L6-v2", "weights_sha256": "m" * 64, "fine_tuned": True}
+    meta = {"source": {"training": {"text_encoder": {"encoder": "minilm", "weights_sha256": "m" * 64}}}}
+    assert _shares_text_encoder(meta, ev) == "all-MiniLM-L6-v2"
+    meta_tokens = {"source": {"training": {"text_encoder": {"encoder": "tokens"}}}}
+    assert _shares_text_encoder(meta_tokens, ev) == "" and _shares_text_encoder({}, ev) == ""
+    other = SimpleNamespace(card={"text_encoder": {"name": "roberta", "weights_sha256": "r" * 64}})
+    assert _shares_text_encoder(meta, other) == "" and _text_encoder(SimpleNamespace(card=None)) == {}
+

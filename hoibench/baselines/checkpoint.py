@@ -8,7 +8,7 @@ Layout::
                               or weights hash), training curve and summary, seed, toolkit
                               version, integrity hashes, checkpoint_id
     RUN/curve.png             loss curve                          (not covered by the id)
-    RUN/train_log.json        wall-clock times, device, resumes  (not covered by the id)
+    RUN/train_log.json        wall-clock times, device and hardware, resumes  (not covered by the id)
     RUN/checkpoint/last.pt    training state for resuming (removed when training ends)
 
 Checkpoint id = ``sha256(weights bytes || canonical card without checkpoint_id)``, as the
@@ -87,3 +87,48 @@ def verify_run(folder: str | Path, baseline: str | None = None) -> tuple[dict, b
         raise RunFolderError(f"{folder}: checkpoint id mismatch: {CARD} says {card[ID_KEY][:12]}... but the files hash "
                              f"to {actual[:12]}...: {detail} after training; retrain or restore the folder")
     return card, data
+
+
+def hardware(device) -> str:
+    """What a run trains on: the GPU's name, or the CPU's model and torch's thread count."""
+    import torch
+    dev = torch.device(device)
+    if dev.type == "cuda":
+        return f"{torch.cuda.get_device_name(dev)} (cuda)"
+    model = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    if not model:
+        import platform
+        model = platform.processor() or platform.machine()
+    return f"CPU {model}, {torch.get_num_threads()} thread(s)".replace("CPU , ", "CPU, ")
+
+
+def training_budget(folder: str | Path, card: dict) -> dict:
+    """A run's training budget, for its submissions and leaderboard rows: optimiser steps and
+    parameter count (the card), wall-clock seconds, hardware and the step it resumed from
+    (``train_log.json``; None when the file is absent) and the text encoder the generator is
+    conditioned on (``tokens``: a trainable word-level encoder; ``minilm``: the frozen sentence
+    encoder with its weights' sha256)."""
+    from ..core.io import read_json_file
+    summary = card.get("summary") if isinstance(card.get("summary"), dict) else {}
+    log: dict = {}
+    path = Path(folder) / TRAIN_LOG
+    if path.is_file():
+        try:
+            got = read_json_file(path, 1 << 20, "train log")
+            log = got if isinstance(got, dict) else {}
+        except ValueError:
+            log = {}
+    text = card.get("text") if isinstance(card.get("text"), dict) else {}
+    encoder = {"encoder": text.get("encoder")}
+    if text.get("weights_sha256"):
+        encoder["weights_sha256"] = text["weights_sha256"]
+    return {"steps": summary.get("steps"), "parameters": summary.get("parameters"),
+            "wall_seconds": log.get("seconds"), "hardware": log.get("hardware") or log.get("device"),
+            "resumed_from": log.get("resumed_from", 0), "text_encoder": encoder}

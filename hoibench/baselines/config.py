@@ -66,6 +66,9 @@ def dotted_replace(d: dict, sections: tuple[str, ...], changes: dict) -> dict:
     return d
 
 
+CONTACT_DISTANCES = ("samples", "exact")
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     steps: int = 50_000
@@ -79,7 +82,8 @@ class TrainConfig:
     lambda_contact: float = 2.0      # ChainHOI lambda_1 (L_h); 0 for EJIM
     lambda_object: float = 1.0       # ChainHOI lambda_2 / EJIM lambda_o (L_o)
     lambda_smooth: float = 0.0       # EJIM lambda_s (L_smooth); 0 for ChainHOI
-    contact_points: int = 256        # GT object surface samples for L_h
+    contact_points: int = 256        # GT object surface samples for L_h ("samples")
+    contact_distance: str = "samples"   # L_h distance: nearest of contact_points samples | exact point-to-mesh
     checkpoint_every: int = 500
     log_every: int = 50
     seed: int = 0
@@ -92,6 +96,8 @@ class TrainConfig:
             raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
         if not 0 <= self.ema_decay < 1:
             raise ValueError(f"train.ema_decay: expected [0, 1), got {self.ema_decay!r}")
+        if self.contact_distance not in CONTACT_DISTANCES:
+            raise ValueError(f"train.contact_distance: expected one of {CONTACT_DISTANCES}, got {self.contact_distance!r}")
         for name in ("lambda_contact", "lambda_object", "lambda_smooth"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"train.{name}: expected >= 0, got {getattr(self, name)!r}")

@@ -199,6 +199,22 @@ def input_points(vertices: np.ndarray, faces: np.ndarray, n: int, name: str, sou
     return surface_points(vertices, faces, n, name)
 
 
+def object_triangles(store: Store, names: set[str]) -> dict[str, np.ndarray]:
+    """object -> (F, 3, 3) float32 triangles of its template (the frame the object pose maps from)."""
+    out = {}
+    for name in sorted(names):
+        v, f = store.object_template(name)
+        out[name] = np.asarray(v, np.float32)[np.asarray(f, np.int64)]
+    return out
+
+
+def stack_meshes(meshes: list[np.ndarray]) -> np.ndarray:
+    """(B, F_max, 3, 3): triangle sets padded with copies of their first face (a copy never
+    changes a nearest-face distance)."""
+    F = max(len(m) for m in meshes)
+    return np.stack([np.concatenate([m, np.repeat(m[:1], F - len(m), 0)]) for m in meshes])
+
+
 def object_points(store: Store, names: set[str], n: int, source: str = "surface") -> dict[str, np.ndarray]:
     out = {}
     for name in sorted(names):

@@ -5,6 +5,8 @@ and :func:`denoise`, the noising and x0 prediction every baseline's losses start
   interaction joints (0, 10, 11, 12, 16, 17, 20, 21) of the prediction to the nearest sample of
   the GT object surface posed by the GT pose, gated by the GT contact label, averaged over
   gated joint-rows (the paper sums; the mean keeps the weight independent of length and batch).
+  :func:`contact_loss_exact` is the same term with the exact point-to-triangle distance to the
+  GT-posed template mesh (the joint mapped into the template frame by the inverse GT pose).
 - :func:`object_loss` (ChainHOI eq. 7 ``L_o``, EJIM's object loss): squared error of the
   object 6-DoF (axis-angle rad, translation m), averaged over valid rows.
 - :func:`smooth_loss` (EJIM ``L_smooth``): squared error between the frame-to-frame changes of
@@ -18,6 +20,7 @@ import torch
 from ..core.geometry import axis_angle_to_matrix
 from . import joint_data as D
 from .diffusion import GaussianDiffusion, drop_condition, masked_mse
+from .mesh_distance import squared_distance
 
 
 def denoise(model, diffusion: GaussianDiffusion, batch: dict, cfg, generator: torch.Generator):
@@ -67,6 +70,30 @@ def contact_loss(raw_pred: torch.Tensor, raw_gt: torch.Tensor, contacts: torch.T
     B, L = joints.shape[:2]
     d2 = torch.cdist(joints.reshape(B * L, -1, 3), surf.reshape(B * L, -1, 3)).min(-1).values.reshape(B, L, -1) ** 2
     return (d2 * gate).sum() / gate.sum()
+
+
+def contact_loss_exact(raw_pred: torch.Tensor, raw_gt: torch.Tensor, contacts: torch.Tensor, valid: torch.Tensor,
+                       meshes: torch.Tensor) -> torch.Tensor:
+    """``L_h`` with exact distances: raw rows (B, L, 24, 12), contacts (B, L, 8) bool, valid
+    (B, L), meshes (B, F, 3, 3) template triangles. ``d^2 = dist(R^T (p - t), mesh)^2`` with
+    (R, t) the GT object pose of the row, averaged over gated joint-rows."""
+    gate = contacts & valid[..., None]
+    if not bool(gate.any()):
+        return raw_pred.sum() * 0.0
+    joints = interaction_positions(raw_pred)                          # (B, L, 8, 3)
+    R = axis_angle_to_matrix(raw_gt[..., 23, 0:3])                    # (B, L, 3, 3)
+    t = raw_gt[..., 23, 3:6]
+    local = torch.einsum("blji,blkj->blki", R, joints - t[..., None, :])   # R^T (p - t)
+    b = torch.arange(gate.shape[0], device=gate.device)[:, None, None].expand_as(gate)
+    return squared_distance(local[gate], b[gate], meshes).sum() / gate.sum()
+
+
+def contact_term(raw_pred: torch.Tensor, raw_gt: torch.Tensor, batch: dict, valid: torch.Tensor) -> torch.Tensor:
+    """``L_h`` with the batch's distance: exact, to the template meshes, when the batch carries
+    them (``train.contact_distance = "exact"``), else to the nearest surface sample."""
+    if "contact_mesh" in batch:
+        return contact_loss_exact(raw_pred, raw_gt, batch["contacts"], valid, batch["contact_mesh"])
+    return contact_loss(raw_pred, raw_gt, batch["contacts"], valid, batch["contact_points"])
 
 
 def object_loss(raw_pred: torch.Tensor, raw_gt: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:

@@ -207,7 +207,8 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
                       if loaded.spec.kind == "diffusion" else "last"},
             "source": {"baseline": loaded.spec.name, "checkpoint_id": loaded.id, "config": loaded.config.name,
                        "seed": seed, **opts, "caption": "first caption of each clip",
-                       "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__}}
+                       "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__,
+                       "training": ckpt.training_budget(loaded.folder, loaded.card)}}
     t0 = time.perf_counter()
 
     def gen():

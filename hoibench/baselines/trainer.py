@@ -54,6 +54,7 @@ class TrainingSet:
     vocab: list[str]
     missing_texts: list[str]
     meshes: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # object -> (vertices, faces)
+    contact_mesh: dict[str, np.ndarray] = field(default_factory=dict)   # object -> (F, 3, 3) ("exact" L_h)
 
 
 def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
@@ -68,8 +69,9 @@ def training_set(data: str | Path, cfg: RunConfig) -> TrainingSet:
     names = {it.object_name for it in items}
     vocab = D.build_vocab([c for it in items for c in it.captions])
     meshes = {n: store.object_template(n) for n in sorted(names)} if source == "vertices" else {}
+    mesh = D.object_triangles(store, names) if getattr(cfg.train, "contact_distance", "samples") == "exact" else {}
     return TrainingSet(store, items, stats, D.object_points(store, names, cfg.model.object_points, source),
-                       D.object_points(store, names, cfg.train.contact_points), vocab, missing, meshes)
+                       D.object_points(store, names, cfg.train.contact_points), vocab, missing, meshes, mesh)
 
 
 def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner, device) -> dict:
@@ -101,6 +103,8 @@ def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner
              "points": f(np.stack(pts)), "contact_points": f(np.stack(cpts))}
     if ts.meshes:
         batch.update({k: f(v) for k, v in mesh_batch(ts, [ts.items[i] for i in pick], wins, starts, Lmax).items()})
+    if ts.contact_mesh:
+        batch["contact_mesh"] = f(D.stack_meshes([ts.contact_mesh[ts.items[i].object_name] for i in pick]))
     return batch
 
 
@@ -380,7 +384,8 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
                                                      f"({cid[:12]})")
         except ImportError:              # a GPU machine with only torch, numpy and safetensors
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
-    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev), "resumed_from": start,
+    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
+                                            "hardware": ckpt.hardware(dev), "resumed_from": start,
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)

@@ -28,6 +28,21 @@ def slug(method: str) -> str:
     return s[:100]
 
 
+def training_of(entry: dict) -> dict:
+    """The training budget a reproduced row's submission recorded (``submission_source.training``:
+    steps, parameters, wall_seconds, hardware, text_encoder), or {}."""
+    t = (entry.get("submission_source") or {}).get("training")
+    return t if isinstance(t, dict) else {}
+
+
+def shares_evaluator_text_encoder(entry: dict) -> bool:
+    """Whether the row's generator was conditioned on the very text-encoder weights the
+    evaluator reads captions with (sha256 equal): its R-precision and MM-Dist may be inflated."""
+    mine = (training_of(entry).get("text_encoder") or {}).get("weights_sha256")
+    theirs = (entry.get("evaluator_text_encoder") or {}).get("weights_sha256")
+    return bool(mine) and mine == theirs
+
+
 def entry_from_result(result: dict, *, method: str, track: str, source: str = "reproduced",
                       submission_meta: dict | None = None, notes: str = "") -> dict:
     """An entry for a result of ``hoibench evaluate`` (``submission_meta``: the submission's
@@ -41,6 +56,7 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
         "format": ENTRY_FORMAT, "track": track, "method": method, "source": source,
         "metrics": metrics, "undefined_metrics": result.get("undefined_metrics", {}),
         "evaluator_id": result.get("evaluator_id"),
+        "evaluator_text_encoder": result.get("evaluator_text_encoder") or {},
         "evaluator_backend": result.get("evaluator_backend", "contrastive" if result.get("evaluator_id") else None),
         "protocol": result.get("protocol"),
         "protocol_version": result.get("protocol_version"), "representation": result.get("representation"),

@@ -16,7 +16,8 @@ import io
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text
-from .leaderboard import SHORT, LeaderboardError, comparable, comparable_citations, load_track, order, table_columns
+from .leaderboard import (SHORT, LeaderboardError, comparable, comparable_citations, load_track, order,
+                          shares_evaluator_text_encoder, table_columns, training_of)
 
 ARROW = {True: "↑", False: "↓", None: "≈GT"}
 
@@ -40,8 +41,30 @@ def fmt(m: dict | None) -> str:
     return f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
 
+def budget(e: dict) -> str:
+    """The row's training budget in words (``1,500 steps, 1.78 M params, 10.2 min, CPU ...``),
+    ``not stated`` for a baseline row without one, "" for other rows."""
+    t = training_of(e)
+    if not t:
+        return "not stated" if e.get("role") == "baseline" and e.get("source") != "reported" else ""
+    parts = []
+    if isinstance(t.get("steps"), int):
+        parts.append(f"{t['steps']:,} steps")
+    if isinstance(t.get("parameters"), int):
+        parts.append(f"{t['parameters'] / 1e6:.2f} M params")
+    if isinstance(t.get("wall_seconds"), (int, float)):
+        parts.append(f"{t['wall_seconds'] / 60:.1f} min")
+    if t.get("hardware"):
+        parts.append(str(t["hardware"]))
+    return ("~" if t.get("approximate") else "") + ", ".join(parts)
+
+
 def _flags(e: dict, entries: list[dict] = ()) -> list[str]:
     out = []
+    if shares_evaluator_text_encoder(e):
+        out.append("conditioned on the evaluator's text encoder")
+    if e.get("role") == "baseline" and e.get("source") != "reported" and not training_of(e):
+        out.append("training budget not stated")
     if e["source"] == "reported":
         n = sum(comparable(x, e) for x in entries)
         out.append(f"reported, comparable with {n} scored row(s)" if n else "reported, not comparable")
@@ -84,14 +107,14 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
     cols = _columns(entries)
     lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [_context(entries) + ". Cells: mean ± 95% CI over the protocol's "
              "replications. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.", "",
-             "| # | method | " + " | ".join(_header(c) for c in cols) + " | flags |",
-             "|---:|---|" + "|".join("---:" for _ in cols) + "|---|"]
+             "| # | method | " + " | ".join(_header(c) for c in cols) + " | training | flags |",
+             "|---:|---|" + "|".join("---:" for _ in cols) + "|---|---|"]
     for i, e in enumerate(entries, 1):
         name = f"**{e['method']}**" if e["role"] == "ground-truth" else e["method"]
         if e["source"] == "reported":
             name += f" ({e.get('citation')})"
         lines.append(f"| {i} | {name} | " + " | ".join(fmt(e["metrics"].get(c)) for c in cols)
-                     + f" | {', '.join(_flags(e, entries))} |")
+                     + f" | {budget(e)} | {', '.join(_flags(e, entries))} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}.", "", "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
     return "\n".join(lines)
@@ -102,12 +125,16 @@ def write_csv(entries: list[dict]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["rank", "method", "role", "source", "citation", "complete", "samples_per_prompt", "evaluator_id",
-                "protocol", "protocol_version", "toolkit_version"]
+                "protocol", "protocol_version", "toolkit_version", "train_steps", "train_parameters",
+                "train_wall_seconds", "train_hardware", "conditioner_text_encoder"]
                + [f"{n}{s}" for n in names for s in ("", "_ci95")])
     for i, e in enumerate(entries, 1):
         row = [i, e["method"], e["role"], e["source"], e.get("citation", ""), e.get("complete", True),
                e.get("samples_per_prompt", ""), e.get("evaluator_id", ""), e.get("protocol", ""),
                e.get("protocol_version", ""), e.get("toolkit_version", "")]
+        t = training_of(e)
+        row += [t.get("steps", ""), t.get("parameters", ""), t.get("wall_seconds", ""), t.get("hardware", ""),
+                (t.get("text_encoder") or {}).get("encoder", "")]
         for n in names:
             m = e["metrics"].get(n)
             row += ["", ""] if m is None else [repr(float(m["mean"])), repr(float(m.get("ci95") or 0.0))]
@@ -204,6 +231,7 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
             f'<td data-v="{float(m["mean"]) if m else ""}">{e_(fmt(m))}</td>'
             for m in (e["metrics"].get(c) for c in cols))
         rows.append(f'<tr class="{cls}"><td data-v="{i}">{i}</td><td data-v="{e_(e["method"])}">{name}</td>{cells}'
+                    f'<td data-v="{e_(budget(e))}">{e_(budget(e))}</td>'
                     f'<td data-v="{e_(", ".join(_flags(e, entries)))}">{e_(", ".join(_flags(e, entries)))}</td></tr>')
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
@@ -229,7 +257,7 @@ img {{ max-width: 100%; }}
 <h1>{e_(track)} leaderboard</h1>
 <p>{e_(_context(entries))}. Cells: mean ± 95% CI over the protocol's replications. ↑ higher is better,
 ↓ lower is better, ≈GT closest to the ground truth. Click a column to sort. Units: {units}.</p>
-<div class="wrap"><table><thead><tr><th data-col="0">#</th><th data-col="1">method</th>{head}<th data-col="{len(cols) + 2}">flags</th></tr></thead>
+<div class="wrap"><table><thead><tr><th data-col="0">#</th><th data-col="1">method</th>{head}<th data-col="{len(cols) + 2}">training</th><th data-col="{len(cols) + 3}">flags</th></tr></thead>
 <tbody>
 {chr(10).join(rows)}
 </tbody></table></div>

@@ -124,6 +124,28 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
     flush()
 
 
+def _text_encoder(ev) -> dict:
+    """The evaluator's pretrained text encoder (name and weights' sha256) as its card names it:
+    a leaderboard flags a generator conditioned on the same weights."""
+    te = getattr(ev, "card", {}).get("text_encoder") if isinstance(getattr(ev, "card", None), dict) else None
+    if not isinstance(te, dict):
+        return {}
+    return {k: te[k] for k in ("name", "weights_sha256", "fine_tuned") if k in te}
+
+
+def _shares_text_encoder(meta: dict, ev) -> str:
+    """The shared encoder's name when the submission says (``source.training.text_encoder``) its
+    generator was conditioned on the pretrained text-encoder weights the evaluator reads captions
+    with (sha256 equal), else ""."""
+    src = meta.get("source") if isinstance(meta.get("source"), dict) else {}
+    training = src.get("training") if isinstance(src.get("training"), dict) else {}
+    mine = training.get("text_encoder") if isinstance(training.get("text_encoder"), dict) else {}
+    theirs = _text_encoder(ev)
+    if mine.get("weights_sha256") and mine.get("weights_sha256") == theirs.get("weights_sha256"):
+        return str(theirs.get("name") or mine.get("encoder"))
+    return ""
+
+
 def _finite_rows(per_rep: list[dict]) -> tuple[list[dict], dict]:
     """Drop undefined (NaN: 0/0) values from the replication rows, recording which; an
     infinite value raises naming the metric and the replication."""
@@ -356,6 +378,11 @@ class HOIScorer(Scorer):
                 if name in undefined:
                     undefined[name] = why
         notes = self.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
+        shared = _shares_text_encoder(meta, ev)
+        if shared:
+            notes.append(f"the submission's generator is conditioned on the evaluator's own text encoder ({shared}): "
+                         "R-precision and MM-Dist may be inflated; score it with an evaluator whose text branch "
+                         "is independent of the conditioner")
         if proto.physical_config().ps_sign == "closest_face" and "ps" not in undefined:
             from ..metrics.physical import LEGACY_PS_NOTE
             notes.append(LEGACY_PS_NOTE)
@@ -370,6 +397,7 @@ class HOIScorer(Scorer):
             "submission_complete": bool(report.complete),
             "overrides": overrides,
             "evaluator_id": ev.id, "evaluator_variant": ev.variant,
+            "evaluator_text_encoder": _text_encoder(ev),
             "evaluator_backend": self.options.get("evaluator_backend", "contrastive"), "evaluator_gate": self.gate,
             "representation": store.manifest["representations"], "toolkit": "hoibench",
             "toolkit_version": __version__,

@@ -128,18 +128,35 @@ class IntertwinedGPT(nn.Module):
         ``units`` motion/contact pairs, END never drawn (the length is given), each draw from
         the softmax of the legal logits / ``temperature`` with ``generator`` (a CPU
         generator: the same draws on every device). Keys and values are cached, so each
-        draw costs one position's pass."""
-        if not 1 <= units <= self.max_units:
-            raise ValueError(f"catmo: {units} units to generate; this GPT holds 1..{self.max_units} "
-                             f"(gpt.max_units)")
-        drawn = []
-        logits, cache = self.step(self.cond(cond)[:, None] + self.pos[:, :1], None)
+        draw costs one position's pass.
+
+        Longer than the positional table (``units > max_units``): a sliding window. When the
+        next input would fall past the table, the oldest ``hop = max(1, max_units // 2)``
+        units leave the window and the cache is rebuilt over the condition and the remaining
+        tokens at positions 1, 2, ... (whole units leave, so a motion index always sits at an
+        odd position as in training). Up to ``max_units`` units the draws are those of the
+        plain cached pass."""
+        if units < 1:
+            raise ValueError(f"catmo: {units} units to generate; expected at least 1")
+        block, hop = 2 * self.max_units, 2 * max(1, self.max_units // 2)
+        head = self.cond(cond)[:, None] + self.pos[:, :1]
+        drawn: list[torch.Tensor] = []
+        start = 0                                          # index in ``drawn`` of the window's first token
+        logits, cache = self.step(head, None)
         for j in range(2 * units):
             lo, hi = self.legal(j)
             probs = F.softmax(logits[:, -1, lo:hi].float().cpu() / temperature, -1)
             draw = torch.multinomial(probs, 1, generator=generator) + lo
             drawn.append(draw)
-            if j + 1 < 2 * units:
-                logits, cache = self.step(self.embed(draw.to(cond.device)) + self.pos[:, j + 1:j + 2], cache)
+            if j + 1 == 2 * units:
+                break
+            if j + 1 - start > block:                      # drawn[j] would sit past the table: slide
+                start += hop
+                window = torch.cat(drawn[start:], 1).to(cond.device)
+                x = torch.cat([head, self.embed(window) + self.pos[:, 1:window.shape[1] + 1]], 1)
+                logits, cache = self.step(x, None)
+            else:
+                p = j + 1 - start
+                logits, cache = self.step(self.embed(draw.to(cond.device)) + self.pos[:, p:p + 1], cache)
         tokens = torch.cat(drawn, 1).to(cond.device)
         return tokens[:, 0::2], tokens[:, 1::2] - self.motion_codes

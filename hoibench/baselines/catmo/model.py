@@ -33,15 +33,18 @@ class ObjectHead(nn.Module):
                                      for k in range(layers)])
         self.out = nn.Conv1d(width, OBJECT_CHANNELS, 3, padding=1)
 
-    def forward(self, motion: torch.Tensor, contact_prob: torch.Tensor, obj: torch.Tensor) -> torch.Tensor:
+    def forward(self, motion: torch.Tensor, contact_prob: torch.Tensor, obj: torch.Tensor,
+                rows: torch.Tensor | None = None) -> torch.Tensor:
         """(B, L, 6) normalised object rows from (B, L, 263) motion, (B, L, 22) contact
-        probabilities and (B, obj_dim) object features."""
+        probabilities and (B, obj_dim) object features; ``rows`` (B, L): the valid rows of a
+        zero-padded batch (padded rows are reset before every convolution reads them)."""
         L = motion.shape[1]
-        x = torch.cat([motion, contact_prob, obj[:, None].expand(-1, L, -1)], -1).transpose(1, 2)
-        h = F.relu(self.inp(x))
+        keep = torch.ones_like(motion[:, None, :, 0]) if rows is None else rows[:, None].to(motion.dtype)
+        x = torch.cat([motion, contact_prob, obj[:, None].expand(-1, L, -1)], -1).transpose(1, 2) * keep
+        h = F.relu(self.inp(x)) * keep
         for conv in self.blocks:
-            h = h + F.relu(conv(h))
-        return self.out(h).transpose(1, 2)
+            h = (h + F.relu(conv(h))) * keep
+        return (self.out(h) * keep).transpose(1, 2)
 
 
 class CATMO(nn.Module):

@@ -21,6 +21,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .vqvae import masked_stack
+
 
 class MovementConv(nn.Module):
     """(B, L, 263) -> (B, L / 4, hidden)."""
@@ -31,8 +33,9 @@ class MovementConv(nn.Module):
                                  nn.Conv1d(hidden, hidden, 4, stride=2, padding=1), nn.LeakyReLU(0.2))
         self.out = nn.Linear(hidden, hidden)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.out(self.net(x.transpose(1, 2)).transpose(1, 2))
+    def forward(self, x: torch.Tensor, rows: torch.Tensor | None = None) -> torch.Tensor:
+        """``rows`` (B, L): valid rows of a zero-padded batch (padded positions reset per layer)."""
+        return self.out(masked_stack(self.net, x.transpose(1, 2), rows).transpose(1, 2))
 
 
 class MovementDeconv(nn.Module):
@@ -44,8 +47,11 @@ class MovementDeconv(nn.Module):
                                  nn.ConvTranspose1d(hidden, hidden, 4, stride=2, padding=1), nn.LeakyReLU(0.2))
         self.out = nn.Linear(hidden, channels)
 
-    def forward(self, h: torch.Tensor) -> torch.Tensor:
-        return self.out(self.net(h.transpose(1, 2)).transpose(1, 2))
+    def forward(self, h: torch.Tensor, rows: torch.Tensor | None = None) -> torch.Tensor:
+        """``rows`` (B, 4 U): valid rows of a zero-padded batch (padded positions reset per layer)."""
+        if rows is not None:
+            h = h * rows[:, 3::4, None].to(h.dtype)
+        return self.out(masked_stack(self.net, h.transpose(1, 2), rows, 4).transpose(1, 2))
 
 
 def masked_mean(h: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
@@ -74,7 +80,7 @@ class MovementEncoder(nn.Module):
 
     def forward(self, x: torch.Tensor, valid_rows: torch.Tensor) -> torch.Tensor:
         """(B, width) embedding of (B, L, 263) normalised rows (L a multiple of 4)."""
-        h = self.conv(x)
+        h = self.conv(x, valid_rows if valid_rows.shape[1] >= 4 else None)
         return self.head(h, valid_rows[:, 3::4] if valid_rows.shape[1] >= 4 else valid_rows[:, :1])
 
 

@@ -137,7 +137,7 @@ class Steps:
     def movement_ae(self, step: int) -> dict:
         x, _, valid = self._windows("movement_ae", step)
         mv = self.model.movement
-        rec = _masked_mean(F.smooth_l1_loss(mv.deconv(mv.conv(x)), x, reduction="none"), valid)
+        rec = _masked_mean(F.smooth_l1_loss(mv.deconv(mv.conv(x, valid), valid), x, reduction="none"), valid)
         return {"loss": rec}
 
     def _clips(self, stage: str, step: int):
@@ -192,9 +192,9 @@ class Steps:
         loss = ce
         if g.lambda_align > 0:
             probs = F.softmax(logits[:, 0:2 * U:2, :Km], -1)                     # (B, U, Km)
-            motion = self.model.motion_vq.decode_soft(probs)                    # (B, U * unit, 263)
             rows = torch.arange(U * cfg.vq.unit, device=self.dev)[None]
             vrows = rows < (n_units * cfg.vq.unit)[:, None]
+            motion = self.model.motion_vq.decode_soft(probs, vrows[:, cfg.vq.unit - 1::cfg.vq.unit])
             zm = self.model.movement(motion, vrows)
             offset = int(rng.integers(1, max(2, len(pick))))
             align = matching_loss(zt, zm, cfg.text.margin, offset)
@@ -205,10 +205,11 @@ class Steps:
     def object(self, step: int) -> dict:
         rng, pick, x, c, o, valid = self._clips("object", step)
         with torch.no_grad():
-            xm = self.model.motion_vq(x)["out"]
-            pc = torch.sigmoid(self.model.contact_vq(c)["out"])
+            u = self.cfg.vq.unit
+            xm = self.model.motion_vq(x, valid[:, u - 1::u])["out"]
+            pc = torch.sigmoid(self.model.contact_vq(c, valid[:, u - 1::u])["out"])
             feat = self._object_feature(pick)
-        pred = self.model.object_head(xm, pc, feat)
+        pred = self.model.object_head(xm, pc, feat, valid)
         loss = _masked_mean(F.smooth_l1_loss(pred, o, reduction="none"), valid)
         return {"loss": loss}
 
@@ -428,7 +429,7 @@ def _write_result(out: Path, model: CATMO, data_: CD.CatmoData, cfg: CatmoConfig
         except ImportError:
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curves are in the card)")
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
-                                            "stage_seconds": stage_seconds})
+                                            "hardware": ckpt.hardware(dev), "stage_seconds": stage_seconds})
     drop_checkpoint(cpath)
     card = json.loads((out / ckpt.CARD).read_text())
     mv, ct = reports.get("test", reports["train"])["motion"], reports.get("test", reports["train"])["contact"]

@@ -12,6 +12,10 @@ averages of the assigned vectors' sums and counts (decay ``mu``) instead of the 
 loss ``L_e`` (so only ``L_c = ||z - sg(z_q)||^2`` enters the loss), and codes whose EMA
 count falls below 1 are reset to encoder outputs of the current batch (dead-code reset).
 Perplexity ``exp(-sum_k p_k log p_k)`` of the batch's code frequencies measures usage.
+
+Padding: given the valid rows of a zero-padded batch, every convolution stack resets the
+padded positions after each layer (:func:`masked_stack`), so a clip's valid latents and rows
+equal those it gets alone.
 """
 from __future__ import annotations
 
@@ -30,6 +34,34 @@ class ResBlock1D(nn.Module):
         return x + self.proj(F.relu(self.conv(F.relu(x))))
 
 
+def _leaves(layers: nn.Module):
+    for layer in layers:
+        if isinstance(layer, nn.Sequential):
+            yield from _leaves(layer)
+        else:
+            yield layer
+
+
+def masked_stack(layers: nn.Sequential, h: torch.Tensor, rows: torch.Tensor | None, rate: int = 1) -> torch.Tensor:
+    """Run ``layers`` over (B, C, T) ``h`` whose positions each cover ``rate`` rows; with
+    ``rows`` (B, T * rate) bool, the positions of padded rows are reset to 0 after every layer
+    (the zero a convolution's own padding supplies past the end), so valid positions equal
+    those of the unpadded sequence (valid lengths multiples of the coarsest rate). Strided
+    convolutions multiply ``rate`` by their stride, upsampling and transposed convolutions
+    divide it."""
+    for layer in _leaves(layers):
+        h = layer(h)
+        if isinstance(layer, nn.ConvTranspose1d):
+            rate //= layer.stride[0]
+        elif isinstance(layer, nn.Conv1d):
+            rate *= layer.stride[0]
+        elif isinstance(layer, nn.Upsample):
+            rate //= int(layer.scale_factor)
+        if rows is not None:
+            h = h * rows[:, rate - 1::rate][:, None].to(h.dtype)
+    return h
+
+
 def res_stack(width: int, depth: int, growth: int, deepest_first: bool) -> nn.Sequential:
     dil = [growth ** k for k in range(depth)]
     return nn.Sequential(*[ResBlock1D(width, d) for d in (dil[::-1] if deepest_first else dil)])
@@ -44,14 +76,17 @@ class Encoder(nn.Module):
         layers.append(nn.Conv1d(width, code_dim, 3, padding=1))
         self.net = nn.Sequential(*layers)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, L, channels) -> (B, L / 2^down_t, code_dim)."""
-        return self.net(x.transpose(1, 2)).transpose(1, 2)
+    def forward(self, x: torch.Tensor, rows: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, L, channels) -> (B, L / 2^down_t, code_dim); ``rows`` (B, L): valid rows."""
+        if rows is not None:
+            x = x * rows[..., None].to(x.dtype)
+        return masked_stack(self.net, x.transpose(1, 2), rows).transpose(1, 2)
 
 
 class Decoder(nn.Module):
     def __init__(self, channels: int, width: int, code_dim: int, down_t: int, depth: int, growth: int):
         super().__init__()
+        self.unit = 2 ** down_t
         layers: list[nn.Module] = [nn.Conv1d(code_dim, width, 3, padding=1), nn.ReLU()]
         for _ in range(down_t):
             layers += [res_stack(width, depth, growth, True), nn.Upsample(scale_factor=2, mode="nearest"),
@@ -59,9 +94,12 @@ class Decoder(nn.Module):
         layers += [nn.Conv1d(width, width, 3, padding=1), nn.ReLU(), nn.Conv1d(width, channels, 3, padding=1)]
         self.net = nn.Sequential(*layers)
 
-    def forward(self, z: torch.Tensor) -> torch.Tensor:
-        """(B, U, code_dim) -> (B, U * 2^down_t, channels)."""
-        return self.net(z.transpose(1, 2)).transpose(1, 2)
+    def forward(self, z: torch.Tensor, units: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, U, code_dim) -> (B, U * 2^down_t, channels); ``units`` (B, U): valid latents."""
+        rows = None if units is None else units.repeat_interleave(self.unit, 1)
+        if units is not None:
+            z = z * units[..., None].to(z.dtype)
+        return masked_stack(self.net, z.transpose(1, 2), rows, self.unit).transpose(1, 2)
 
 
 class EMAQuantizer(nn.Module):
@@ -150,13 +188,14 @@ class VQVAE(nn.Module):
 
     def forward(self, x: torch.Tensor, valid_units: torch.Tensor | None = None,
                 generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
-        z = self.encoder(x)
+        rows = None if valid_units is None else valid_units.repeat_interleave(self.unit, 1)
+        z = self.encoder(x, rows)
         zq, idx, commit, perplexity = self.quantizer(z, valid_units, generator)
         if valid_units is not None:
             # padded latents carry nothing to the decoder and get no gradient (unconstrained by
             # the commitment loss, they would drift without bound through the straight-through path)
             zq = zq * valid_units[..., None].to(zq.dtype)
-        return {"out": self.decoder(zq), "indices": idx, "commit": commit, "perplexity": perplexity}
+        return {"out": self.decoder(zq, valid_units), "indices": idx, "commit": commit, "perplexity": perplexity}
 
     @torch.no_grad()
     def encode(self, x: torch.Tensor) -> torch.Tensor:
@@ -167,7 +206,7 @@ class VQVAE(nn.Module):
         """(B, U * unit, channels) from (B, U) indices."""
         return self.decoder(self.quantizer.lookup(idx))
 
-    def decode_soft(self, probs: torch.Tensor) -> torch.Tensor:
+    def decode_soft(self, probs: torch.Tensor, valid_units: torch.Tensor | None = None) -> torch.Tensor:
         """Differentiable decode of (B, U, codes) code probabilities: the decoder applied to
         the expected codebook vectors ``probs @ codebook`` (the alignment loss's path)."""
-        return self.decoder(probs @ self.quantizer.codebook)
+        return self.decoder(probs @ self.quantizer.codebook, valid_units)

@@ -7,7 +7,9 @@ Per block (``z``: (B, L, 24, D_m)):
 
 - **ST-GCN** (short term): spatial graph convolution ``sum_k A_k z W_k`` over the identity,
   inward and outward partitions (:mod:`.graph`), then a multi-branch temporal convolution
-  (dilated convolutions, a max-pool branch and a 1x1 branch, concatenated), residual.
+  (dilated convolutions, a max-pool branch and a 1x1 branch, concatenated), residual;
+  padded frames are reset after every operator that can write them, so a padded batch
+  gives each clip what it gives alone.
 - **Semantic-consistent Module** (long term): HOI tokens ``mean_nodes(Linear(z))`` (B, L, D_t)
   are the queries of two transformer decoders, the first attending to the text tokens
   (with the timestep token), the second to the object-geometry tokens; ``z^l`` is mapped
@@ -86,8 +88,25 @@ class STGCN(nn.Module):
         z = z + self.drop(F.gelu(self.norm1(s)))
         z = z * valid[:, :, None, None]                                  # padding never leaks in time
         t = z.permute(0, 2, 3, 1).reshape(B * N, D, L)
-        t = torch.cat([b(t) for b in self.branches], 1).view(B, N, D, L).permute(0, 3, 1, 2)
+        keep = valid[:, None, None, :].expand(B, N, 1, L).reshape(B * N, 1, L)
+        t = self.temporal(t, keep).view(B, N, D, L).permute(0, 3, 1, 2)
         return (z + self.drop(F.gelu(self.norm2(t)))) * valid[:, :, None, None]
+
+    def temporal(self, t: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
+        """(B N, D, L) -> (B N, D, L): the branches concatenated; ``keep`` (B N, 1, L) bool.
+        A branch's 1x1 convolution carries a bias, so its padded frames are reset before the
+        temporal operator reads them: to 0 before a dilated convolution (what its own zero
+        padding supplies past the end), to -inf before the max-pool (what its padding
+        supplies). Valid frames then equal those of the unpadded sequence."""
+        out = []
+        for b in self.branches:
+            if not isinstance(b, nn.Sequential):                         # the bare 1x1 branch
+                out.append(b(t))
+            elif isinstance(b[2], nn.MaxPool1d):
+                out.append(b[2](b[1](b[0](t)).masked_fill(~keep, float("-inf"))).masked_fill(~keep, 0.0))
+            else:
+                out.append(b[2](b[1](b[0](t)) * keep))
+        return torch.cat(out, 1)
 
 
 class GSTGCN(nn.Module):

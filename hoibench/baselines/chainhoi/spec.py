@@ -8,7 +8,7 @@ from __future__ import annotations
 import torch
 
 from ..diffusion import GaussianDiffusion, masked_mse
-from ..joint_losses import contact_loss, denoise, object_loss
+from ..joint_losses import contact_term, denoise, object_loss
 from .config import ModelConfig  # noqa: F401  (the spec's model config)
 from .config import preset as _preset
 from .model import ChainHOI
@@ -46,7 +46,7 @@ def losses(model, diffusion: GaussianDiffusion, batch: dict, cfg, mean: torch.Te
     valid = batch["valid"]
     l_diff = masked_mse(pred, x0, valid)
     raw_pred, raw_gt = pred * std + mean, x0 * std + mean
-    l_h = contact_loss(raw_pred, raw_gt, batch["contacts"], valid, batch["contact_points"]) \
+    l_h = contact_term(raw_pred, raw_gt, batch, valid) \
         if cfg.train.lambda_contact > 0 else pred.sum() * 0.0
     l_o = object_loss(raw_pred, raw_gt, valid)
     total = l_diff + cfg.train.lambda_contact * l_h + cfg.train.lambda_object * l_o

@@ -15,7 +15,9 @@ Joint-level Interaction Modules runs
 3. **DCI** (dual-branch condition injector): the condition tokens (timestep, pooled text,
    16 object-geometry tokens) are prepended to each joint's and the object's temporal
    sequence, scanned, and dropped again;
-4. **DIB #2**, whose object-to-joint attention scores update the mask for the next module.
+4. **DIB #2**, whose object-to-joint attention scores update the mask for the next module
+   (the scores are the attention weights without dropout, so training and sampling choose
+   joints by the same rule).
 
 **Progressive masking** (:func:`update_mask`): per sample and frame, the ``mask_k`` visible
 human joints with the lowest object-to-joint attention in DIB #2 are masked, cumulatively
@@ -29,7 +31,10 @@ the paper leaves open and hoibench chose is listed in docs/baselines.md.
 """
 from __future__ import annotations
 
+import math
+
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from ..layers import ConditionEncoders, sinusoidal
@@ -90,13 +95,27 @@ class DIB(nn.Module):
         tok = torch.cat([o[:, :, None], h], 2).reshape(B * L, J + 1, d)
         keymask = torch.cat([torch.zeros(B, L, 1, dtype=torch.bool, device=h.device), masked], 2).reshape(B * L, J + 1)
         x = self.norm(tok)
-        upd, w = self.attn(x, x, x, key_padding_mask=keymask, need_weights=True, average_attn_weights=True)
+        upd = self.attn(x, x, x, key_padding_mask=keymask, need_weights=False)[0]
+        scores = self.object_scores(x, keymask).reshape(B, L, J)
         live = (~keymask)[..., None].to(tok.dtype)                         # masked tokens: no update
         tok = tok + upd * live
         tok = tok + self.ff(tok) * live
         tok = tok.reshape(B, L, J + 1, d)
-        scores = w[:, 0, 1:].reshape(B, L, J)                              # object query -> joint keys
         return tok[:, :, 1:], tok[:, :, 0], scores
+
+    def object_scores(self, x: torch.Tensor, keymask: torch.Tensor) -> torch.Tensor:
+        """(N, J) attention of the object query (token 0) to the joint keys, averaged over
+        heads: ``mean_h softmax_k(q_h . k_h / sqrt(d_h))`` with masked keys excluded, computed
+        without attention dropout (``nn.MultiheadAttention`` returns its weights after
+        dropout in training, which would make the progressive mask a dropout draw)."""
+        a = self.attn
+        N, T, d = x.shape
+        H = a.num_heads
+        q = F.linear(x[:, :1], a.in_proj_weight[:d], a.in_proj_bias[:d]).view(N, 1, H, d // H).transpose(1, 2)
+        k = F.linear(x, a.in_proj_weight[d:2 * d], a.in_proj_bias[d:2 * d]).view(N, T, H, d // H).transpose(1, 2)
+        logits = (q @ k.transpose(-1, -2)) / math.sqrt(d // H)              # (N, H, 1, T)
+        logits = logits.masked_fill(keymask[:, None, None], float("-inf"))
+        return logits.softmax(-1).mean(1)[:, 0, 1:]
 
 
 class Module(nn.Module):

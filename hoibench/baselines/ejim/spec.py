@@ -8,7 +8,7 @@ from __future__ import annotations
 import torch
 
 from ..diffusion import GaussianDiffusion, masked_mse
-from ..joint_losses import contact_loss, denoise, object_loss, smooth_loss
+from ..joint_losses import contact_term, denoise, object_loss, smooth_loss
 from .config import ModelConfig, preset  # noqa: F401  (the spec's preset and model config)
 from .model import EJIM
 
@@ -26,6 +26,6 @@ def losses(model, diffusion: GaussianDiffusion, batch: dict, cfg, mean: torch.Te
            "smooth": smooth_loss(pred, x0, valid)}
     total = out["diffusion"] + cfg.train.lambda_object * out["object"] + cfg.train.lambda_smooth * out["smooth"]
     if cfg.train.lambda_contact > 0:
-        out["contact"] = contact_loss(raw_pred, raw_gt, batch["contacts"], valid, batch["contact_points"])
+        out["contact"] = contact_term(raw_pred, raw_gt, batch, valid)
         total = total + cfg.train.lambda_contact * out["contact"]
     return {"loss": total, **out}
