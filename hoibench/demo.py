@@ -77,6 +77,9 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = 
     print("[evaluator] training a tiny contrastive text-motion evaluator on the train split")
     ev_dir = out / "evaluator"
     main_train_evaluator(data, ev_dir, size="tiny", seed=seed)
+    note = track_evaluator_note(ev_dir)
+    if note:
+        print(note)
     gt_sub = out / "gt_submission"
     if (gt_sub / "submission.json").exists():     # the demo's own output from an earlier run
         import shutil
@@ -97,6 +100,25 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = 
         print(f"  (render skipped: {exc})")
     report["seconds"] = round(time.perf_counter() - t0, 1)
     return report
+
+
+def track_evaluator_note(ev_dir: Path, start: Path | None = None) -> str:
+    """Whether the evaluator in ``ev_dir`` is the checked-in synthetic track's
+    (``leaderboards/synthetic/evaluator``, found from ``start``, default the current folder);
+    ``""`` when no such track is found."""
+    from .evaluator.card import read_card
+    from .publish.leaderboard import TRACK_EVALUATOR, find_root
+    root = find_root(start)
+    shipped = root / "synthetic" / TRACK_EVALUATOR if root is not None else None
+    if shipped is None or not (shipped / "card.json").is_file():
+        return ""
+    ours, theirs = str(read_card(ev_dir)["evaluator_id"]), str(read_card(shipped)["evaluator_id"])
+    if ours == theirs:
+        return (f"[evaluator] {ours[:12]} is the evaluator of the track {root / 'synthetic'}: a result scored with "
+                f"{ev_dir} can be added there (hoibench leaderboard add RESULT --track synthetic --method NAME)")
+    return (f"[evaluator] {ours[:12]} is not the synthetic track's evaluator {theirs[:12]} (this machine's "
+            f"floating point or toolkit trained other weights): score with --evaluator {shipped} to add a result "
+            f"to {root / 'synthetic'}")
 
 
 REFERENCE_ROWS = (("GT + 1 cm noise", "gt-noise", {"sigma": 0.01}), ("GT + 3 cm noise", "gt-noise", {"sigma": 0.03}),

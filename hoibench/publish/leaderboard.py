@@ -16,6 +16,8 @@ from ..core.io import atomic_write_json
 from ..tracks.catalog import HOI_COLUMNS
 
 ENTRY_FORMAT = "hoibench-entry-1"
+#: a track's own evaluator folder, shipped with a track whose rows hoibench reproduces
+TRACK_EVALUATOR = "evaluator"
 SOURCES = ("reproduced", "reported")
 
 
@@ -267,9 +269,12 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
     ours = [e for e in existing if e["source"] == "reproduced"]
     ids = sorted({str(e.get("evaluator_id")) for e in ours})
     if ids and str(result["evaluator_id"]) not in ids:
+        shipped = track_dir / TRACK_EVALUATOR
+        how = (f"rescore with the track's evaluator (hoibench evaluate SUB --data DATA --evaluator {shipped})"
+               if (shipped / "card.json").is_file() else "rescore with that evaluator")
         raise LeaderboardError(f"{result_path}: field evaluator_id: {str(result['evaluator_id'])[:12]} is not the "
-                               f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): rescore with that "
-                               f"evaluator, or rescore every row with this one")
+                               f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): {how}, or "
+                               f"rescore every row with this one")
     protos = sorted({f"{e.get('protocol')}@{e.get('protocol_version')}" for e in ours})
     mine = f"{result.get('protocol')}@{result.get('protocol_version')}"
     if protos and mine not in protos:
