@@ -92,10 +92,11 @@ def main_render_worst(result_path, k: int, by: str, data, submission, out, fmt: 
     end of ``COLUMN`` of the result's per-clip table (:func:`hoibench.scoring.per_clip.worst`),
     each drawn beside its ground truth into ``out/<n>_<id>.gif`` (n = 1 for the worst).
     ``submission`` defaults to the path the result records; ``data`` is required."""
-    from ..scoring.per_clip import worst
+    from ..scoring.per_clip import check_worst_args, worst
     from ..scoring.results import read_result
     from ..datasets.store import Store
     from .render import render_comparison
+    check_worst_args(k, by)
     if data is None:
         raise ValueError("render RESULT --worst K: --data DATA (the store the result was scored on) is required")
     result = read_result(result_path)

@@ -64,20 +64,25 @@ def per_clip_table(ids: Sequence[str], motions: np.ndarray, real: np.ndarray, te
     return {"sample": int(sample), "clips": len(rows), "rows": rows}
 
 
-def worst(result: dict, k: int, by: str = "mm_dist", where: str = "result") -> list[dict]:
-    """The ``k`` rows of ``result["per_clip"]`` at the failure end of column ``by`` (ties by
-    id); rows where ``by`` is undefined are left out. ValueError naming what is missing."""
-    table = result.get("per_clip")
-    if not isinstance(table, dict) or not isinstance(table.get("rows"), list):
-        raise ValueError(f"{where}: field per_clip: absent (a result written before per-clip tables, or by "
-                         f"another scorer); evaluate the submission again to get one")
+def check_worst_args(k: int, by: str) -> None:
+    """ValueError for a ``--by`` that is no per-clip column or a ``--worst`` below 1."""
     if by not in WORSE_WHEN_HIGH:
         raise ValueError(f"--by {by!r}: expected one of {', '.join(sorted(WORSE_WHEN_HIGH))}")
     if k < 1:
         raise ValueError(f"--worst {k}: expected a positive number of clips")
+
+
+def worst(result: dict, k: int, by: str = "mm_dist", where: str = "result") -> list[dict]:
+    """The ``k`` rows of ``result["per_clip"]`` at the failure end of column ``by`` (ties by
+    id); rows where ``by`` is undefined are left out. ValueError naming what is missing."""
+    check_worst_args(k, by)
+    table = result.get("per_clip")
+    if not isinstance(table, dict) or not isinstance(table.get("rows"), list):
+        raise ValueError(f"{where}: field per_clip: absent (a result written before per-clip tables, or by "
+                         f"another scorer); evaluate the submission again to get one")
     rows = [r for r in table["rows"] if isinstance(r, dict) and isinstance(r.get(by), (int, float))]
     sign = -1.0 if WORSE_WHEN_HIGH[by] else 1.0
     return sorted(rows, key=lambda r: (sign * float(r[by]), str(r.get("id"))))[:k]
 
 
-__all__ = ["PHYSICAL_COLUMNS", "WORSE_WHEN_HIGH", "caption_distances", "per_clip_table", "worst"]
+__all__ = ["PHYSICAL_COLUMNS", "WORSE_WHEN_HIGH", "caption_distances", "per_clip_table", "check_worst_args", "worst"]
