@@ -112,13 +112,16 @@ def track_evaluator_note(ev_dir: Path, start: Path | None = None) -> str:
     shipped = root / "synthetic" / TRACK_EVALUATOR if root is not None else None
     if shipped is None or not (shipped / "card.json").is_file():
         return ""
-    ours, theirs = str(read_card(ev_dir)["evaluator_id"]), str(read_card(shipped)["evaluator_id"])
+    mine, track = read_card(ev_dir), read_card(shipped)
+    ours, theirs = str(mine["evaluator_id"]), str(track["evaluator_id"])
     if ours == theirs:
         return (f"[evaluator] {ours[:12]} is the evaluator of the track {root / 'synthetic'}: a result scored with "
                 f"{ev_dir} can be added there (hoibench leaderboard add RESULT --track synthetic --method NAME)")
-    return (f"[evaluator] {ours[:12]} is not the synthetic track's evaluator {theirs[:12]} (this machine's "
-            f"floating point or toolkit trained other weights): score with --evaluator {shipped} to add a result "
-            f"to {root / 'synthetic'}")
+    same = (mine.get("integrity") or {}).get("weights_sha256") == (track.get("integrity") or {}).get("weights_sha256")
+    why = ("the same weights, written by an earlier version under another id rule" if same else
+           "this machine's floating point or toolkit trained other weights")
+    return (f"[evaluator] {ours[:12]} is not the synthetic track's evaluator {theirs[:12]} ({why}): score with "
+            f"--evaluator {shipped} to add a result to {root / 'synthetic'}")
 
 
 REFERENCE_ROWS = (("GT + 1 cm noise", "gt-noise", {"sigma": 0.01}), ("GT + 3 cm noise", "gt-noise", {"sigma": 0.03}),

@@ -52,3 +52,19 @@ def test_a_result_scored_with_the_shipped_evaluator_joins_the_track(tmp_path):
     other.write_text(json.dumps(_result_like(gt, "0" * 64)))
     with pytest.raises(lb.LeaderboardError, match="--evaluator .*synthetic/evaluator"):
         lb.add_result(other, copy, method="Other method")
+
+
+def test_the_demo_says_whether_its_evaluator_is_the_tracks(tmp_path):
+    from hoibench.demo import track_evaluator_note
+    card = json.loads((TRACK / lb.TRACK_EVALUATOR / "card.json").read_text())
+    ev = tmp_path / "ev"
+    ev.mkdir()
+    (ev / "card.json").write_text(json.dumps(card))
+    assert "is the evaluator of the track" in track_evaluator_note(ev, TRACK.parent)
+    (ev / "card.json").write_text(json.dumps({**card, "evaluator_id": "1" * 64}))
+    assert "the same weights" in track_evaluator_note(ev, TRACK.parent)
+    other = {**card, "evaluator_id": "1" * 64, "integrity": {**card["integrity"], "weights_sha256": "2" * 64}}
+    (ev / "card.json").write_text(json.dumps(other))
+    note = track_evaluator_note(ev, TRACK.parent)
+    assert "other weights" in note and "--evaluator" in note and "synthetic/evaluator" in note
+    assert track_evaluator_note(ev, tmp_path) == ""                 # no leaderboards/ above tmp_path
