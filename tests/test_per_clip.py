@@ -86,6 +86,10 @@ def test_one_row_per_test_clip_with_sane_values(scored):
     gmd = [r["fsr_gmd"] for r in gt["rows"] if r["fsr_gmd"] is not None]
     assert np.mean(gmd) == pytest.approx(res["metrics"]["fsr_gmd"]["mean"], rel=1e-9)
     json.dumps(res, allow_nan=False)                                         # strict JSON
+    from hoibench.scoring.evaluate import format_result
+    far = worst(res, 1)[0]
+    assert f"per-clip table: {len(test_ids)} test clips (sample 0); farthest from its text: {far['id']}" \
+        in format_result(res)
 
 
 def test_render_worst_draws_the_worst_clip(scored, tmp_path):

@@ -458,6 +458,13 @@ def format_result(result: dict) -> str:
     lines += [f"override: {o['override']}: {'; '.join(o['reasons'])}" for o in result.get("overrides", [])]
     lines += [f"note: {n}" for n in result["notes"] if not any(n.startswith(u + ":") for u in
                                                               result.get("undefined_metrics", {}))]
+    table = result.get("per_clip")
+    if isinstance(table, dict) and table.get("rows"):
+        from .per_clip import worst
+        w = worst(result, 1, "mm_dist")
+        lines.append(f"per-clip table: {len(table['rows'])} test clips (sample {table.get('sample', 0)})"
+                     + (f"; farthest from its text: {w[0]['id']} (mm_dist {w[0]['mm_dist']:.3g})" if w else "")
+                     + "; draw the worst: hoibench render RESULT --worst 5 --by mm_dist --data DATA --out DIR")
     return "\n".join(lines)
 
 
