@@ -228,8 +228,10 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
     times["leaderboard_build_s"] = round(time.perf_counter() - t3, 1)
     print(f"[leaderboard] {paths['index.html']} (open it in a browser), {paths['README.md']}, "
           f"{paths['leaderboard.csv']}")
-    from .publish.leaderboard import load_track, order
-    print("  " + "\n  ".join(f"{i + 1:2d}. {e['method']}" for i, e in enumerate(order(load_track(track)))))
+    from .publish.leaderboard import band, load_track, order, ranks
+    rows = order(load_track(track))
+    print("  " + "\n  ".join((f"{r:2d}. " if r else "    ") + f"{e['method']}" + ("" if r else f"  ({band(e)})")
+                             for r, e in zip(ranks(rows), rows)))
     return {"track": str(track), "times": times}
 
 
