@@ -13,7 +13,8 @@ pytest.importorskip("smplx")
 pytest.importorskip("torch")
 pytest.importorskip("safetensors")
 
-from hoibench.datasets.store import Store, content_manifest, manifest_sha256  # noqa: E402
+from hoibench.datasets.store import (Store, content_manifest, legacy_manifest_sha256,  # noqa: E402
+                                     manifest_sha256)
 from hoibench.datasets.synthetic_store import write_template_texts  # noqa: E402
 from hoibench.evaluator import card as card_mod  # noqa: E402
 
@@ -79,6 +80,14 @@ def test_evaluator_ids_are_the_same_across_paths(two_stores, tmp_path):
     legacy["evaluator_id"] = card_mod.legacy_id(weights[0], legacy)
     (tmp_path / "ev0" / card_mod.CARD).write_text(json.dumps(legacy))
     assert card_mod.verify_folder(tmp_path / "ev0")[0]["evaluator_id"] == legacy["evaluator_id"] != ids[0]
+    # a folder trained before: its card records the whole manifest's sha256; training again into
+    # it finds the finished evaluator instead of refusing it as another store's
+    legacy["dataset"] = {**legacy["dataset"], "manifest_sha256": legacy_manifest_sha256(two_stores[0][1])}
+    legacy["integrity"] = card_mod.integrity_block(weights[0], legacy)
+    legacy["evaluator_id"] = card_mod.legacy_id(weights[0], legacy)
+    (tmp_path / "ev0" / card_mod.CARD).write_text(json.dumps(legacy))
+    again = train_evaluator(two_stores[0][0], tmp_path / "ev0", cfg, replications=2, log=lambda _m: None)
+    assert again.status == "already_trained" and again.evaluator_id == legacy["evaluator_id"]
     legacy["seed"] = 5                                               # a modified legacy card still fails
     (tmp_path / "ev0" / card_mod.CARD).write_text(json.dumps(legacy))
     with pytest.raises(card_mod.EvaluatorIntegrityError, match="seed"):
@@ -92,3 +101,15 @@ def test_baseline_checkpoint_ids_are_the_same_across_paths(two_stores, tmp_path)
     ids = [train("chainhoi", data, tmp_path / f"run{i}", cfg, log=lambda _m: None).checkpoint_id
            for i, (data, _) in enumerate(two_stores)]
     assert ids[0] == ids[1] and len(ids[0]) == 64
+    # a run folder written before (whole-manifest sha256 in its card) is found, not refused
+    from hoibench.baselines import checkpoint as ckpt
+    run = tmp_path / "run0"
+    card = json.loads((run / ckpt.CARD).read_text())
+    card["dataset"]["manifest_sha256"] = legacy_manifest_sha256(two_stores[0][1])
+    data = (run / ckpt.WEIGHTS).read_bytes()
+    card = {k: v for k, v in card.items() if k not in ("integrity", ckpt.ID_KEY)}
+    card["integrity"] = card_mod.integrity_block(data, card, ckpt.ID_KEY)
+    card[ckpt.ID_KEY] = card_mod.compute_id(data, card, ckpt.ID_KEY)
+    (run / ckpt.CARD).write_text(json.dumps(card))
+    again = train("chainhoi", two_stores[0][0], run, cfg, log=lambda _m: None)
+    assert again.already_trained and again.checkpoint_id == card[ckpt.ID_KEY]

@@ -204,6 +204,12 @@ def content_manifest(manifest: dict) -> dict:
     return out
 
 
+def legacy_manifest_sha256(manifest: dict) -> str:
+    """sha256 of the whole manifest, paths and toolkit version included: the store identity
+    that cards written before 0.7.0 record (a folder trained then is still this store's)."""
+    return hashlib.sha256(json.dumps(manifest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
 def manifest_sha256(manifest: dict) -> str:
     """sha256 of the canonical JSON of :func:`content_manifest`: the store identity evaluator
     and baseline cards record (so their ids depend on the data, never on a path)."""
