@@ -95,6 +95,8 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=None, help="training steps (default: the tiny config's)")
     ap.add_argument("--samples", type=int, default=1, help="samples per prompt (K)")
     ap.add_argument("--executor", default="serial")
+    ap.add_argument("--only", default=None,
+                    help="comma-separated row slugs to (re)make, e.g. gt-real-motion,gt-1-cm-noise (default: all)")
     ap.add_argument("--entries", type=Path, default=None,
                     help="also write leaderboard entries here (e.g. leaderboards/synthetic/entries)")
     args = ap.parse_args()
@@ -107,6 +109,8 @@ def main() -> None:
     human_only = not has_objects(store, store.clip_ids("test"))
     for label, kind, over in rows_spec(args.steps, human_only):
         slug = label.split(" (")[0].replace(", ", "-").replace(" + ", "-").replace(" ", "-").lower()
+        if args.only and slug not in args.only.split(","):
+            continue
         sub = work / "submissions" / slug
         res_path = work / "results" / f"{slug}.json"
         timing = {}

@@ -2,7 +2,8 @@
 to check that the static HTML renders in a real browser.
 
     hoibench leaderboard build
-    python benchmarks/leaderboard_screenshot.py leaderboards/synthetic/index.html --out docs/leaderboard_synthetic.png
+    python benchmarks/leaderboard_screenshot.py leaderboards/synthetic/index.html --size 1400,2000 \
+        --out docs/img/leaderboard_synthetic_1400.png
 """
 from __future__ import annotations
 

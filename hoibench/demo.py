@@ -77,6 +77,9 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = 
     print("[evaluator] training a tiny contrastive text-motion evaluator on the train split")
     ev_dir = out / "evaluator"
     main_train_evaluator(data, ev_dir, size="tiny", seed=seed)
+    note = track_evaluator_note(ev_dir)
+    if note:
+        print(note)
     gt_sub = out / "gt_submission"
     if (gt_sub / "submission.json").exists():     # the demo's own output from an earlier run
         import shutil
@@ -97,6 +100,28 @@ def synthetic_stage(out: Path, seed: int = 0, clips: int = 120, executor: str = 
         print(f"  (render skipped: {exc})")
     report["seconds"] = round(time.perf_counter() - t0, 1)
     return report
+
+
+def track_evaluator_note(ev_dir: Path, start: Path | None = None) -> str:
+    """Whether the evaluator in ``ev_dir`` is the checked-in synthetic track's
+    (``leaderboards/synthetic/evaluator``, found from ``start``, default the current folder);
+    ``""`` when no such track is found."""
+    from .evaluator.card import read_card
+    from .publish.leaderboard import TRACK_EVALUATOR, find_root
+    root = find_root(start)
+    shipped = root / "synthetic" / TRACK_EVALUATOR if root is not None else None
+    if shipped is None or not (shipped / "card.json").is_file():
+        return ""
+    mine, track = read_card(ev_dir), read_card(shipped)
+    ours, theirs = str(mine["evaluator_id"]), str(track["evaluator_id"])
+    if ours == theirs:
+        return (f"[evaluator] {ours[:12]} is the evaluator of the track {root / 'synthetic'}: a result scored with "
+                f"{ev_dir} can be added there (hoibench leaderboard add RESULT --track synthetic --method NAME)")
+    same = (mine.get("integrity") or {}).get("weights_sha256") == (track.get("integrity") or {}).get("weights_sha256")
+    why = ("the same weights, written by an earlier version under another id rule" if same else
+           "this machine's floating point or toolkit trained other weights")
+    return (f"[evaluator] {ours[:12]} is not the synthetic track's evaluator {theirs[:12]} ({why}): score with "
+            f"--evaluator {shipped} to add a result to {root / 'synthetic'}")
 
 
 REFERENCE_ROWS = (("GT + 1 cm noise", "gt-noise", {"sigma": 0.01}), ("GT + 3 cm noise", "gt-noise", {"sigma": 0.03}),
@@ -264,8 +289,10 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
     times["leaderboard_build_s"] = round(time.perf_counter() - t3, 1)
     print(f"[leaderboard] {paths['index.html']} (open it in a browser), {paths['README.md']}, "
           f"{paths['leaderboard.csv']}")
-    from .publish.leaderboard import load_track, order
-    print("  " + "\n  ".join(f"{i + 1:2d}. {e['method']}" for i, e in enumerate(order(load_track(track)))))
+    from .publish.leaderboard import band, load_track, order, ranks
+    rows = order(load_track(track))
+    print("  " + "\n  ".join((f"{r:2d}. " if r else "    ") + f"{e['method']}" + ("" if r else f"  ({band(e)})")
+                             for r, e in zip(ranks(rows), rows)))
     return {"track": str(track), "times": times}
 
 

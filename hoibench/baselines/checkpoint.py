@@ -11,9 +11,10 @@ Layout::
     RUN/train_log.json        wall-clock times, device and hardware, resumes  (not covered by the id)
     RUN/checkpoint/last.pt    training state for resuming (removed when training ends)
 
-Checkpoint id = ``sha256(weights bytes || canonical card without checkpoint_id)``, as the
-evaluator id (:func:`hoibench.evaluator.card.compute_id`): the same store, config and seed
-give the same id on the same machine type.
+Checkpoint id = ``sha256(weights bytes || canonical card without checkpoint_id and the
+provenance fields)``, as the evaluator id (:func:`hoibench.evaluator.card.compute_id`): the
+same store content, config and seed give the same id on the same machine type, whatever the
+folders' paths.
 """
 from __future__ import annotations
 
@@ -23,7 +24,8 @@ from pathlib import Path
 from ..core.errors import HoibenchError
 # the same file names, size limits and id scheme as an evaluator folder
 from ..evaluator.card import (CARD, CURVE_PNG, MAX_CARD_BYTES, MAX_WEIGHTS_BYTES, TRAIN_LOG, WEIGHTS,  # noqa: F401
-                              changed_parts, check_safetensors, compute_id, integrity_block, weights_bytes)
+                              changed_parts, check_safetensors, compute_id, id_matches, integrity_block,
+                              weights_bytes)
 from ..evaluator.errors import CorruptEvaluatorFile
 from ..core.io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
 
@@ -80,8 +82,8 @@ def verify_run(folder: str | Path, baseline: str | None = None) -> tuple[dict, b
         check_safetensors(data, wpath)
     except (ValueError, CorruptEvaluatorFile) as exc:
         raise RunFolderError(str(exc)) from None
-    actual = compute_id(data, card, ID_KEY)
-    if actual != card[ID_KEY]:
+    ok, actual = id_matches(data, card, ID_KEY)
+    if not ok:
         detail = "; ".join(changed_parts(card, data, WEIGHTS, CARD, ID_KEY)) or \
             f"{CARD} field {ID_KEY} or integrity was modified"
         raise RunFolderError(f"{folder}: checkpoint id mismatch: {CARD} says {card[ID_KEY][:12]}... but the files hash "

@@ -26,7 +26,7 @@ from .. import __version__
 from ..core.errors import HoibenchError
 from ..core.interrupts import check_interrupted
 from ..core.io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp, finished_output
-from ..datasets.store import Store
+from ..datasets.store import Store, legacy_manifest_sha256
 from . import checkpoint as ckpt
 from . import joint_data as D
 from .config import RunConfig
@@ -234,7 +234,8 @@ def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, 
 
 
 def _existing(out: Path, name: str, config: dict, dataset: dict,
-              keys: tuple[str, ...] = ("manifest_sha256", "store_hoi269_stats_sha256")) -> dict | None:
+              keys: tuple[str, ...] = ("manifest_sha256", "store_hoi269_stats_sha256"),
+              aliases: dict | None = None) -> dict | None:
     """The card of a finished run folder ``out`` trained with this baseline, ``config`` and
     store (the ``dataset`` fields ``keys``); None for an absent or unfinished folder;
     :class:`RunFolderError` naming the differing fields otherwise."""
@@ -247,7 +248,7 @@ def _existing(out: Path, name: str, config: dict, dataset: dict,
     diff += dict_diff(card.get("config"), config, "config")
     ds = card.get("dataset", {})
     for key in keys:
-        if ds.get(key) != dataset[key]:
+        if ds.get(key) != dataset[key] and ds.get(key) != (aliases or {}).get(key, dataset[key]):
             diff.append(f"dataset.{key} (another store)")
     if not diff:
         return card
@@ -274,11 +275,13 @@ def train(baseline: str, data: str | Path, out: str | Path, config: RunConfig | 
 
 
 def finished_run(out: Path, name: str, config: dict, dataset: dict, tag: str, log: Callable[[str], None],
-                 keys: tuple[str, ...] | None = None) -> "TrainResult | None":
+                 keys: tuple[str, ...] | None = None, store=None) -> "TrainResult | None":
     """The finished run already in ``out`` for this config and store (its leftover
     checkpoints removed), or None after making ``out`` ready for training (stale temporary
-    files removed)."""
-    done = _existing(out, name, config, dataset) if keys is None else _existing(out, name, config, dataset, keys)
+    files removed). With ``store``, a run written before ids came from content only (its card
+    records the whole manifest's sha256) counts as this store's too."""
+    aliases = {"manifest_sha256": legacy_manifest_sha256(store.manifest)} if store is not None else None
+    done = _existing(out, name, config, dataset, keys or ("manifest_sha256", "store_hoi269_stats_sha256"), aliases)
     if done is not None:
         if (out / ckpt.CHECKPOINT_DIR).is_dir():        # interrupted after the folder was written
             shutil.rmtree(out / ckpt.CHECKPOINT_DIR, ignore_errors=True)
@@ -309,7 +312,7 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
     log, out, dev, t0 = start_run(out, device, threads, log)
     ts = training_set(data, cfg)
     dataset = _store_block(ts.store, ts)
-    finished = finished_run(out, spec.name, cfg.to_dict(), dataset, tag, log)
+    finished = finished_run(out, spec.name, cfg.to_dict(), dataset, tag, log, store=ts.store)
     if finished is not None:
         return finished
     text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, ts.vocab)

@@ -188,10 +188,35 @@ class Store:
         return manifest_sha256(self.manifest)
 
 
-def manifest_sha256(manifest: dict) -> str:
-    """sha256 of the canonical JSON of a manifest: the store identity evaluator and baseline
-    cards record."""
+def content_manifest(manifest: dict) -> dict:
+    """The manifest without what says where and by which toolkit version a store was made:
+    ``toolkit_version`` and ``source.root`` are dropped, and the raw root inside the
+    ``incomplete`` and ``warnings`` lines is replaced by ``<raw>``. The same data, config
+    and raw files prepared into other folders (or by a toolkit whose output bytes are the
+    same) give the same content manifest."""
+    out = {k: v for k, v in manifest.items() if k != "toolkit_version"}
+    source = dict(out.get("source") or {})
+    root = source.pop("root", None)
+    if "source" in out:
+        out["source"] = source
+    if isinstance(root, str) and root:
+        for key in ("incomplete", "warnings"):
+            if isinstance(out.get(key), list):
+                out[key] = [line.replace(root, "<raw>") if isinstance(line, str) else line for line in out[key]]
+    return out
+
+
+def legacy_manifest_sha256(manifest: dict) -> str:
+    """sha256 of the whole manifest, paths and toolkit version included: the store identity
+    that cards written before 0.7.0 record (a folder trained then is still this store's)."""
     return hashlib.sha256(json.dumps(manifest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def manifest_sha256(manifest: dict) -> str:
+    """sha256 of the canonical JSON of :func:`content_manifest`: the store identity evaluator
+    and baseline cards record (so their ids depend on the data, never on a path)."""
+    return hashlib.sha256(json.dumps(content_manifest(manifest), sort_keys=True,
+                                     separators=(",", ":")).encode()).hexdigest()
 
 
 def _stored_result(path: Path, clip_id: str, split: str, sha: str) -> UnitResult | None:

@@ -13,9 +13,11 @@ Layout::
     EVAL/train_log.json        wall-clock times, resumes (not covered by the id)
 
 Evaluator id = ``sha256(bytes of weights.safetensors || canonical card)``, where the
-canonical card is ``json.dumps(card without "evaluator_id", sort_keys=True,
-separators=(",", ":"), ensure_ascii=True)``. Nothing time- or machine-dependent enters the
-card, so the same data, config and seed give the same id. :func:`verify_folder` recomputes
+canonical card is ``json.dumps(card without "evaluator_id" and the provenance fields
+(toolkit_version, libraries, torch_version), sort_keys=True, separators=(",", ":"),
+ensure_ascii=True)``. Nothing time-, path- or machine-dependent enters it (the card records
+the store by its content manifest's sha256), so the same data, config and seed give the
+same id in any folder and under any toolkit version whose output bytes are the same. :func:`verify_folder` recomputes
 it; :func:`load_evaluator` additionally checks the normalisation statistics against their
 hash, the local text encoder against the card's hash, the tensor names and shapes against
 the config, and the sanity gate.
@@ -53,17 +55,36 @@ def _canonical(obj) -> bytes:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
 
 
+#: top-level card fields that say which software wrote a folder, not what it holds: kept in
+#: the card, left out of the id and of the integrity block
+PROVENANCE_KEYS = ("toolkit_version", "libraries", "torch_version")
+
+
 def canonical_card_bytes(card: dict, id_key: str = "evaluator_id") -> bytes:
-    return _canonical({k: v for k, v in card.items() if k != id_key})
+    return _canonical({k: v for k, v in card.items() if k != id_key and k not in PROVENANCE_KEYS})
 
 
 def compute_id(weights: bytes, card: dict, id_key: str = "evaluator_id") -> str:
-    """``sha256(weights || canonical card without its id)`` (``id_key``: the field that holds
-    the id: ``evaluator_id`` here, ``checkpoint_id`` for baseline runs)."""
+    """``sha256(weights || canonical card without its id and provenance fields)``
+    (``id_key``: the field that holds the id: ``evaluator_id`` here, ``checkpoint_id`` for
+    baseline runs)."""
     h = hashlib.sha256()
     h.update(weights)
     h.update(canonical_card_bytes(card, id_key))
     return h.hexdigest()
+
+
+def legacy_id(weights: bytes, card: dict, id_key: str = "evaluator_id") -> str:
+    """The id of folders written before the provenance fields were left out (the whole card
+    without its id): such folders still verify."""
+    return hashlib.sha256(weights + _canonical({k: v for k, v in card.items() if k != id_key})).hexdigest()
+
+
+def id_matches(weights: bytes, card: dict, id_key: str = "evaluator_id") -> tuple[bool, str]:
+    """(whether ``card[id_key]`` is the folder's id under the current or the legacy rule,
+    the current rule's id)."""
+    actual = compute_id(weights, card, id_key)
+    return card.get(id_key) in (actual, legacy_id(weights, card, id_key)), actual
 
 
 def integrity_block(weights: bytes, card: dict, id_key: str = "evaluator_id") -> dict:
@@ -72,7 +93,7 @@ def integrity_block(weights: bytes, card: dict, id_key: str = "evaluator_id") ->
     sha256 of the canonical JSON of ``card[key]`` for every top-level key."""
     return {"weights_sha256": _sha256(weights),
             "sections_sha256": {k: _sha256(_canonical(v)) for k, v in sorted(card.items())
-                                if k not in (id_key, "integrity")}}
+                                if k not in (id_key, "integrity") and k not in PROVENANCE_KEYS}}
 
 
 def changed_parts(card: dict, data: bytes, weights_name: str = "weights.safetensors", card_name: str = "card.json",
@@ -86,7 +107,7 @@ def changed_parts(card: dict, data: bytes, weights_name: str = "weights.safetens
         parts.append(f"{weights_name} was modified (sha256 {_sha256(data)[:12]}..., the card records "
                      f"{str(integ.get('weights_sha256'))[:12]}...)")
     now = integrity_block(data, card, id_key)["sections_sha256"]
-    rec = integ["sections_sha256"]
+    rec = {k: v for k, v in integ["sections_sha256"].items() if k not in PROVENANCE_KEYS}
     fields_changed = sorted(k for k in set(now) | set(rec) if now.get(k) != rec.get(k))
     if fields_changed:
         parts.append(f"{card_name} field(s) {', '.join(fields_changed)} were modified")
@@ -254,8 +275,8 @@ def verify_folder(folder: str | Path) -> tuple[dict, bytes]:
         raise CorruptEvaluatorFile(str(exc)) from None
     check_safetensors(data, wpath)
     recorded = card["evaluator_id"]
-    actual = compute_id(data, card)
-    if actual != recorded:
+    ok, actual = id_matches(data, card)
+    if not ok:
         raise EvaluatorIntegrityError(
             f"{folder}: evaluator id mismatch: {CARD} says {recorded[:12]}... but {WEIGHTS} + {CARD} hash to "
             f"{actual[:12]}...: {_mismatch_detail(folder, card, data, actual)}. Restore the original folder (or "

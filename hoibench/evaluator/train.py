@@ -35,7 +35,7 @@ import torch
 
 from .. import __version__
 from ..core.io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp, finished_output
-from ..datasets.store import Store, manifest_sha256
+from ..datasets.store import Store, legacy_manifest_sha256, manifest_sha256
 from . import card as card_mod
 from . import text as text_mod
 from .config import EvaluatorConfig, preset
@@ -160,8 +160,9 @@ def plot_curve(curve: list[dict], path: Path, unfreeze_epoch: int | None = None,
 _OUTPUT_ENTRIES = {CHECKPOINT_DIR, card_mod.WEIGHTS, card_mod.CURVE_PNG, card_mod.TRAIN_LOG}
 
 
-def existing_output(out: Path, cfg: EvaluatorConfig, msha: str) -> dict | None:
-    """The card when ``out`` already holds this evaluator (same config and store manifest);
+def existing_output(out: Path, cfg: EvaluatorConfig, msha: str, legacy_msha: str | None = None) -> dict | None:
+    """The card when ``out`` already holds this evaluator (same config and store manifest:
+    ``msha``, or ``legacy_msha`` for a folder written before ids came from content only);
     None when ``out`` is free (missing, empty, or an interrupted run: checkpoint, partial
     files). :class:`EvaluatorFolderExists` otherwise, saying what is there."""
     if not finished_output(out, card_mod.CARD, _OUTPUT_ENTRIES, {CHECKPOINT_DIR}, "an evaluator folder",
@@ -173,7 +174,7 @@ def existing_output(out: Path, cfg: EvaluatorConfig, msha: str) -> dict | None:
         raise EvaluatorFolderExists(f"{out}: holds an evaluator folder that does not verify ({exc}); delete it or "
                                     f"choose another --out") from None
     diff = card_mod.dict_diff(card.get("config"), cfg.to_dict(), "config")
-    if card.get("dataset", {}).get("manifest_sha256") != msha:
+    if card.get("dataset", {}).get("manifest_sha256") not in (msha, legacy_msha or msha):
         diff.append("dataset.manifest_sha256 (another store)")
     if not diff:
         return card
@@ -516,7 +517,7 @@ def train_evaluator(data: str | Path, out: str | Path, config: EvaluatorConfig |
     msha = manifest_sha256(store.manifest)
     clean_stale_tmp(out, out / CHECKPOINT_DIR)         # an interrupted write's leftovers
 
-    done = existing_output(out, cfg, msha)
+    done = existing_output(out, cfg, msha, legacy_manifest_sha256(store.manifest))
     if done is not None:
         log(f"[train-evaluator] {out} already holds evaluator {done['evaluator_id'][:12]} for this config")
         return TrainResult(out, "already_trained", done["evaluator_id"], done, None, 0)

@@ -345,6 +345,8 @@ class PhysicalMetrics(Metric):
                            ocd=float(s.get("ocd", float("nan"))),
                            ps=_ratio(s["ps_neg"], s["ps_total"]),
                            penetration_depth_max_m=s["depth_max"],
+                           penetration_depth_mean_m=(_ratio(s.get("depth_sum", 0.0), s["depth_count"])
+                                                     if s.get("depth_count") else 0.0),
                            contact_iou=_ratio(s.get("iou_inter", 0), s.get("iou_union", 0)),
                            hand_contact_ratio=_ratio(s["hand_frames"], s["frames"]),
                            object_floating_ratio=_ratio(s["float_frames"], s["frames"]))

@@ -16,6 +16,8 @@ from ..core.io import atomic_write_json
 from ..tracks.catalog import HOI_COLUMNS
 
 ENTRY_FORMAT = "hoibench-entry-1"
+#: a track's own evaluator folder, shipped with a track whose rows hoibench reproduces
+TRACK_EVALUATOR = "evaluator"
 SOURCES = ("reproduced", "reported")
 
 
@@ -205,19 +207,50 @@ def _mean(e: dict, name: str) -> float | None:
     return None if m is None else float(m["mean"])
 
 
+#: the bands of a rendered track, in display order: (band, heading)
+BANDS = (("ground-truth", "ground truth (the test clips themselves)"),
+         ("ranked", "methods and baselines, ranked by FID"),
+         ("reference", "reference rows (not ranked: they calibrate each metric's scale)"),
+         ("reported", "reported in papers (not ranked: another evaluator, protocol and splits)"))
+
+
+def band(e: dict) -> str:
+    """The band of a row: ``ground-truth`` (hoibench's own ground truth), ``ranked`` (methods
+    and baselines scored by hoibench), ``reference`` (reference rows: noise, static, mean
+    pose, untrained models) or ``reported`` (rows copied from papers, their ground truth too)."""
+    if e["source"] == "reported":
+        return "reported"
+    if e["role"] == "ground-truth":
+        return "ground-truth"
+    return "reference" if e["role"] == "reference" else "ranked"
+
+
 def order(entries: list[dict], key: str = "fid") -> list[dict]:
-    """Display order: hoibench's ground truth first, then reproduced rows by ``key`` (best
-    first, rows without it last), then reported rows (not comparable): a paper's own
-    ground-truth row first, then the others by ``key``."""
+    """Display order: the bands of :data:`BANDS`; inside one, rows by ``key`` (best first, rows
+    without it last) -- in the reported band a paper's own ground-truth row first."""
     from ..metrics import METRICS
     higher = METRICS[key].higher_is_better if key in METRICS else False
+    bands = [b for b, _ in BANDS]
 
     def k(e):
         v = _mean(e, key)
-        reported = e["source"] == "reported"
-        rank = (2 if reported else 1) if e["role"] != "ground-truth" else (1.5 if reported else 0)
-        return (rank, v is None, (-v if higher else v) if v is not None else 0.0, e["method"])
+        first = e["source"] == "reported" and e["role"] == "ground-truth"
+        return (bands.index(band(e)), not first, v is None, (-v if higher else v) if v is not None else 0.0,
+                e["method"])
     return sorted(entries, key=k)
+
+
+def ranks(entries: list[dict]) -> list[int | None]:
+    """Rank of each row of ``entries`` (in :func:`order`'s order): 1, 2, ... for the ranked
+    band (methods and baselines), None for every other row."""
+    out, n = [], 0
+    for e in entries:
+        if band(e) == "ranked":
+            n += 1
+            out.append(n)
+        else:
+            out.append(None)
+    return out
 
 
 def read_result(path: str | Path) -> dict:
@@ -252,9 +285,12 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
     ours = [e for e in existing if e["source"] == "reproduced"]
     ids = sorted({str(e.get("evaluator_id")) for e in ours})
     if ids and str(result["evaluator_id"]) not in ids:
+        shipped = track_dir / TRACK_EVALUATOR
+        how = (f"rescore with the track's evaluator (hoibench evaluate SUB --data DATA --evaluator {shipped})"
+               if (shipped / "card.json").is_file() else "rescore with that evaluator")
         raise LeaderboardError(f"{result_path}: field evaluator_id: {str(result['evaluator_id'])[:12]} is not the "
-                               f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): rescore with that "
-                               f"evaluator, or rescore every row with this one")
+                               f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): {how}, or "
+                               f"rescore every row with this one")
     protos = sorted({f"{e.get('protocol')}@{e.get('protocol_version')}" for e in ours})
     mine = f"{result.get('protocol')}@{result.get('protocol_version')}"
     if protos and mine not in protos:

@@ -1,11 +1,13 @@
 """``hoibench leaderboard build``: a track's entries rendered as README.md, leaderboard.csv,
-a static index.html (sortable table, CIs, arrows, units, plots) and the plots as PNG.
+a static index.html (sortable table, CIs, arrows, units, legend, plots) and the plots as PNG.
 
-Row order (:func:`hoibench.publish.leaderboard.order`): the ground truth first, then reproduced rows
-by FID, then rows reported in papers -- greyed, with their citation, and marked "not
-comparable" (another evaluator). A cell is ``mean ± 95% CI`` over the protocol's
-replications; a CI of 0 at K = 1 means the number does not move under the protocol's
-resampling (docs/baselines.md). Incomplete results are flagged in every format.
+Rows come in bands (:data:`hoibench.publish.leaderboard.BANDS`, :func:`~hoibench.publish.
+leaderboard.order`): the ground truth; methods and baselines, ranked by FID and the only rows
+with a rank number; reference rows (unnumbered, italic); rows reported in papers (greyed,
+with their citation, marked "not comparable": another evaluator). A cell is ``mean ± 95%
+CI`` over the protocol's replications; a CI of exactly 0 at K = 1 (the number does not move
+under the protocol's resampling, docs/baselines.md) shows as "n/a (K = 1)". Incomplete
+results are flagged in every format.
 """
 from __future__ import annotations
 
@@ -16,10 +18,23 @@ import io
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text
-from .leaderboard import (SHORT, LeaderboardError, comparable, comparable_citations, load_track, order,
-                          shares_evaluator_text_encoder, table_columns, training_of)
+from .leaderboard import (BANDS, SHORT, LeaderboardError, band, comparable, comparable_citations, load_track, order,
+                          ranks, shares_evaluator_text_encoder, table_columns, training_of)
 
 ARROW = {True: "↑", False: "↓", None: "≈GT"}
+#: bar and point colour of each band (:data:`~hoibench.publish.leaderboard.BANDS`)
+COLORS = {"ground-truth": "#2b6cb0", "ranked": "#dd6b20", "reference": "#718096", "reported": "#a0aec0"}
+#: what a CI cell shows at K = 1 when the metric did not move over the replications
+K1_CI = "n/a (K = 1)"
+K1_NOTE = ("n/a (K = 1): one sample per prompt, so every replication scores the same samples and a metric "
+           "of the samples alone (FID, CD, PS, FSR, ...) has no spread to report; sample K > 1 times "
+           "(--samples) for a CI that includes sampling variance")
+BAND_LEGEND = {"ground-truth": "bold on blue: hoibench's ground truth (the test clips), the ceiling of every metric",
+               "ranked": "numbered: methods and baselines scored by hoibench, ranked by FID (lower is better)",
+               "reference": "italic grey, unnumbered: reference rows (noise, static pose, mismatched texts, "
+                            "untrained models) that calibrate each metric's scale",
+               "reported": "light grey, unnumbered: rows copied from papers (another evaluator: not ranked "
+                           "against hoibench's rows)"}
 
 
 def _info(name: str):
@@ -27,18 +42,28 @@ def _info(name: str):
     return METRICS.get(name)
 
 
-def fmt(m: dict | None) -> str:
-    """``mean ± ci95`` with 3 significant decimals (``-`` when absent); tiny negative FIDs
-    of the reference numerics show as 0.000 (entries keep the raw value)."""
+def _parts(m: dict | None, k=None) -> tuple[str, str]:
+    """(mean, CI) texts of a cell: 3 decimals (5 under 0.01); tiny negative FIDs of the
+    reference numerics show as 0.000 (entries keep the raw value); a CI of exactly 0 at
+    K = 1 shows as :data:`K1_CI`."""
     if not m:
-        return "-"
+        return "-", ""
     mean, ci = float(m["mean"]), float(m.get("ci95") or 0.0)
     if -1e-6 < mean < 0:
         mean = 0.0
     digits = 3 if abs(mean) >= 0.01 or mean == 0 else 5
     if "ci95" in m and m["ci95"] is None:          # a hosted row: the engine keeps means only
-        return f"{mean:.{digits}f} (no CI)"
-    return f"{mean:.{digits}f} ± {ci:.{digits}f}"
+        return f"{mean:.{digits}f}", ""
+    if k == 1 and ci == 0:
+        return f"{mean:.{digits}f}", K1_CI
+    small = 0 < ci < 0.5 * 10 ** -digits            # a real spread that the digits would round to 0
+    return f"{mean:.{digits}f}", (f"{ci:.1e}" if small else f"{ci:.{digits}f}")
+
+
+def fmt(m: dict | None, k=None) -> str:
+    """``mean ± ci95`` (``-`` when absent); ``k``: the row's samples per prompt."""
+    mean, ci = _parts(m, k)
+    return mean if not ci else f"{mean} ± {ci}"
 
 
 def budget(e: dict) -> str:
@@ -74,6 +99,8 @@ def _flags(e: dict, entries: list[dict] = ()) -> list[str]:
         out.append("incomplete")
     if (e.get("flags") or {}).get("human_only") is True:
         out.append("human-only (object metrics n/a)")
+    if isinstance(e.get("hosted"), dict):
+        out.append(f"hosted on {e['hosted'].get('engine', 'an engine')} (means only)")
     if e.get("samples_per_prompt") and e["samples_per_prompt"] > 1:
         out.append(f"K = {e['samples_per_prompt']}")
     if e.get("missing_ids"):
@@ -103,35 +130,61 @@ def _context(entries: list[dict]) -> str:
     return f"protocol {', '.join(pr) or '-'}; evaluator {', '.join(ev) or '-'}; hoibench {', '.join(tv) or '-'}"
 
 
+def _bands(entries: list[dict]) -> list[tuple[str, str, list[tuple[int | None, dict]]]]:
+    """(band, heading, [(rank, entry), ...]) for each band that has rows, in display order."""
+    rk = ranks(entries)
+    return [(b, head, [(r, e) for r, e in zip(rk, entries) if band(e) == b]) for b, head in BANDS
+            if any(band(e) == b for e in entries)]
+
+
+def _any_k1(entries: list[dict], cols: list[str]) -> bool:
+    return any(e.get("samples_per_prompt") == 1 and _parts(e["metrics"].get(c), 1)[1] == K1_CI
+               for e in entries for c in cols)
+
+
 def markdown(track: str, entries: list[dict], about: str = "") -> str:
+    """README.md: one table, its rows in bands (:func:`_bands`); only methods and baselines
+    carry a rank."""
     cols = _columns(entries)
-    lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [_context(entries) + ". Cells: mean ± 95% CI over the protocol's "
-             "replications. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.", "",
-             "| # | method | " + " | ".join(_header(c) for c in cols) + " | training | flags |",
-             "|---:|---|" + "|".join("---:" for _ in cols) + "|---|---|"]
-    for i, e in enumerate(entries, 1):
-        name = f"**{e['method']}**" if e["role"] == "ground-truth" else e["method"]
-        if e["source"] == "reported":
-            name += f" ({e.get('citation')})"
-        lines.append(f"| {i} | {name} | " + " | ".join(fmt(e["metrics"].get(c)) for c in cols)
-                     + f" | {budget(e)} | {', '.join(_flags(e, entries))} |")
+    lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [
+        _context(entries) + ". Cells: mean ± 95% CI over the protocol's replications. ↑ higher is better, "
+        "↓ lower is better, ≈GT closest to the ground truth.", "",
+        "Rows: " + "; ".join(f"{BAND_LEGEND[b]}" for b, _, _ in _bands(entries)) + ".", "",
+        "| # | method | flags | " + " | ".join(_header(c) for c in cols) + " | training |",
+        "|---:|---|---|" + "|".join("---:" for _ in cols) + "|---|"]
+    for b, head, rows in _bands(entries):
+        lines.append(f"| | ***{head}*** | |" + " |" * (len(cols) + 1))
+        for r, e in rows:
+            name = f"**{e['method']}**" if b == "ground-truth" else (f"*{e['method']}*" if b == "reference"
+                                                                     else e["method"])
+            if e["source"] == "reported":
+                name += f" ({e.get('citation')})"
+            k = e.get("samples_per_prompt")
+            lines.append(f"| {r or ''} | {name} | {', '.join(_flags(e, entries))} | "
+                         + " | ".join(fmt(e["metrics"].get(c), k) for c in cols) + f" | {budget(e)} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
-    lines += ["", f"Units: {units}.", "", "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
+    lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else [])
+    lines += ["", "Bar and point colours: " + ", ".join(f"{_COLOR_NAMES[b]} {b.replace('-', ' ')}"
+                                                       for b, _, _ in _bands(entries)) + ".", "",
+              "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
     return "\n".join(lines)
+
+
+_COLOR_NAMES = {"ground-truth": "blue", "ranked": "orange", "reference": "grey", "reported": "light grey"}
 
 
 def write_csv(entries: list[dict]) -> str:
     names = sorted({k for e in entries for k in e["metrics"]})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["rank", "method", "role", "source", "citation", "complete", "samples_per_prompt", "evaluator_id",
-                "protocol", "protocol_version", "toolkit_version", "train_steps", "train_parameters",
+    w.writerow(["rank", "band", "method", "role", "source", "citation", "complete", "samples_per_prompt",
+                "evaluator_id", "protocol", "protocol_version", "toolkit_version", "train_steps", "train_parameters",
                 "train_wall_seconds", "train_hardware", "conditioner_text_encoder"]
                + [f"{n}{s}" for n in names for s in ("", "_ci95")])
-    for i, e in enumerate(entries, 1):
-        row = [i, e["method"], e["role"], e["source"], e.get("citation", ""), e.get("complete", True),
-               e.get("samples_per_prompt", ""), e.get("evaluator_id", ""), e.get("protocol", ""),
-               e.get("protocol_version", ""), e.get("toolkit_version", "")]
+    for r, e in zip(ranks(entries), entries):
+        row = ["" if r is None else r, band(e), e["method"], e["role"], e["source"], e.get("citation", ""),
+               e.get("complete", True), e.get("samples_per_prompt", ""), e.get("evaluator_id", ""),
+               e.get("protocol", ""), e.get("protocol_version", ""), e.get("toolkit_version", "")]
         t = training_of(e)
         row += [t.get("steps", ""), t.get("parameters", ""), t.get("wall_seconds", ""), t.get("hardware", ""),
                 (t.get("text_encoder") or {}).get("encoder", "")]
@@ -142,48 +195,134 @@ def write_csv(entries: list[dict]) -> str:
     return buf.getvalue()
 
 
+def _label(r: int | None, e: dict) -> str:
+    return f"{r}. {e['method']}" if r else e["method"]
+
+
+def _band_handles(entries: list[dict]):
+    from matplotlib.patches import Patch
+    present = [b for b, _ in BANDS if any(band(e) == b for e in entries)]
+    return [Patch(color=COLORS[b], label=b.replace("-", " ")) for b in present]
+
+
 def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
-    """PNG bytes of the metric bars (with CI error bars) and the FID vs R@1 scatter."""
+    """PNG bytes of the metric bars (with CI error bars, bands separated by lines, a colour
+    legend) and the FID vs R@1 scatter (labels placed without overlap)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     cols = [c for c in ("fid", "r_precision_top1", "cd", "fsr") if any(c in e["metrics"] for e in entries)]
     out = {}
-    fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 1.6),
+    rk = ranks(entries)
+    fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 2.0),
                              squeeze=False)
-    labels = [e["method"] for e in entries]
-    colors = ["#2b6cb0" if e["role"] == "ground-truth" else ("#a0aec0" if e["source"] == "reported" else
-              ("#718096" if e["role"] == "reference" else "#dd6b20")) for e in entries]
+    labels = [_label(r, e) for r, e in zip(rk, entries)]
+    colors = [COLORS[band(e)] for e in entries]
+    breaks = [i - 0.5 for i in range(1, len(entries)) if band(entries[i]) != band(entries[i - 1])]
     for ax, c in zip(axes[0], cols):
         vals = [(_m["mean"] if (_m := e["metrics"].get(c)) else float("nan")) for e in entries]
         errs = [((_m.get("ci95") or 0.0) if (_m := e["metrics"].get(c)) else 0.0) for e in entries]
         y = range(len(entries))
         ax.barh(list(y), vals, xerr=errs, color=colors, capsize=3)
+        for yb in breaks:
+            ax.axhline(yb, color="#4a5568", lw=0.6, ls="--")
         ax.set_yticks(list(y))
         ax.set_yticklabels(labels if ax is axes[0][0] else [""] * len(labels), fontsize=8)
         ax.invert_yaxis()
         info = _info(c)
         ax.set_title(f"{_header(c)}  ({info.units if info else ''})", fontsize=9)
         ax.grid(axis="x", alpha=0.3)
-    fig.suptitle(f"{track}: mean ± 95% CI", fontsize=10)
-    fig.tight_layout()
+    fig.suptitle(f"{track}: mean ± 95% CI (numbers: rank of methods and baselines)", fontsize=10)
+    fig.legend(handles=_band_handles(entries), loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     out["metrics.png"] = _png(fig)
-    fig, ax = plt.subplots(figsize=(5.5, 4.2))
-    for e, col in zip(entries, colors):
-        f, r = e["metrics"].get("fid"), e["metrics"].get("r_precision_top1")
-        if not (f and r):
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    pts, names, pcol, errs = [], [], [], []
+    for r, e, col in zip(rk, entries, colors):
+        f, r1 = e["metrics"].get("fid"), e["metrics"].get("r_precision_top1")
+        if not (f and r1):
             continue
-        ax.errorbar(max(f["mean"], 0.0), r["mean"], xerr=f.get("ci95") or 0, yerr=r.get("ci95") or 0, fmt="o",
+        ax.errorbar(max(f["mean"], 0.0), r1["mean"], xerr=f.get("ci95") or 0, yerr=r1.get("ci95") or 0, fmt="o",
                     color=col, capsize=3)
-        ax.annotate(e["method"], (max(f["mean"], 0.0), r["mean"]), fontsize=7, xytext=(4, 3),
-                    textcoords="offset points")
+        pts.append((max(f["mean"], 0.0), r1["mean"]))
+        errs.append((f.get("ci95") or 0.0, r1.get("ci95") or 0.0))
+        names.append(_label(r, e))
+        pcol.append(col)
     ax.set_xlabel("FID ↓ (squared embedding distance)")
     ax.set_ylabel("R-precision top-1 ↑")
     ax.set_title(f"{track}: FID vs R@1", fontsize=10)
     ax.grid(alpha=0.3)
+    ax.legend(handles=_band_handles(entries), fontsize=7, loc="best")
     fig.tight_layout()
+    place_labels(ax, pts, names, pcol, errors=errs)
     out["fid_vs_r1.png"] = _png(fig)
     return out
+
+
+def _candidates() -> list[tuple[float, float]]:
+    """Label offsets in points: rings of 12 directions at growing radii, nearest first."""
+    import math
+    out = [(5.0, 4.0)]
+    for radius in (10, 18, 28, 40, 55, 72):
+        out += [(radius * math.cos(a), radius * math.sin(a))
+                for a in (2 * math.pi * i / 12 + (0.3 if radius % 20 else 0.0) for i in range(12))]
+    return out
+
+
+def _obstacles(ax, points, errors, renderer) -> list:
+    """Display-space boxes a label must not cover: each marker, its error bars, the legend."""
+    from matplotlib.transforms import Bbox
+    out = []
+    for (x, y), (ex, ey) in zip(points, errors or [(0.0, 0.0)] * len(points)):
+        (x0, y0), (x1, y1) = ax.transData.transform([(x - ex, y - ey), (x + ex, y + ey)])
+        cx, cy = ax.transData.transform((x, y))
+        out += [Bbox.from_extents(cx - 5, cy - 5, cx + 5, cy + 5), Bbox.from_extents(cx - 4, y0 - 1, cx + 4, y1 + 1),
+                Bbox.from_extents(x0 - 1, cy - 2, x1 + 1, cy + 2)]
+    if ax.get_legend() is not None:
+        out.append(ax.get_legend().get_window_extent(renderer))
+    return out
+
+
+def place_labels(ax, points: list[tuple[float, float]], labels: list[str], colors: list[str] | None = None,
+                 fontsize: float = 7, errors: list[tuple[float, float]] | None = None) -> list:
+    """Annotate ``points`` with ``labels`` so that no two labels overlap and no label covers
+    a marker, an error bar (``errors``: (x, y) half-widths) or the legend: each label takes
+    the nearest free offset of :func:`_candidates` (inside the figure), with a thin leader
+    line when it sits away from its point; when none is free, the one with the least
+    overlap. Returns the text artists."""
+    from matplotlib.text import Text
+    fig = ax.figure
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    dots = _obstacles(ax, points, errors, renderer)
+    frame = fig.bbox
+    placed: list = []
+    texts = []
+    for i, ((px, py), label) in enumerate(zip(points, labels)):
+        best = None
+        for dx, dy in _candidates():
+            ha = "left" if dx > 2 else ("right" if dx < -2 else "center")
+            va = "bottom" if dy > 2 else ("top" if dy < -2 else "center")
+            far = abs(dx) > 8 or abs(dy) > 8
+            t = ax.annotate(label, (px, py), xytext=(dx, dy), textcoords="offset points", fontsize=fontsize, ha=ha,
+                            va=va, color="#1a202c", annotation_clip=False,
+                            arrowprops=dict(arrowstyle="-", lw=0.5, color=(colors or ["#4a5568"] * len(points))[i],
+                                            shrinkA=0, shrinkB=3) if far else None)
+            t.update_positions(renderer)
+            bb = Text.get_window_extent(t, renderer).expanded(1.04, 1.15)     # the text alone, not its leader
+            cost = sum(bb.overlaps(o) for o in placed) + sum(bb.overlaps(d) for d in dots) \
+                + (0 if (frame.contains(bb.x0, bb.y0) and frame.contains(bb.x1, bb.y1)) else 5)
+            if best is None or cost < best[0]:
+                if best is not None:
+                    best[1].remove()
+                best = (cost, t, bb)
+            else:
+                t.remove()
+            if cost == 0:
+                break
+        placed.append(best[2])
+        texts.append(best[1])
+    return texts
 
 
 def _png(fig) -> bytes:
@@ -197,70 +336,106 @@ def _png(fig) -> bytes:
 _SORT_JS = """
 document.querySelectorAll('th[data-col]').forEach(function (th) {
   th.addEventListener('click', function () {
-    var table = th.closest('table'), body = table.tBodies[0], col = +th.dataset.col;
+    var table = th.closest('table'), col = +th.dataset.col;
     var asc = th.dataset.dir !== 'asc'; th.dataset.dir = asc ? 'asc' : 'desc';
-    var rows = Array.from(body.rows);
-    rows.sort(function (a, b) {
-      var x = a.cells[col].dataset.v, y = b.cells[col].dataset.v;
-      var nx = parseFloat(x), ny = parseFloat(y);
-      if (isNaN(nx) || isNaN(ny)) { return asc ? String(x).localeCompare(y) : String(y).localeCompare(x); }
-      return asc ? nx - ny : ny - nx;
+    Array.from(table.tBodies).forEach(function (body) {   // each band sorts on its own
+      var rows = Array.from(body.rows).filter(function (r) { return !r.classList.contains('band'); });
+      rows.sort(function (a, b) {
+        var x = a.cells[col].dataset.v, y = b.cells[col].dataset.v;
+        var nx = parseFloat(x), ny = parseFloat(y);
+        if (isNaN(nx) || isNaN(ny)) { return asc ? String(x).localeCompare(y) : String(y).localeCompare(x); }
+        return asc ? nx - ny : ny - nx;
+      });
+      rows.forEach(function (r) { body.appendChild(r); });
     });
-    rows.forEach(function (r) { body.appendChild(r); });
   });
 });
 """
 
+_CSS = """
+body { font-family: system-ui, sans-serif; margin: 1.5em; color: #1a202c; }
+table { border-collapse: collapse; font-size: 13px; }
+.wrap { overflow-x: auto; }
+th, td { padding: 3px 6px; border-bottom: 1px solid #e2e8f0; text-align: right; white-space: nowrap; }
+th { cursor: pointer; background: #edf2f7; vertical-align: bottom; }
+td.name, th.name, td.flags, th.flags { text-align: left; }
+td.name { white-space: normal; min-width: 12em; max-width: 22em; }
+td.flags { white-space: normal; max-width: 12em; font-size: 12px; }
+td small { display: block; color: #718096; font-size: 11px; }
+tr.band th { text-align: left; background: #f7fafc; font-weight: 600; color: #2d3748; cursor: default;
+             border-top: 2px solid #cbd5e0; }
+tr.gt { font-weight: 600; background: #ebf8ff; }
+tr.reference { color: #4a5568; font-style: italic; }
+tr.reported { color: #a0aec0; }
+.badge { font-size: 11px; border: 1px solid #a0aec0; border-radius: 3px; padding: 0 4px; }
+.warn { border-color: #dd6b20; color: #dd6b20; }
+.cite { font-size: 12px; }
+.legend { font-size: 13px; margin: 0.6em 0 1em; padding: 0.5em 0.8em; background: #f7fafc; border: 1px solid #e2e8f0;
+          max-width: 70em; }
+.legend ul { margin: 0.2em 0; padding-left: 1.2em; }
+.swatch { display: inline-block; width: 0.9em; height: 0.9em; vertical-align: middle; margin-right: 0.3em; }
+figure { display: inline-block; margin: 1em 1em 0 0; }
+img { max-width: 100%; }
+"""
+
+
+def _legend(entries: list[dict], cols: list[str]) -> str:
+    e_ = html.escape
+    bands = [b for b, _, _ in _bands(entries)]
+    rows = "".join(f"<li>{e_(BAND_LEGEND[b])}</li>" for b in bands)
+    swatches = " ".join(f'<span class="swatch" style="background:{COLORS[b]}"></span>{e_(b.replace("-", " "))}'
+                        for b in bands)
+    k1 = f"<li>{e_(K1_NOTE)}</li>" if _any_k1(entries, cols) else ""
+    return (f'<div class="legend"><b>Legend</b><ul>{rows}{k1}<li>Each cell: mean, and below it the 95% CI '
+            f"(±) over the protocol's replications.</li><li>Bar and point colours in the plots: {swatches}."
+            f"</li></ul></div>")
+
 
 def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
+    """index.html: the bands of :func:`_bands` as one table body each (a column click sorts
+    inside each band), rank numbers on methods and baselines only, the flags next to the
+    method name, a legend, and the plots."""
     cols = _columns(entries)
     e_ = html.escape
-    head = "".join(f'<th data-col="{i + 2}" title="{e_((_info(c).summary + " (" + _info(c).units + ")") if _info(c) else c)}">'
+    head = "".join(f'<th data-col="{i + 3}" title="{e_((_info(c).summary + " (" + _info(c).units + ")") if _info(c) else c)}">'
                    f"{e_(_header(c))}</th>" for i, c in enumerate(cols))
-    rows = []
-    for i, e in enumerate(entries, 1):
-        cls = "gt" if e["role"] == "ground-truth" else ("reported" if e["source"] == "reported" else
-                                                        ("reference" if e["role"] == "reference" else ""))
-        name = e_(e["method"])
-        if e["source"] == "reported":
-            badge = "comparable" if any(comparable(x, e) for x in entries) else "not comparable"
-            name += f' <span class="cite">{e_(str(e.get("citation")))}</span> <span class="badge">{badge}</span>'
-        if not e.get("complete", True):
-            name += ' <span class="badge warn">incomplete</span>'
-        cells = "".join(
-            f'<td data-v="{float(m["mean"]) if m else ""}">{e_(fmt(m))}</td>'
-            for m in (e["metrics"].get(c) for c in cols))
-        rows.append(f'<tr class="{cls}"><td data-v="{i}">{i}</td><td data-v="{e_(e["method"])}">{name}</td>{cells}'
-                    f'<td data-v="{e_(budget(e))}">{e_(budget(e))}</td>'
-                    f'<td data-v="{e_(", ".join(_flags(e, entries)))}">{e_(", ".join(_flags(e, entries)))}</td></tr>')
+    bodies = []
+    for b, heading, members in _bands(entries):
+        rows = [f'<tr class="band"><th colspan="{len(cols) + 4}">{e_(heading)}</th></tr>']
+        for r, e in members:
+            cls = {"ground-truth": "gt", "reported": "reported", "reference": "reference"}.get(b, "ranked")
+            name = e_(e["method"])
+            if e["source"] == "reported":
+                badge = "comparable" if any(comparable(x, e) for x in entries) else "not comparable"
+                name += f' <span class="cite">{e_(str(e.get("citation")))}</span> <span class="badge">{badge}</span>'
+            if not e.get("complete", True):
+                name += ' <span class="badge warn">incomplete</span>'
+            k = e.get("samples_per_prompt")
+            cells = []
+            for m in (e["metrics"].get(c) for c in cols):
+                mean, ci = _parts(m, k)
+                ci_html = f"<small>± {e_(ci)}</small>" if ci else ""
+                cells.append(f'<td data-v="{float(m["mean"]) if m else ""}">{e_(mean)}{ci_html}</td>')
+            flags = e_(", ".join(_flags(e, entries)))
+            rows.append(f'<tr class="{cls}"><td data-v="{r or ""}">{r or ""}</td>'
+                        f'<td class="name" data-v="{e_(e["method"])}">{name}</td>'
+                        f'<td class="flags" data-v="{flags}">{flags}</td>{"".join(cells)}'
+                        f'<td data-v="{e_(budget(e))}">{e_(budget(e))}</td></tr>')
+        bodies.append(f'<tbody class="band-{b}">\n' + "\n".join(rows) + "\n</tbody>")
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
     units = "; ".join(f"{e_(SHORT.get(c, c))}: {e_(_info(c).units)}" for c in cols if _info(c))
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{e_(track)} leaderboard - hoibench</title>
-<style>
-body {{ font-family: system-ui, sans-serif; margin: 2em; color: #1a202c; }}
-table {{ border-collapse: collapse; font-size: 13px; }}
-.wrap {{ overflow-x: auto; }}
-th, td {{ padding: 3px 7px; border-bottom: 1px solid #e2e8f0; text-align: right; white-space: nowrap; }}
-th {{ cursor: pointer; background: #edf2f7; }}
-td:nth-child(2), th:nth-child(2) {{ text-align: left; }}
-tr.gt {{ font-weight: 600; background: #ebf8ff; }}
-tr.reference {{ color: #4a5568; font-style: italic; }}
-tr.reported {{ color: #a0aec0; }}
-.badge {{ font-size: 11px; border: 1px solid #a0aec0; border-radius: 3px; padding: 0 4px; }}
-.warn {{ border-color: #dd6b20; color: #dd6b20; }}
-.cite {{ font-size: 12px; }}
-figure {{ display: inline-block; margin: 1em 1em 0 0; }}
-img {{ max-width: 100%; }}
-</style></head><body>
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<style>{_CSS}</style></head><body>
 <h1>{e_(track)} leaderboard</h1>
-<p>{e_(_context(entries))}. Cells: mean ± 95% CI over the protocol's replications. ↑ higher is better,
-↓ lower is better, ≈GT closest to the ground truth. Click a column to sort. Units: {units}.</p>
-<div class="wrap"><table><thead><tr><th data-col="0">#</th><th data-col="1">method</th>{head}<th data-col="{len(cols) + 2}">training</th><th data-col="{len(cols) + 3}">flags</th></tr></thead>
-<tbody>
-{chr(10).join(rows)}
-</tbody></table></div>
+<p>{e_(_context(entries))}. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.
+Click a column to sort (inside each band). Units: {units}.</p>
+{_legend(entries, cols)}
+<div class="wrap"><table><thead><tr><th data-col="0">#</th><th class="name" data-col="1">method</th><th class="flags" data-col="2">flags</th>{head}<th data-col="{len(cols) + 3}">training</th></tr></thead>
+{chr(10).join(bodies)}
+</table></div>
 {imgs}
 <script>{_SORT_JS}</script>
 </body></html>
@@ -286,4 +461,4 @@ def build(track_dir: str | Path) -> dict[str, Path]:
     return out
 
 
-__all__ = ["build", "markdown", "write_csv", "page", "fmt"]
+__all__ = ["build", "markdown", "write_csv", "page", "fmt", "place_labels"]

@@ -86,4 +86,35 @@ def main_render(clip: str, data, clip_id: str | None, out, sample: int = 0, body
     return render_store_clip(store, _store_clip(store, cid, taken, RENDER_EXPECTED), out, body=body)
 
 
-__all__ = ["RENDERERS", "render_store_clip", "main_render", "is_submission"]
+def main_render_worst(result_path, k: int, by: str, data, submission, out, fmt: str = ".gif",
+                      log=print) -> list[Path]:
+    """``hoibench render RESULT --worst K --by COLUMN``: the ``k`` test clips at the failure
+    end of ``COLUMN`` of the result's per-clip table (:func:`hoibench.scoring.per_clip.worst`),
+    each drawn beside its ground truth into ``out/<n>_<id>.gif`` (n = 1 for the worst).
+    ``submission`` defaults to the path the result records; ``data`` is required."""
+    from ..scoring.per_clip import check_worst_args, worst
+    from ..scoring.results import read_result
+    from ..datasets.store import Store
+    from .render import render_comparison
+    check_worst_args(k, by)
+    if data is None:
+        raise ValueError("render RESULT --worst K: --data DATA (the store the result was scored on) is required")
+    result = read_result(result_path)
+    rows = worst(result, k, by, where=str(result_path))
+    sub = submission if submission is not None else (result.get("submission") or {}).get("path")
+    if not sub or not Path(sub).exists():
+        raise FileNotFoundError(f"{result_path}: the submission it records ({sub!r}) is not there; give "
+                                f"--submission SUB")
+    store = Store(data)
+    sample = int(result["per_clip"].get("sample", 0))
+    out = Path(out)
+    written = []
+    for n, row in enumerate(rows, 1):
+        cid = _store_clip(store, str(row["id"]), f"per_clip row {n} of {result_path}", "a test id of --data")
+        path = render_comparison(sub, store, cid, out / f"{n:02d}_{cid}{fmt}", sample=sample)
+        log(f"[render] {n}/{len(rows)} {cid}: {by} {row[by]:.4g} -> {path}")
+        written.append(path)
+    return written
+
+
+__all__ = ["RENDERERS", "render_store_clip", "main_render", "main_render_worst", "is_submission"]

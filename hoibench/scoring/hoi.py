@@ -300,6 +300,7 @@ class HOIScorer(Scorer):
             self.notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs "
                               f"{proto.mm_samples}")
         where = {cid: i for i, cid in enumerate(ids)}
+        self.per_clip = self._per_clip(real, text_sets)
         self.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
         if proto.embedding_loop != "hoibench":
             self._t4 = t4
@@ -356,6 +357,15 @@ class HOIScorer(Scorer):
             row.update(self._physical_row(physical, r))
             rows.append(row)
         return rows
+
+    def _per_clip(self, real: np.ndarray, text_sets: list[np.ndarray]) -> dict:
+        """The per-test-clip table (:mod:`hoibench.scoring.per_clip`) of the sample replication
+        0 scores, with that replication's physical statistics."""
+        from .per_clip import per_clip_table
+        k = self.proto.sample_index(0, self.K)
+        source = self.physical[0 if self.windowed else k].per_clip()
+        phys = {key[0]: row for key, row in source.items() if isinstance(key, tuple) and key[1] == k}
+        return per_clip_table(self.ids, self.gen[k], real, text_sets, phys, k)
 
     def _physical_row(self, physical: dict, r: int) -> dict:
         """Replication r's physical metrics: its own length windows' (a length-cropping
@@ -415,7 +425,7 @@ class HOIScorer(Scorer):
                                 "physical": proto.physical_config().to_dict()},
             "metrics": summarize_replications(per_rep, proto.replications),
             "undefined_metrics": undefined,
-            "per_replication": per_rep, "notes": notes,
+            "per_replication": per_rep, "per_clip": getattr(self, "per_clip", None), "notes": notes,
             "timings_s": {k: round(v, 3) for k, v in timings.items()},
             "platform": {"python": platform.python_version(), "numpy": np.__version__},
         }
@@ -487,6 +497,13 @@ def format_result(result: dict) -> str:
     lines += [f"override: {o['override']}: {'; '.join(o['reasons'])}" for o in result.get("overrides", [])]
     lines += [f"note: {n}" for n in result["notes"] if not any(n.startswith(u + ":") for u in
                                                               result.get("undefined_metrics", {}))]
+    table = result.get("per_clip")
+    if isinstance(table, dict) and table.get("rows"):
+        from .per_clip import worst
+        w = worst(result, 1, "mm_dist")
+        lines.append(f"per-clip table: {len(table['rows'])} test clips (sample {table.get('sample', 0)})"
+                     + (f"; farthest from its text: {w[0]['id']} (mm_dist {w[0]['mm_dist']:.3g})" if w else "")
+                     + "; draw the worst: hoibench render RESULT --worst 5 --by mm_dist --data DATA --out DIR")
     return "\n".join(lines)
 
 

@@ -215,7 +215,9 @@ class MultiBodyScorer(Scorer):
         if rec.card.get("trained_on_split") != proto.recognizer_split:
             self.notes.append(f"the recognizer was trained on split {rec.card.get('trained_on_split')!r}, the protocol "
                               f"names {proto.recognizer_split!r}")
-        if rec.card.get("store_manifest_sha256") != store.manifest_sha256():
+        from ..datasets.store import legacy_manifest_sha256
+        if rec.card.get("store_manifest_sha256") not in (store.manifest_sha256(),
+                                                         legacy_manifest_sha256(store.manifest)):
             self.notes.append("the recognizer was trained on another store (manifest sha256 differs)")
         self.ids = store.clip_ids(proto.split)
 

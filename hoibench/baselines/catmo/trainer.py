@@ -457,7 +457,7 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
                          f"first (`hoibench annotate {data}`)")
     dataset = _store_block(data_)
     keys = ("manifest_sha256", "store_hml263_stats_sha256", "store_hoi269_stats_sha256")
-    finished = finished_run(out, NAME, cfg.to_dict(), dataset, tag, log, keys)
+    finished = finished_run(out, NAME, cfg.to_dict(), dataset, tag, log, keys, store=data_.store)
     if finished is not None:
         return finished
     text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, data_.vocab)
