@@ -27,7 +27,6 @@ and the clip files every store already holds) is the one-human-one-object case:
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -166,10 +165,19 @@ class MultiBodyClip:
             for b in bodies:
                 if b.template and b.template not in templates:
                     templates[b.template] = template_loader(b.template)
-        texts = [json.loads(str(t)) for t in z["texts"]] if "texts" in z else []
-        prov = json.loads(str(z["provenance"])) if "provenance" in z else {}
+        texts, prov = _json_fields(z)
         return cls(str(z["name"]), str(z["dataset"]), str(z["subject"]), float(z["fps"]), bodies, templates,
                    contacts, str(z["action"]) or None, texts, None, prov)
+
+
+def _json_fields(z) -> tuple[list, dict]:
+    """The clip's ``texts`` and ``provenance`` JSON strings, parsed strictly (a deep or
+    malformed string is a one-line error naming the clip and field)."""
+    from ..core.io import load_json_bytes
+    name = str(z["name"]) if "name" in z else "clip"
+    texts = [load_json_bytes(str(t), f"{name}: texts") for t in z["texts"]] if "texts" in z else []
+    prov = load_json_bytes(str(z["provenance"]), f"{name}: provenance") if "provenance" in z else {}
+    return texts, prov
 
 
 def is_multibody_arrays(z) -> bool:
@@ -197,8 +205,7 @@ def from_hoi_arrays(z: dict, template_loader: Callable[[str], tuple[np.ndarray, 
                 templates[name] = template_loader(name)
         if "contacts" in z:
             contacts[("human", parts[0][0])] = np.asarray(z["contacts"], bool).any(-1)
-    texts = [json.loads(str(t)) for t in z["texts"]] if "texts" in z else []
-    prov = json.loads(str(z["provenance"])) if "provenance" in z else {}
+    texts, prov = _json_fields(z)
     return MultiBodyClip(str(z.get("name", "")), str(z.get("dataset", "")), str(z.get("subject", "")),
                          float(z.get("fps", 20.0)), bodies, templates, contacts, None, texts, None, prov)
 

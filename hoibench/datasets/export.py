@@ -31,7 +31,8 @@ import numpy as np
 
 from ..core.geometry import matrix_to_axis_angle
 from ..core.ids import check_id
-from ..core.io import atomic_save_npy, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text
+from ..core.io import (atomic_save_npy, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text,
+                       load_npy_file, read_text_file)
 from ..representations import hml263
 from .store import Store
 
@@ -49,7 +50,7 @@ def _checked_ids(store: Store) -> dict[str | None, list[str]]:
 
 def _texts(store: Store, clip_id: str) -> str | None:
     path = store.root / "texts" / f"{clip_id}.txt"
-    return path.read_text() if path.exists() else None
+    return read_text_file(path, what="caption file") if path.exists() else None
 
 
 def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
@@ -137,7 +138,7 @@ def read_humanml3d(root: str | Path) -> dict[str, dict]:
         p = root / f"{split}.txt"
         if not p.exists():
             continue
-        for line in p.read_text().splitlines():
+        for line in read_text_file(p, what="split list").splitlines():
             cid = line.strip()
             if not cid:
                 continue
@@ -150,13 +151,14 @@ def read_humanml3d(root: str | Path) -> dict[str, dict]:
         texts = []
         tp = root / "texts" / f"{cid}.txt"
         if tp.exists():
-            for line in tp.read_text().splitlines():
+            for line in read_text_file(tp, what="caption file").splitlines():
                 parts = line.strip().split("#")
                 if len(parts) != 4:
                     raise ValueError(f"{tp}: expected caption#tokens#start#end, got {line!r}")
                 texts.append((parts[0], parts[1].split(" "), float(parts[2]), float(parts[3])))
-        out[cid] = {"features": np.load(root / "new_joint_vecs" / f"{cid}.npy"),
-                    "joints": np.load(root / "new_joints" / f"{cid}.npy"), "texts": texts, "split": split}
+        out[cid] = {"features": load_npy_file(root / "new_joint_vecs" / f"{cid}.npy", what="feature file"),
+                    "joints": load_npy_file(root / "new_joints" / f"{cid}.npy", what="joint file"), "texts": texts,
+                    "split": split}
     return out
 
 

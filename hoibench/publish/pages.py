@@ -15,7 +15,10 @@ import html
 import io
 from pathlib import Path
 
-from ..core.io import atomic_write_bytes, atomic_write_text
+from ..core.io import atomic_write_bytes, atomic_write_text, read_text_file
+
+#: a track's about.md is read up to this size
+MAX_ABOUT_BYTES = 1024 ** 2
 from .leaderboard import SHORT, LeaderboardError, comparable, comparable_citations, load_track, order, table_columns
 
 ARROW = {True: "↑", False: "↓", None: "≈GT"}
@@ -235,6 +238,13 @@ img {{ max-width: 100%; }}
 """
 
 
+def read_about(track_dir: str | Path) -> str:
+    """The track's ``about.md`` (empty when absent), a regular file of at most
+    :data:`MAX_ABOUT_BYTES` read through the guarded reader."""
+    path = Path(track_dir) / "about.md"
+    return read_text_file(path, MAX_ABOUT_BYTES, "about.md") if path.exists() or path.is_symlink() else ""
+
+
 def build(track_dir: str | Path) -> dict[str, Path]:
     """Render ``track_dir``'s entries into README.md (``about.md``, when present, above the
     table), leaderboard.csv, index.html and the PNG plots (atomically). Returns the paths."""
@@ -244,8 +254,7 @@ def build(track_dir: str | Path) -> dict[str, Path]:
         raise LeaderboardError(f"{track_dir}/entries: no entries to render")
     track = track_dir.name
     figures = _figures(track, entries)
-    about_path = track_dir / "about.md"           # the track's own words, kept above the table
-    about = about_path.read_text(encoding="utf-8") if about_path.exists() else ""
+    about = read_about(track_dir)                 # the track's own words, kept above the table
     out = {"README.md": atomic_write_text(track_dir / "README.md", markdown(track, entries, about) + "\n"),
            "leaderboard.csv": atomic_write_text(track_dir / "leaderboard.csv", write_csv(entries)),
            "index.html": atomic_write_text(track_dir / "index.html", page(track, entries, figures))}

@@ -684,4 +684,4 @@ def render_comparison(submission, store_root, clip_id: str, out_path, *, sample:
         else:
             iio.imwrite(tmp_out, both[0])
         from ..core.io import atomic_write_bytes
-        return atomic_write_bytes(out, tmp_out.read_bytes())
+        return atomic_write_bytes(out, tmp_out.read_bytes())  # read-ok: our own file in our own temporary folder

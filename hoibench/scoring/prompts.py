@@ -27,8 +27,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..core.io import atomic_write_text
+from ..core.io import MAX_SMALL_JSON_BYTES, atomic_write_text, read_json_file
 from ..datasets.store import Store
+
+
+def _group_id(path: Path) -> str | None:
+    """``group_id`` of a clip's annotation file (read through the guarded reader)."""
+    ann = read_json_file(path, MAX_SMALL_JSON_BYTES, "annotation file")
+    group = ann.get("group_id") if isinstance(ann, dict) else None
+    if group is not None and not isinstance(group, (str, int)):
+        raise ValueError(f"{path}: group_id: expected a string, got {type(group).__name__}")
+    return group
 
 
 def prompts(data: str | Path, split: str = "test") -> list[dict]:
@@ -50,7 +59,7 @@ def prompts(data: str | Path, split: str = "test") -> list[dict]:
         clip = st.load(cid, keys=("joints", "object_name"))
         name = str(clip["object_name"]) if "object_name" in clip else None
         ann = st.root / "annotations" / f"{cid}.json"
-        group = json.loads(ann.read_text()).get("group_id") if ann.exists() else None
+        group = _group_id(ann) if ann.exists() else None
         out.append({"id": cid, "captions": [c.text for c in caps], "frames": int(clip["joints"].shape[0]),
                     "fps": fps, "object": name,
                     "object_mesh": str((st.root / "objects" / f"{name}.npz").resolve()) if name else None,

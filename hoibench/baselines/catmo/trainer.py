@@ -29,6 +29,8 @@ module, the current stage's optimiser, the curves) is written atomically every
 from __future__ import annotations
 
 import json
+
+from ...core.io import MAX_SMALL_JSON_BYTES, read_json_file
 import shutil
 import time
 from pathlib import Path
@@ -327,7 +329,7 @@ def _load(path: Path, ident: dict, model, device) -> tuple[int, int, dict, dict,
         if not 0 <= stage <= len(STAGES) or step < 0:
             raise ValueError(f"stage {stage} step {step} out of range")
         model.load_state_dict(ck["model"])
-        return stage, step, ck["optimizer"], json.loads(ck["curves"]), json.loads(ck["window"])
+        return stage, step, ck["optimizer"], json.loads(ck["curves"]), json.loads(ck["window"])  # read-ok: strings inside a checkpoint read by read_checkpoint
     return read_checkpoint(path, ident, device, restore)
 
 
@@ -430,7 +432,7 @@ def _write_result(out: Path, model: CATMO, data_: CD.CatmoData, cfg: CatmoConfig
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
                                             "stage_seconds": stage_seconds})
     drop_checkpoint(cpath)
-    card = json.loads((out / ckpt.CARD).read_text())
+    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "checkpoint card")
     mv, ct = reports.get("test", reports["train"])["motion"], reports.get("test", reports["train"])["contact"]
     log(f"{tag} VQ ({'test' if 'test' in reports else 'train'}): motion MPJPE {mv['mpjpe_m'] * 100:.2f} cm, "
         f"perplexity {mv['perplexity']:.1f} ({mv['codes_used']}/{mv['codebook']} codes); contacts accuracy "
