@@ -24,6 +24,7 @@ import torch
 
 from .. import __version__
 from ..core.errors import HoibenchError
+from .config import check_parameter_count
 from ..core.interrupts import check_interrupted
 from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_save_figure, atomic_torch_save, atomic_write_json, check_regular_file,
                        clean_stale_tmp, finished_output, read_json_file)
@@ -98,8 +99,10 @@ def make_batch(ts: TrainingSet, cfg: RunConfig, step: int, text: TextConditioner
 
 
 def build_model(spec: Spec, cfg: RunConfig, text: TextConditioner, seed: int):
+    vocab = len(text.vocab or [])
+    check_parameter_count(lambda c: spec.build_model(c, vocab, text.width), cfg, spec.preset("paper"), "config")
     torch.manual_seed(_seed(seed, "init"))
-    return spec.build_model(cfg, len(text.vocab or []), text.width)
+    return spec.build_model(cfg, vocab, text.width)
 
 
 # ------------------------------------------------------------------------------ training

@@ -215,8 +215,10 @@ def check_clip(clip: MultiBodyClip) -> None:
     kinds, per-frame arrays over one frame count, finite values, rotation matrices, hands
     with a side, objects with a known template, contact pairs naming its bodies. Errors name
     the clip, the body and the field."""
-    from ..core.plausibility import ImplausibleDataError, check_rotations, real_array
+    from ..core.plausibility import (ImplausibleDataError, check_fps, check_positions, check_rotations, check_speed,
+                                     real_array)
     where = check_id(clip.name, "clip name")
+    fps = check_fps(clip.fps, "fps", where)
     if not clip.bodies:
         raise ImplausibleDataError(f"{where}: bodies: a clip needs at least one body")
     T = clip.bodies[0].num_frames
@@ -232,6 +234,8 @@ def check_clip(clip: MultiBodyClip) -> None:
         t = real_array(b.trans, "trans", at)
         if t.shape != (T, 3):
             raise ImplausibleDataError(f"{at}: trans: expected ({T}, 3), got {t.shape}")
+        check_positions(t, "trans", at)
+        check_speed(t, "trans", at, fps=fps)
         if b.rot is not None:
             R = check_rotations(b.rot, "rot", at)
             if len(R) != T:
@@ -248,6 +252,7 @@ def check_clip(clip: MultiBodyClip) -> None:
             if J is None or J.shape != (T, want, 3):
                 raise ImplausibleDataError(f"{at}: joints: expected ({T}, {want}, 3), got "
                                            f"{None if J is None else J.shape}")
+            check_positions(J, "joints", at)
         if b.kind == "hand" and b.side not in ("left", "right"):
             raise ImplausibleDataError(f"{at}: side: expected 'left' or 'right', got {b.side!r}")
     names = {b.name for b in clip.bodies}

@@ -71,7 +71,7 @@ def clip_from_sample(gt: MultiBodyClip, arrays: Mapping[str, np.ndarray], k: int
     for b in gt.bodies:
         if b.is_rigid:
             R = _field(arrays, sid, f"{b.name}__rot", (T, 3, 3), k)
-            t = _field(arrays, sid, f"{b.name}__trans", (T, 3), k)
+            t = _field(arrays, sid, f"{b.name}__trans", (T, 3), k, gt.fps)
             det = np.linalg.det(R)
             ortho = np.abs(R @ R.swapaxes(-1, -2) - np.eye(3)).max((-2, -1))
             bad = np.flatnonzero((ortho > 1e-3) | (det < 0))
@@ -79,12 +79,12 @@ def clip_from_sample(gt: MultiBodyClip, arrays: Mapping[str, np.ndarray], k: int
                 raise ValueError(f"{sid}: {b.name}__rot: not a rotation matrix at sample {k}, frame {int(bad[0])}")
             bodies.append(Body(b.name, b.kind, t, R, None, b.template, b.side, b.owner))
         else:
-            J = _field(arrays, sid, f"{b.name}__joints", (T, b.joints.shape[1], 3), k)
+            J = _field(arrays, sid, f"{b.name}__joints", (T, b.joints.shape[1], 3), k, gt.fps)
             bodies.append(Body(b.name, b.kind, J[:, 0].copy(), None, J, None, b.side, b.owner))
     return replace(gt, bodies=bodies, contacts={})
 
 
-def _field(arrays, sid: str, key: str, tail: tuple, k: int) -> np.ndarray:
+def _field(arrays, sid: str, key: str, tail: tuple, k: int, fps: float | None = None) -> np.ndarray:
     if key not in arrays:
         raise ValueError(f"{sid}: missing array {key!r} (one per body of the clip: <body>__joints, or "
                          f"<body>__rot and <body>__trans for objects)")
@@ -96,6 +96,18 @@ def _field(arrays, sid: str, key: str, tail: tuple, k: int) -> np.ndarray:
     x = a[k].astype(np.float64)
     if not np.isfinite(x).all():
         raise ValueError(f"{sid}: {key}: non-finite values in sample {k}")
+    from .validate_arrays import MAX_ABS_COORD_M, MAX_SPEED_MPS
+    if key.endswith(("__trans", "__joints")):
+        top = float(np.abs(x).max()) if x.size else 0.0
+        if top > MAX_ABS_COORD_M:
+            raise ValueError(f"{sid}: {key}: |value| {top:.3g} m in sample {k} exceeds {MAX_ABS_COORD_M:g} m: "
+                             "implausible")
+    if key.endswith("__trans") and len(x) > 1 and fps:
+        speed = np.linalg.norm(np.diff(x, axis=0), axis=-1) * fps
+        if speed.max() > MAX_SPEED_MPS:
+            t = int(speed.argmax())
+            raise ValueError(f"{sid}: {key}: speed {speed[t]:.3g} m/s between frames {t} and {t + 1} of sample {k} "
+                             f"(limit {MAX_SPEED_MPS:g} m/s): implausible")
     return x
 
 
@@ -174,6 +186,27 @@ def _wrists(clip: MultiBodyClip) -> np.ndarray:
     return np.concatenate(parts, 1) if parts else np.zeros((clip.num_frames, 0, 3))
 
 
+def sample_values_per_frame(arrays: Mapping[str, np.ndarray]) -> int:
+    """Values per frame of one sample of a stored multi-body clip: 12 per rigid body
+    (rotation and translation), 3 per joint of an articulated one."""
+    n = 0
+    for i in range(len(arrays["body_names"])):
+        if f"body{i}_rot" in arrays:
+            n += 12
+        elif f"body{i}_joints" in arrays:
+            n += int(np.prod(np.shape(arrays[f"body{i}_joints"])[1:]))
+    return max(n, 1)
+
+
+def multibody_limits(store, ids: list[str], samples_per_prompt: int):
+    """Byte budgets of a multi-body submission, the single-body rule over the clip's own
+    arrays: ``K x max_frames(T) x values per frame x 8 bytes + 1 MiB`` per test id."""
+    from .submission import limits_for
+    rows = {c["id"]: c for c in store.manifest["clips"] if c["id"] in set(ids)}
+    vpf = {cid: sample_values_per_frame(store.load(cid)) for cid in rows}
+    return limits_for(rows, float(store.manifest["config"]["fps"]), max(int(samples_per_prompt), 1), vpf)
+
+
 def _clip_unit(job: tuple) -> dict:
     """One test clip: GT and every sample's contact frames, penetration per frame, wrists."""
     cid, gt_arrays, sample, proto_dict, templates, K = job
@@ -218,10 +251,11 @@ class MultiBodyScorer(Scorer):
         if rec.card.get("store_manifest_sha256") != store.manifest_sha256():
             self.notes.append("the recognizer was trained on another store (manifest sha256 differs)")
         self.ids = store.clip_ids(proto.split)
+        self.limits = multibody_limits(store, self.ids, int(proto.samples_per_prompt))
 
     def open_submission(self):
         from .submission import Submission
-        return Submission(self.submission)
+        return Submission(self.submission, limits=self.limits)
 
     def validate(self, sub) -> list[str]:
         """A multi-body result is scored complete only: every test id must have samples."""

@@ -115,10 +115,14 @@ class SubmissionLimits:
         return max(self.per_id_bytes.values(), default=0)
 
 
-def limits_for(rows: Mapping[str, Mapping], fps: float, max_samples: int) -> SubmissionLimits:
-    """:class:`SubmissionLimits` for test ``rows`` (id -> manifest row with ``frames``)."""
-    per = {sid: max_samples * max_frames(int(r["frames"]), fps) * VALUES_PER_FRAME * BYTES_PER_VALUE
-           + FILE_OVERHEAD_BYTES for sid, r in rows.items()}
+def limits_for(rows: Mapping[str, Mapping], fps: float, max_samples: int,
+               values_per_frame: Mapping[str, int] | None = None) -> SubmissionLimits:
+    """:class:`SubmissionLimits` for test ``rows`` (id -> manifest row with ``frames``);
+    ``values_per_frame``: per id, for a layout other than the single-body arrays (a
+    multi-body clip: 12 per rigid body, 3 per joint of an articulated one)."""
+    vpf = values_per_frame or {}
+    per = {sid: max_samples * max_frames(int(r["frames"]), fps) * int(vpf.get(sid, VALUES_PER_FRAME))
+           * BYTES_PER_VALUE + FILE_OVERHEAD_BYTES for sid, r in rows.items()}
     return SubmissionLimits(per, sum(per.values()), int(max_samples), 2 * len(rows) + 64)
 
 
