@@ -191,10 +191,10 @@ def sample_values_per_frame(arrays: Mapping[str, np.ndarray]) -> int:
     (rotation and translation), 3 per joint of an articulated one."""
     n = 0
     for i in range(len(arrays["body_names"])):
-        if f"body{i}_rot" in arrays:
-            n += 12
-        elif f"body{i}_joints" in arrays:
+        if f"body{i}_joints" in arrays:
             n += int(np.prod(np.shape(arrays[f"body{i}_joints"])[1:]))
+        else:
+            n += 12
     return max(n, 1)
 
 
