@@ -153,7 +153,7 @@ def _cmd_splits(args) -> int:
 
 def _cmd_export(args) -> int:
     from .datasets.export import main_export
-    return main_export(args.data, args.out, args.format)
+    return main_export(args.data, args.out, args.format, overwrite=args.overwrite)
 
 
 def _cmd_annotate(args) -> int:
@@ -399,7 +399,9 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--format", choices=["humanml3d", "hoidiff"], default="humanml3d",
                    help="the folder layout to write (default humanml3d)")
     s.add_argument("data", type=Path, help=H_STORE)
-    s.add_argument("out", type=Path, help="the folder to write")
+    s.add_argument("out", type=Path, help="the folder to write: new, empty, or an earlier export")
+    s.add_argument("--overwrite", action="store_true",
+                   help="write into a non-empty folder that is not an earlier export (same-named files are replaced)")
     s.set_defaults(func=_cmd_export)
 
     s = sub.add_parser("annotate", help="contact-aware texts and semantic groups for a store",

@@ -38,7 +38,7 @@ from .. import __version__
 from ..core.errors import StrictStop
 from ..core.ids import InvalidIdError, check_id
 from ..core.io import (MAX_CLIP_BYTES, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text,
-                       clean_stale_tmp, load_raw_npz, npz_bytes, read_json_file, read_regular_file, sha256_regular_file,
+                       clean_stale_tmp, is_atomic_tmp, load_raw_npz, npz_bytes, read_json_file, read_regular_file, sha256_regular_file,
                        strict_json_dumps)
 from ..core.plausibility import check_fps, check_sequence
 from ..core.parallel import map_units
@@ -46,6 +46,9 @@ from ..representations import hml263, hoi269, joint_level, normalization
 
 MANIFEST = "manifest.json"
 ERRORS = "errors.jsonl"
+#: what a store folder may hold (prepare writes the first five, annotate the last two): an
+#: existing --out holding anything else is not a store and is never written into
+STORE_ENTRIES = frozenset({"clips", "objects", "stats", MANIFEST, ERRORS, "texts", "annotations"})
 
 
 @dataclass(frozen=True)
@@ -390,8 +393,8 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
     out = Path(out)
     for line in warnings:
         print(f"[prepare] WARNING: {line}", file=sys.stderr)
-    (out / "clips").mkdir(parents=True, exist_ok=True)
     _refuse_foreign_store(out, config, source or {})
+    (out / "clips").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(out, out / "clips", out / "objects", out / "stats")
     jobs = check_jobs(jobs)
     results, errors = _run_jobs(jobs, out, executor, strict, f"prepare {config.dataset}")
@@ -426,7 +429,14 @@ def _refuse_foreign_store(out: Path, config: PrepareConfig, source: dict) -> Non
     """``out`` may be new, or a store of the same dataset, config and raw root (a resume);
     preparing other data into an existing store would mix two stores silently."""
     mpath = out / MANIFEST
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out}: exists and is not a folder; choose a new folder")
     if not mpath.exists():
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in STORE_ENTRIES
+                         and not is_atomic_tmp(p.name)) if out.is_dir() else []
+        if foreign:
+            raise FileExistsError(f"--out {out}: not empty and not a store (holds {', '.join(foreign[:3])}"
+                                  f"{'...' if len(foreign) > 3 else ''}); choose a new or empty folder")
         return
     try:
         old = read_json_file(mpath, what=MANIFEST)

@@ -279,9 +279,8 @@ class _Sink:
         else:
             self.writer.close()
             self.writer = None
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(self.tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
+        from ..core.io import current_umask
+        os.chmod(self.tmp, 0o666 & ~current_umask())  # mkstemp makes 0600; give the usual permissions
         os.replace(self.tmp, self.out)
         return self.out
 

@@ -68,8 +68,38 @@ def prompts(data: str | Path, split: str = "test") -> list[dict]:
     return out
 
 
+#: the fields every line of a prompts file has
+PROMPT_FIELDS = ("captions", "fps", "frames", "id")
+
+
+def is_prompts_file(path: str | Path) -> bool:
+    """Whether ``path`` is a prompts file this toolkit wrote: every line a JSON object with
+    :data:`PROMPT_FIELDS` (read through the guarded reader; a special file is not)."""
+    from ..core.io import MAX_JSON_BYTES, load_json_bytes, read_text_file
+    try:
+        lines = [s for s in read_text_file(path, MAX_JSON_BYTES, "prompts file").splitlines() if s.strip()]
+        rows = [load_json_bytes(s, path) for s in lines]
+    except ValueError:
+        return False
+    return bool(rows) and all(isinstance(r, dict) and all(k in r for k in PROMPT_FIELDS) for r in rows)
+
+
+def check_prompts_out(out: str | Path) -> None:
+    """FileExistsError unless ``out`` is new or an earlier prompts file."""
+    p = Path(out)
+    if p.is_dir():
+        raise FileExistsError(f"--out {out}: is a folder; name a new file such as {p / 'prompts.jsonl'}")
+    if (p.exists() or p.is_symlink()) and not is_prompts_file(p):
+        raise FileExistsError(f"--out {out}: exists and is not a prompts file written by hoibench: not "
+                              f"overwritten; choose a new file")
+
+
 def write_prompts(data: str | Path, out: str | Path | None = None, split: str = "test") -> str:
-    """The JSON lines of :func:`prompts`; written atomically to ``out`` when given."""
+    """The JSON lines of :func:`prompts`; written atomically to ``out`` when given. An existing
+    ``out`` is replaced only when it is a prompts file (:func:`is_prompts_file`): any other file
+    is refused before the store is read, never overwritten."""
+    if out is not None:
+        check_prompts_out(out)
     text = "".join(json.dumps(p, sort_keys=True, allow_nan=False) + "\n" for p in prompts(data, split))
     if out is not None:
         atomic_write_text(out, text)
