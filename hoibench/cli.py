@@ -123,6 +123,11 @@ def _cmd_prepare(args) -> int:
                        source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type},
                        warnings=warnings)
     print(summary_table(manifest))
+    counts = manifest.get("counts", {})
+    if not counts.get("clips") and counts.get("failed"):
+        print(f"hoibench prepare: error: every sequence failed ({counts['failed']}; see "
+              f"{Path(args.out) / 'errors.jsonl'}): nothing was prepared", file=sys.stderr)
+        return 1
     missing = manifest.get("incomplete") or []
     if missing:
         print(f"hoibench prepare: error: the store is incomplete: {len(missing)} raw source(s) missing or "
@@ -697,7 +702,8 @@ def _one_line(exc: BaseException) -> str:
         msg = f"{exc.filename}: {exc.strerror or exc}"
     else:
         msg = str(exc) or type(exc).__name__
-    return " ".join(msg.split())
+    from .core.errors import printable
+    return printable(" ".join(msg.split()))
 
 
 def main(argv: list[str] | None = None) -> int:

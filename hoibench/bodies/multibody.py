@@ -158,8 +158,11 @@ class MultiBodyClip:
                                np.asarray(z[f"body{i}_rot"], np.float64) if f"body{i}_rot" in z else None,
                                np.asarray(z[f"body{i}_joints"], np.float64) if f"body{i}_joints" in z else None,
                                tmpl or None, side or None, owner or None))
-        contacts = {(names[a], names[b]): np.asarray(f, bool)
-                    for (a, b), f in zip(np.asarray(z["contact_pairs"]).reshape(-1, 2), z["contact_frames"])}
+        pairs = np.asarray(z["contact_pairs"]).reshape(-1, 2)
+        if pairs.size and (pairs.dtype.kind not in "iu" or pairs.min() < 0 or pairs.max() >= len(names)):
+            raise ValueError(f"{z['name']}: contact_pairs: body indices must be whole numbers in 0..{len(names) - 1}, "
+                             f"got {pairs.min()}..{pairs.max()}")
+        contacts = {(names[a], names[b]): np.asarray(f, bool) for (a, b), f in zip(pairs, z["contact_frames"])}
         templates = {}
         if template_loader is not None:
             for b in bodies:

@@ -303,9 +303,15 @@ def load_raw_npz(path: str | os.PathLike, max_bytes: int = MAX_RAW_NPZ_BYTES, wh
     raw = read_regular_file(path, max_bytes, what)
     try:
         with zipfile.ZipFile(io.BytesIO(raw)) as zf:
-            claimed = sum(i.file_size for i in zf.infolist())
+            infos = zf.infolist()
+            claimed = sum(i.file_size for i in infos)
     except (zipfile.BadZipFile, ValueError, EOFError) as e:
         raise ValueError(f"{path}: not a valid .npz ({e})") from None
+    names = [i.filename for i in infos]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"{path}: member {twice[0]!r} appears twice (which copy counts would be up to the "
+                         "reader): not read")
     if claimed > max_bytes:
         raise ValueError(f"{path}: its arrays would inflate to {claimed} bytes, over the {max_bytes}-byte "
                          "limit for a raw file: not read")

@@ -13,6 +13,7 @@ import base64
 import csv
 import html
 import io
+import re
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text, read_text_file
@@ -79,18 +80,55 @@ def _context(entries: list[dict]) -> str:
     return f"protocol {', '.join(pr) or '-'}; evaluator {', '.join(ev) or '-'}; hoibench {', '.join(tv) or '-'}"
 
 
+_MD_SPECIAL = re.compile(r"([\\`*_\[\]()|!~{}])")
+
+
+def md_text(text) -> str:
+    """Entry text (method, citation, flags) for a README table cell: one line, HTML escaped
+    (no tag, image or script survives), Markdown punctuation backslash-escaped (no link, image,
+    emphasis or extra cell)."""
+    one = " ".join(str(text).split())
+    return _MD_SPECIAL.sub(r"\\\1", html.escape(one, quote=False))
+
+
+def csv_text(text) -> str:
+    """Entry text for a CSV cell: a cell a spreadsheet would read as a formula (leading ``=``,
+    ``+``, ``-``, ``@``, tab or carriage return) gets a leading apostrophe."""
+    text = str(text)
+    return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
+
+
+def plot_text(text) -> str:
+    """A method name drawn by matplotlib as plain text (``$`` would start mathtext)."""
+    return str(text).replace("$", r"\$")
+
+
+def safe_link(target: str) -> bool:
+    """Whether a link target may stay: an http(s) URL or a relative path (no ``javascript:``,
+    ``data:``, ``file:`` or any other scheme)."""
+    target = target.strip()
+    return bool(re.match(r"(?i)^https?://", target)) or not re.match(r"^[A-Za-z][A-Za-z0-9+.-]*:", target)
+
+
+def md_about(text: str) -> str:
+    """A track's ``about.md`` for README.md: its Markdown kept, raw HTML escaped, and every
+    link or image whose target is not http(s) or relative pointed at ``#``."""
+    text = html.escape(text, quote=False)
+    return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
+
+
 def markdown(track: str, entries: list[dict], about: str = "") -> str:
     cols = _columns(entries)
-    lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [_context(entries) + ". Cells: mean ± 95% CI over the protocol's "
+    lines = [f"# {track} leaderboard", ""] + ([md_about(about.strip()), ""] if about.strip() else []) + [_context(entries) + ". Cells: mean ± 95% CI over the protocol's "
              "replications. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.", "",
              "| # | method | " + " | ".join(_header(c) for c in cols) + " | flags |",
              "|---:|---|" + "|".join("---:" for _ in cols) + "|---|"]
     for i, e in enumerate(entries, 1):
-        name = f"**{e['method']}**" if e["role"] == "ground-truth" else e["method"]
+        name = f"**{md_text(e['method'])}**" if e["role"] == "ground-truth" else md_text(e["method"])
         if e["source"] == "reported":
-            name += f" ({e.get('citation')})"
+            name += f" ({md_text(e.get('citation'))})"
         lines.append(f"| {i} | {name} | " + " | ".join(fmt(e["metrics"].get(c)) for c in cols)
-                     + f" | {', '.join(_flags(e, entries))} |")
+                     + f" | {md_text(', '.join(_flags(e, entries)))} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}.", "", "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
     return "\n".join(lines)
@@ -104,9 +142,9 @@ def write_csv(entries: list[dict]) -> str:
                 "protocol", "protocol_version", "toolkit_version"]
                + [f"{n}{s}" for n in names for s in ("", "_ci95")])
     for i, e in enumerate(entries, 1):
-        row = [i, e["method"], e["role"], e["source"], e.get("citation", ""), e.get("complete", True),
-               e.get("samples_per_prompt", ""), e.get("evaluator_id", ""), e.get("protocol", ""),
-               e.get("protocol_version", ""), e.get("toolkit_version", "")]
+        row = [i] + [csv_text(e.get(k) or "") for k in ("method", "role", "source", "citation")] \
+            + [e.get("complete", True), e.get("samples_per_prompt", "")] \
+            + [csv_text(e.get(k) or "") for k in ("evaluator_id", "protocol", "protocol_version", "toolkit_version")]
         for n in names:
             m = e["metrics"].get(n)
             row += ["", ""] if m is None else [repr(float(m["mean"])), repr(float(m.get("ci95") or 0.0))]
@@ -123,7 +161,7 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     out = {}
     fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 1.6),
                              squeeze=False)
-    labels = [e["method"] for e in entries]
+    labels = [plot_text(e["method"]) for e in entries]
     colors = ["#2b6cb0" if e["role"] == "ground-truth" else ("#a0aec0" if e["source"] == "reported" else
               ("#718096" if e["role"] == "reference" else "#dd6b20")) for e in entries]
     for ax, c in zip(axes[0], cols):
@@ -147,7 +185,7 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
             continue
         ax.errorbar(max(f["mean"], 0.0), r["mean"], xerr=f.get("ci95") or 0, yerr=r.get("ci95") or 0, fmt="o",
                     color=col, capsize=3)
-        ax.annotate(e["method"], (max(f["mean"], 0.0), r["mean"]), fontsize=7, xytext=(4, 3),
+        ax.annotate(plot_text(e["method"]), (max(f["mean"], 0.0), r["mean"]), fontsize=7, xytext=(4, 3),
                     textcoords="offset points")
     ax.set_xlabel("FID ↓ (squared embedding distance)")
     ax.set_ylabel("R-precision top-1 ↑")

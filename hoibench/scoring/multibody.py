@@ -275,7 +275,10 @@ class MultiBodyScorer(Scorer):
         self.jobs = []
         for cid in ids:
             arrays = store.load(cid)
-            sample = sub.load(cid, keys=None)
+            try:
+                sample = sub.load(cid, keys=None)
+            except ValueError as exc:
+                raise ValueError(f"{self.submission}: samples/{cid}.npz: {exc}") from None
             first = next(iter(sample.values()), None)
             K = int(len(first)) if first is not None else 0
             if K < 1:

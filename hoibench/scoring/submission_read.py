@@ -59,7 +59,8 @@ class Problem:
     severity: str = "error"
 
     def __str__(self) -> str:
-        return f"{self.severity}: {self.id}: {self.field}: {self.message}"
+        from ..core.errors import printable
+        return printable(f"{self.severity}: {self.id}: {self.field}: {self.message}")
 
     def to_dict(self) -> dict:
         return asdict(self)
