@@ -323,7 +323,7 @@ def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationR
     scorer reads it (one array per body of the clip, its shape, finite values within 1 km,
     at most 50 m/s, rotation matrices)."""
     from ..bodies.multibody import MultiBodyClip
-    from .multibody import clip_from_sample, multibody_limits
+    from .multibody_samples import clip_from_sample, multibody_limits
     if protocol is None:
         from ..tracks.protocol import default_protocol
         protocol = default_protocol(st.manifest)
