@@ -77,7 +77,8 @@ def main() -> int:
         code, s, _ = run(hb + ["annotate", str(cut)])
         print(f"annotate rerun:         exit {code} in {s:.1f} s")
         diff = differing(ref / "annotations", cut / "annotations") + differing(ref / "texts", cut / "texts")
-        print(f"annotate: {'byte-identical' if not diff else 'DIFFERS: ' + ', '.join(diff[:5])}")
+        n = sum(1 for d in ("annotations", "texts") for p in (ref / d).rglob("*") if p.is_file())
+        print(f"annotate: {n} files, {'byte-identical' if not diff else 'DIFFERS: ' + ', '.join(diff[:5])}")
         bad += bool(diff)
 
         train = hb + ["train-evaluator", str(ref), "--size", "tiny", "--epochs", str(args.epochs), "--out"]
@@ -88,7 +89,8 @@ def main() -> int:
         code, s, _ = run(train + [str(tmp / "ev_cut")])
         print(f"train-evaluator rerun:         exit {code} in {s:.1f} s")
         diff = differing(tmp / "ev_ref", tmp / "ev_cut")
-        print(f"train-evaluator: {'byte-identical' if not diff else 'DIFFERS: ' + ', '.join(diff[:5])}")
+        n = sum(1 for p in (tmp / "ev_ref").rglob("*") if p.is_file() and p.name not in TIMED)
+        print(f"train-evaluator: {n} files, {'byte-identical' if not diff else 'DIFFERS: ' + ', '.join(diff[:5])}")
         bad += bool(diff)
     return 1 if bad else 0
 
