@@ -249,3 +249,14 @@ def test_a_multibody_clip_renders_as_a_strip_of_frames(track, tmp_path, capsys):
     assert (w, h) == (4 * 360, 320)
     assert main(["render", str(clip), "--out", str(tmp_path / "x.gif")]) != 0
     assert "writes .png" in capsys.readouterr().err
+
+
+def test_validate_accepts_every_reference_submission_of_a_real_multibody_store(track):
+    """``hoibench validate`` reads a multi-body submission as the scorer does (no single-body
+    checks): the ground truth and the defect rows are complete, with no problem at all."""
+    from hoibench.scoring.validate import validation_report
+    base, _, _, subs = track
+    for kind, path in subs.items():
+        rep = validation_report(path, base / "data")
+        assert rep.complete and not rep.problems, (kind, [str(p) for p in rep.problems[:3]])
+        assert rep.valid_ids == rep.test_ids and len(rep.test_ids) == 13

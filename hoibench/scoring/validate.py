@@ -73,10 +73,10 @@ def _is_number(v) -> bool:
 
 def accepted_representations(manifest: dict) -> set[str]:
     """``representation`` values a submission for this store may declare: the store's own
-    representation versions, or ``joints`` (joint positions only); ``multibody-joints`` for a
-    multi-body store; ``""`` when the store records none."""
+    representation versions, or ``joints`` (joint positions only); ``""`` too when the store
+    records none."""
     reps = {str(v) for v in (manifest.get("representations") or {}).values()}
-    return reps | {"joints"} if reps else {"", "joints", "multibody-joints"}
+    return reps | {"joints"} if reps else {"", "joints"}
 
 
 def _check_meta(meta: dict | None, store_fps: float, protocol, accepted: set[str] | None = None) -> list[Problem]:
@@ -333,7 +333,8 @@ def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationR
     own = not isinstance(sub, Submission)
     s = Submission(sub, limits=multibody_limits(st, test_ids, cap)) if own else sub
     try:
-        problems = list(s.problems) + _check_meta(s.meta, fps, None, accepted_representations(st.manifest))
+        accepted = accepted_representations(st.manifest) | {"multibody-joints"}
+        problems = list(s.problems) + _check_meta(s.meta, fps, None, accepted)
         found, valid, ks = set(s.ids), [], set()
         problems += [Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz") for sid in test_ids
                      if sid not in found]
