@@ -252,7 +252,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
     if protocol is not None and not hasattr(protocol, "fps"):
         from ..tracks.protocol import get_protocol
         protocol = get_protocol(protocol)
-    if st.is_multibody:
+    if _is_multibody(st):
         return multibody_report(sub, st, split, protocol)
     rows, fps, cap, mode = submission_context(st, protocol, split)
     limits = limits_for(rows, fps, cap)
@@ -314,6 +314,15 @@ def validation_report(sub, store, split: str = "test", protocol=None,
     finally:
         if own:
             s.close()
+
+
+def _is_multibody(st) -> bool:
+    """Whether the store holds multi-body clips; False when its first clip file cannot be read
+    (validation then needs only the manifest, as before)."""
+    try:
+        return bool(st.is_multibody)
+    except (OSError, ValueError):
+        return False
 
 
 def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationReport:
