@@ -103,10 +103,12 @@ def test_readme_and_csv_neutralise_html_markdown_links_and_formulas():
     entries = [dict(_entry(method=m, role="method"), citation="<b>c</b>") for m in evil]
     entries.append(dict(_entry(method="paper", role="method", source="reported"), citation="[x](javascript:y)"))
     md = markdown("synthetic", entries, about="[a](javascript:alert(1)) <svg onload=x> [ok](https://x.org)")
-    for bad in ("<script", "<img", "<svg", "](javascript:", "<b>"):
-        assert bad not in md, bad
-    rows = [line for line in md.splitlines() if line.startswith("| ") and "---" not in line][1:]
     import re
+    for bad in ("<script", "<img", "<svg", "<b>"):
+        assert bad not in md, bad
+    assert not re.search(r"(?<!\\)\]\(javascript:", md)              # a link needs an unescaped ']('
+    assert "\\[click\\](javascript:alert(1))" in md
+    rows = [line for line in md.splitlines() if line.startswith("| ") and "---" not in line][1:]
     cells = {len(re.findall(r"(?<!\\)\|", r)) for r in rows}        # unescaped pipes: one count for every row
     assert len(rows) == len(entries) and len(cells) == 1, rows
     assert "[ok](https://x.org)" in md_about("[ok](https://x.org)")

@@ -80,13 +80,13 @@ def _context(entries: list[dict]) -> str:
     return f"protocol {', '.join(pr) or '-'}; evaluator {', '.join(ev) or '-'}; hoibench {', '.join(tv) or '-'}"
 
 
-_MD_SPECIAL = re.compile(r"([\\`*_\[\]()|!~{}])")
+_MD_SPECIAL = re.compile(r"([\\`\[\]|])")
 
 
 def md_text(text) -> str:
     """Entry text (method, citation, flags) for a README table cell: one line, HTML escaped
-    (no tag, image or script survives), Markdown punctuation backslash-escaped (no link, image,
-    emphasis or extra cell)."""
+    (no tag, image or script survives), and the Markdown punctuation that makes links, images,
+    code or cells (backslash, backtick, brackets, pipe) backslash-escaped."""
     one = " ".join(str(text).split())
     return _MD_SPECIAL.sub(r"\\\1", html.escape(one, quote=False))
 
@@ -113,7 +113,7 @@ def safe_link(target: str) -> bool:
 def md_about(text: str) -> str:
     """A track's ``about.md`` for README.md: its Markdown kept, raw HTML escaped, and every
     link or image whose target is not http(s) or relative pointed at ``#``."""
-    text = html.escape(text, quote=False)
+    text = text.replace("&", "&amp;").replace("<", "&lt;")      # no tag; '>' stays for block quotes
     return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
 
 
