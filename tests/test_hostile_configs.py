@@ -66,7 +66,7 @@ def test_baseline_parameter_count_is_measured_without_allocating_and_refused():
     build = lambda c: spec.build_model(c, 50, 64)  # noqa: E731
     paper = spec.preset("paper")
     tiny = spec.preset("tiny")
-    assert 0 < check_parameter_count(build, tiny, paper, "config") < check_parameter_count(build, paper, paper, "c")
+    assert 0 < check_parameter_count(build, tiny, paper, "config") < 2 * 8_740_888    # EJIM's paper size
     big = tiny.replace(**{"model.d_model": 2048})      # within the field's bound, 25 x the paper size
     with pytest.raises(ValueError, match=r"card.json: config: .*parameters.*model\.d_model = 2048"):
         check_parameter_count(build, big, paper, "card.json: config")
