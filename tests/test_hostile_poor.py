@@ -176,3 +176,21 @@ def test_a_raw_npz_holding_one_member_twice_is_refused(tmp_path):
     p.write_bytes(buf.getvalue())
     with pytest.raises(ValueError, match="seq.npz: member 'trans.npy' appears twice"):
         load_raw_npz(p)
+
+
+def test_render_refuses_a_nan_sample_naming_id_and_array(tmp_path):
+    from hoibench.core.io import atomic_save_npz
+    from hoibench.publish.render import render_comparison
+    from hoibench.scoring.submission_write import write_submission
+    data = tmp_path / "data"
+    (data / "manifest.json").parent.mkdir()
+    (data / "manifest.json").write_text(json.dumps({"dataset": "synthetic", "config": {"fps": 20, "mode": "clean"},
+                                                    "clips": [{"id": "t0", "split": "test", "frames": 8}]}))
+    atomic_save_npz(data / "clips" / "t0.npz", joints=np.zeros((8, 22, 3), np.float32), fps=np.float64(20))
+    joints = np.zeros((1, 8, 22, 3), np.float32)
+    joints[0, 3, 5, 1] = np.nan
+    sub = write_submission(tmp_path / "sub", {"method": "m", "version": "1", "representation": "joints", "fps": 20},
+                           {"t0": {"joints": joints}})
+    with pytest.raises(ValueError, match=r"samples/t0.npz: joints: non-finite values \(NaN or inf\) in sample 0"):
+        render_comparison(sub, data, "t0", tmp_path / "out.png")
+    assert not (tmp_path / "out.png").exists()
