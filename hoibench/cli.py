@@ -123,6 +123,11 @@ def _cmd_prepare(args) -> int:
                        source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type},
                        warnings=warnings)
     print(summary_table(manifest))
+    counts = manifest.get("counts", {})
+    if not counts.get("clips") and counts.get("failed"):
+        print(f"hoibench prepare: error: every sequence failed ({counts['failed']}; see "
+              f"{Path(args.out) / 'errors.jsonl'}): nothing was prepared", file=sys.stderr)
+        return 1
     missing = manifest.get("incomplete") or []
     if missing:
         print(f"hoibench prepare: error: the store is incomplete: {len(missing)} raw source(s) missing or "
@@ -158,7 +163,7 @@ def _cmd_splits(args) -> int:
 
 def _cmd_export(args) -> int:
     from .datasets.export import main_export
-    return main_export(args.data, args.out, args.format)
+    return main_export(args.data, args.out, args.format, overwrite=args.overwrite)
 
 
 def _cmd_annotate(args) -> int:
@@ -424,7 +429,9 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--format", choices=["humanml3d", "hoidiff"], default="humanml3d",
                    help="the folder layout to write (default humanml3d)")
     s.add_argument("data", type=Path, help=H_STORE)
-    s.add_argument("out", type=Path, help="the folder to write")
+    s.add_argument("out", type=Path, help="the folder to write: new, empty, or an earlier export")
+    s.add_argument("--overwrite", action="store_true",
+                   help="write into a non-empty folder that is not an earlier export (same-named files are replaced)")
     s.set_defaults(func=_cmd_export)
 
     s = sub.add_parser("annotate", help="contact-aware texts and semantic groups for a store",
@@ -779,7 +786,8 @@ def _one_line(exc: BaseException) -> str:
         msg = f"{exc.filename}: {exc.strerror or exc}"
     else:
         msg = str(exc) or type(exc).__name__
-    return " ".join(msg.split())
+    from .core.errors import printable
+    return printable(" ".join(msg.split()))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -155,7 +155,7 @@ def test_signal_stops_promptly_and_a_rerun_resumes(raw, reference, tmp_path, cle
     assert not left, f"children still running: {left}"
     assert len(_clips(out)) < N_CLIPS and not (out / "manifest.json").exists()
 
-    stale = out / "clips" / ".x.npz.abc.tmp"
+    stale = out / "clips" / ".hoibench-x.npz.abc.tmp"
     stale.write_bytes(b"half a clip")
     rerun = _run(_prepare_cmd(raw, out))
     assert rerun.returncode == 0, rerun.stderr
@@ -270,17 +270,18 @@ def test_terminate_as_interrupt_raises_keyboard_interrupt_and_restores_the_handl
 
 def test_clean_stale_tmp_removes_only_atomic_write_leftovers(tmp_path):
     from hoibench.core.io import atomic_write_text, clean_stale_tmp
-    keep = [tmp_path / "a.npz", tmp_path / "b.tmp", tmp_path / ".hidden"]
+    keep = [tmp_path / "a.npz", tmp_path / "b.tmp", tmp_path / ".hidden", tmp_path / ".thesis.tex.tmp",
+            tmp_path / ".a.npz.k2j3.tmp"]      # another program's temporary files are not ours
     for p in keep:
         p.write_text("x")
-    (tmp_path / ".dir.tmp").mkdir()
-    (tmp_path / ".link.x.tmp").symlink_to(tmp_path / "a.npz")
-    stale = [tmp_path / ".a.npz.k2j3.tmp", tmp_path / ".x.npz.abc.tmp"]
+    (tmp_path / ".hoibench-dir.tmp").mkdir()
+    (tmp_path / ".hoibench-link.x.tmp").symlink_to(tmp_path / "a.npz")
+    stale = [tmp_path / ".hoibench-a.npz.k2j3.tmp", tmp_path / ".hoibench-x.npz.abc.tmp"]
     for p in stale:
         p.write_text("partial")
     assert sorted(clean_stale_tmp(tmp_path, tmp_path / "missing")) == sorted(stale)
-    assert all(p.exists() for p in keep) and (tmp_path / ".dir.tmp").is_dir()
-    assert (tmp_path / ".link.x.tmp").is_symlink() and not any(p.exists() for p in stale)
+    assert all(p.exists() for p in keep) and (tmp_path / ".hoibench-dir.tmp").is_dir()
+    assert (tmp_path / ".hoibench-link.x.tmp").is_symlink() and not any(p.exists() for p in stale)
     atomic_write_text(tmp_path / "c.txt", "y")     # its tmp name is what the cleaner matches
     assert clean_stale_tmp(tmp_path) == []
 

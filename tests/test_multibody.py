@@ -249,3 +249,30 @@ def test_a_multibody_clip_renders_as_a_strip_of_frames(track, tmp_path, capsys):
     assert (w, h) == (4 * 360, 320)
     assert main(["render", str(clip), "--out", str(tmp_path / "x.gif")]) != 0
     assert "writes .png" in capsys.readouterr().err
+
+
+def test_validate_accepts_every_reference_submission_of_a_real_multibody_store(track):
+    """``hoibench validate`` reads a multi-body submission as the scorer does (no single-body
+    checks): the ground truth and the defect rows are complete, with no problem at all."""
+    from hoibench.scoring.validate import validation_report
+    base, _, _, subs = track
+    for kind, path in subs.items():
+        rep = validation_report(path, base / "data")
+        assert rep.complete and not rep.problems, (kind, [str(p) for p in rep.problems[:3]])
+        assert rep.valid_ids == rep.test_ids and len(rep.test_ids) == 13
+
+
+def test_evaluate_reads_a_deflate_bomb_sample_within_its_budget(track, tmp_path, capsys):
+    """A 64 MiB deflate bomb as one sample: refused from its member sizes (the single-body
+    budget over the clip's own arrays), naming the sample, before anything is inflated."""
+    import shutil
+    from test_hostile_budgets import _bomb_npz
+    from hoibench.cli import main
+    base, _, _, subs = track
+    bomb = tmp_path / "bomb"
+    shutil.copytree(subs["gt"], bomb)
+    first = sorted((bomb / "samples").glob("*.npz"))[0]
+    first.write_bytes(_bomb_npz("left_hand__joints", 64 << 20))
+    assert main(["evaluate", str(bomb), "--data", str(base / "data"), "--evaluator", str(base / "rec")]) != 0
+    err = [ln for ln in capsys.readouterr().err.strip().splitlines() if not ln.startswith("[")]
+    assert len(err) == 1 and first.stem in err[0] and ("budget" in err[0] or "limit" in err[0]), err

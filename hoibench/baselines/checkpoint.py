@@ -99,7 +99,7 @@ def hardware(device) -> str:
         return f"{torch.cuda.get_device_name(dev)} (cuda)"
     model = ""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
+        for line in Path("/proc/cpuinfo").read_text().splitlines():  # read-ok: the CPU name, a kernel file
             if line.lower().startswith("model name"):
                 model = line.split(":", 1)[1].strip()
                 break

@@ -41,7 +41,7 @@ def parse_overrides(items: list[str] | None) -> dict:
         if not sep or "." not in key:
             raise ValueError(f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. train.lr=5e-4")
         try:
-            out[key.strip()] = json.loads(raw)
+            out[key.strip()] = json.loads(raw)  # read-ok: a command-line value, not a file
         except json.JSONDecodeError:
             out[key.strip()] = raw
     return out

@@ -8,11 +8,24 @@ out-of-range fields are refused naming the field.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields, is_dataclass
+from typing import Callable
 
 from .diffusion import DiffusionConfig
 
 
 TEXT_ENCODERS = ("tokens", "minilm")
+
+#: inclusive upper bound of every architecture field, by name, in every baseline's config
+#: sections: room around what the ``paper`` sizes need (CATMO's GPT: width 1024, 18 layers,
+#: 16 heads), so a re-signed card cannot make loading allocate gigabytes
+ARCH_LIMITS = {"blocks": 48, "modules": 48, "layers": 48, "depth": 16, "text_layers": 12, "d_model": 4096,
+               "d_text": 4096, "width": 4096, "hidden": 4096, "code_dim": 4096, "heads": 64, "ff_mult": 8,
+               "expand": 8, "d_state": 256, "d_conv": 31, "temporal_kernel": 31, "dilation_growth": 8,
+               "object_points": 8192, "object_tokens": 512, "object_knn": 512, "text_max_tokens": 512,
+               "max_tokens": 512, "motion_codes": 16384, "contact_codes": 16384, "window": 4096, "max_units": 1024,
+               "max_frames": 4096, "batch_size": 4096, "contact_points": 65536}
+#: a config's parameters may be at most this multiple of its baseline's ``paper`` size's
+MAX_PARAMETER_FACTOR = 2
 
 
 def check_ints(cfg, names: tuple[str, ...], section: str, lo: int = 1, hi: int = 10_000_000) -> None:
@@ -21,6 +34,46 @@ def check_ints(cfg, names: tuple[str, ...], section: str, lo: int = 1, hi: int =
         v = getattr(cfg, name)
         if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi):
             raise ValueError(f"{section}.{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+
+
+def check_architecture(cfg, section: str) -> None:
+    """ValueError naming ``section.field`` for a field of :data:`ARCH_LIMITS` over its bound."""
+    for f in fields(cfg):
+        if f.name in ARCH_LIMITS:
+            check_ints(cfg, (f.name,), section, lo=1, hi=ARCH_LIMITS[f.name])
+
+
+def meta_parameters(build: Callable[[], object]) -> int:
+    """Parameters of the module ``build()`` makes, built on torch's ``meta`` device (shapes
+    only, nothing allocated)."""
+    import torch
+    with torch.device("meta"):
+        module = build()
+    return int(sum(p.numel() for p in module.parameters()))
+
+
+def check_parameter_count(build: Callable[[object], object], cfg, paper, where: str) -> int:
+    """The parameter count of ``build(cfg)``, measured without allocating; ValueError naming
+    the fields larger than the ``paper`` config's when it exceeds :data:`MAX_PARAMETER_FACTOR`
+    times ``build(paper)``'s."""
+    n = meta_parameters(lambda: build(cfg))
+    limit = MAX_PARAMETER_FACTOR * meta_parameters(lambda: build(paper))
+    if n > limit:
+        a, b = _flat_ints(cfg.to_dict()), _flat_ints(paper.to_dict())
+        larger = [f"{k} = {v}" for k, v in a.items() if k in b and v > b[k] and k.split(".")[0] != "train"]
+        raise ValueError(f"{where}: {n:,} parameters, over {MAX_PARAMETER_FACTOR} x the paper size's ({limit:,}; "
+                         f"larger than paper: {', '.join(larger[:4]) or 'none'}): refused before allocating")
+    return n
+
+
+def _flat_ints(d: dict, prefix: str = "") -> dict[str, int]:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat_ints(v, f"{prefix}{k}."))
+        elif isinstance(v, int) and not isinstance(v, bool):
+            out[f"{prefix}{k}"] = v
+    return out
 
 
 def check_conditioning(cfg) -> None:
@@ -92,6 +145,7 @@ class TrainConfig:
         check_ints(self, ("steps",), "train", lo=0)
         check_ints(self, ("batch_size", "max_frames", "min_frames", "contact_points", "checkpoint_every", "log_every"),
                    "train")
+        check_architecture(self, "train")
         if not 0 < self.lr < 1:
             raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
         if not 0 <= self.ema_decay < 1:
@@ -113,6 +167,7 @@ class RunConfig:
     def __post_init__(self) -> None:
         if not is_dataclass(self.model):
             raise ValueError(f"config.model: expected a model config dataclass, got {type(self.model).__name__}")
+        check_architecture(self.model, "model")
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "model": asdict(self.model), "train": asdict(self.train),

@@ -24,8 +24,10 @@ import torch
 
 from .. import __version__
 from ..core.errors import HoibenchError
+from .config import check_parameter_count
 from ..core.interrupts import check_interrupted
-from ..core.io import atomic_save_figure, atomic_torch_save, atomic_write_json, clean_stale_tmp, finished_output
+from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_save_figure, atomic_torch_save, atomic_write_json, check_regular_file,
+                       clean_stale_tmp, finished_output, read_json_file)
 from ..datasets.store import Store, legacy_manifest_sha256
 from . import checkpoint as ckpt
 from . import joint_data as D
@@ -128,8 +130,10 @@ def mesh_batch(ts: TrainingSet, items: list, wins: list, starts: list[int], Lmax
 
 
 def build_model(spec: Spec, cfg: RunConfig, text: TextConditioner, seed: int):
+    vocab = len(text.vocab or [])
+    check_parameter_count(lambda c: spec.build_model(c, vocab, text.width), cfg, spec.preset("paper"), "config")
     torch.manual_seed(_seed(seed, "init"))
-    return spec.build_model(cfg, len(text.vocab or []), text.width)
+    return spec.build_model(cfg, vocab, text.width)
 
 
 # ------------------------------------------------------------------------------ training
@@ -195,7 +199,8 @@ def read_checkpoint(path: Path, ident: dict, device, restore: Callable[[dict], A
     fields equal ``ident``; :class:`RunFolderError` naming the file for an unreadable
     checkpoint, another run's, or one ``restore`` cannot apply."""
     try:
-        ck = torch.load(path, map_location=device, weights_only=True)
+        check_regular_file(path, "training checkpoint")
+        ck = torch.load(path, map_location=device, weights_only=True)  # read-ok: weights_only, regular file checked
     except Exception as exc:                  # torch raises many types for a bad file
         raise ckpt.RunFolderError(f"{path}: not a readable training checkpoint ({type(exc).__name__}); delete it to "
                                   f"restart training") from None
@@ -223,7 +228,7 @@ def drop_checkpoint(cpath: Path) -> None:
 def _load_checkpoint(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device
                      ) -> tuple[int, list[dict], dict]:
     def restore(ck: dict) -> tuple[int, list[dict], dict]:
-        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))
+        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))  # read-ok: checkpoint strings
         if not 0 < step <= steps:
             raise ValueError(f"step {step} outside 1..{steps}")
         model.load_state_dict(ck["model"])
@@ -392,6 +397,6 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)
-    card = json.loads((out / ckpt.CARD).read_text())
+    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "checkpoint card")
     log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
     return TrainResult(out, cid, card, seconds, resumed_from=start)

@@ -107,7 +107,8 @@ def load_contact_thresholds(path=None) -> dict:
     if not p.is_file():
         raise FileNotFoundError(f"contact thresholds: no file at {p} (set HOIBENCH_ANNOTATORS_DIR "
                                 "or pass path=)")
-    spec = json.loads(p.read_text())
+    from ..core.io import read_json_file
+    spec = read_json_file(p, what="contact thresholds")
     for key in ("version", "modes"):
         if key not in spec:
             raise ValueError(f"contact thresholds {p}: missing key {key!r}")

@@ -27,7 +27,6 @@ and the clip files every store already holds) is the one-human-one-object case:
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -159,17 +158,29 @@ class MultiBodyClip:
                                np.asarray(z[f"body{i}_rot"], np.float64) if f"body{i}_rot" in z else None,
                                np.asarray(z[f"body{i}_joints"], np.float64) if f"body{i}_joints" in z else None,
                                tmpl or None, side or None, owner or None))
-        contacts = {(names[a], names[b]): np.asarray(f, bool)
-                    for (a, b), f in zip(np.asarray(z["contact_pairs"]).reshape(-1, 2), z["contact_frames"])}
+        pairs = np.asarray(z["contact_pairs"]).reshape(-1, 2)
+        if pairs.size and (pairs.dtype.kind not in "iu" or pairs.min() < 0 or pairs.max() >= len(names)):
+            raise ValueError(f"{z['name']}: contact_pairs: body indices must be whole numbers in 0..{len(names) - 1}, "
+                             f"got {pairs.min()}..{pairs.max()}")
+        contacts = {(names[a], names[b]): np.asarray(f, bool) for (a, b), f in zip(pairs, z["contact_frames"])}
         templates = {}
         if template_loader is not None:
             for b in bodies:
                 if b.template and b.template not in templates:
                     templates[b.template] = template_loader(b.template)
-        texts = [json.loads(str(t)) for t in z["texts"]] if "texts" in z else []
-        prov = json.loads(str(z["provenance"])) if "provenance" in z else {}
+        texts, prov = _json_fields(z)
         return cls(str(z["name"]), str(z["dataset"]), str(z["subject"]), float(z["fps"]), bodies, templates,
                    contacts, str(z["action"]) or None, texts, None, prov)
+
+
+def _json_fields(z) -> tuple[list, dict]:
+    """The clip's ``texts`` and ``provenance`` JSON strings, parsed strictly (a deep or
+    malformed string is a one-line error naming the clip and field)."""
+    from ..core.io import load_json_bytes
+    name = str(z["name"]) if "name" in z else "clip"
+    texts = [load_json_bytes(str(t), f"{name}: texts") for t in z["texts"]] if "texts" in z else []
+    prov = load_json_bytes(str(z["provenance"]), f"{name}: provenance") if "provenance" in z else {}
+    return texts, prov
 
 
 def is_multibody_arrays(z) -> bool:
@@ -197,8 +208,7 @@ def from_hoi_arrays(z: dict, template_loader: Callable[[str], tuple[np.ndarray, 
                 templates[name] = template_loader(name)
         if "contacts" in z:
             contacts[("human", parts[0][0])] = np.asarray(z["contacts"], bool).any(-1)
-    texts = [json.loads(str(t)) for t in z["texts"]] if "texts" in z else []
-    prov = json.loads(str(z["provenance"])) if "provenance" in z else {}
+    texts, prov = _json_fields(z)
     return MultiBodyClip(str(z.get("name", "")), str(z.get("dataset", "")), str(z.get("subject", "")),
                          float(z.get("fps", 20.0)), bodies, templates, contacts, None, texts, None, prov)
 
@@ -208,8 +218,10 @@ def check_clip(clip: MultiBodyClip) -> None:
     kinds, per-frame arrays over one frame count, finite values, rotation matrices, hands
     with a side, objects with a known template, contact pairs naming its bodies. Errors name
     the clip, the body and the field."""
-    from ..core.plausibility import ImplausibleDataError, check_rotations, real_array
+    from ..core.plausibility import (ImplausibleDataError, check_fps, check_positions, check_rotations, check_speed,
+                                     real_array)
     where = check_id(clip.name, "clip name")
+    fps = check_fps(clip.fps, "fps", where)
     if not clip.bodies:
         raise ImplausibleDataError(f"{where}: bodies: a clip needs at least one body")
     T = clip.bodies[0].num_frames
@@ -225,6 +237,8 @@ def check_clip(clip: MultiBodyClip) -> None:
         t = real_array(b.trans, "trans", at)
         if t.shape != (T, 3):
             raise ImplausibleDataError(f"{at}: trans: expected ({T}, 3), got {t.shape}")
+        check_positions(t, "trans", at)
+        check_speed(t, "trans", at, fps=fps)
         if b.rot is not None:
             R = check_rotations(b.rot, "rot", at)
             if len(R) != T:
@@ -241,6 +255,7 @@ def check_clip(clip: MultiBodyClip) -> None:
             if J is None or J.shape != (T, want, 3):
                 raise ImplausibleDataError(f"{at}: joints: expected ({T}, {want}, 3), got "
                                            f"{None if J is None else J.shape}")
+            check_positions(J, "joints", at)
         if b.kind == "hand" and b.side not in ("left", "right"):
             raise ImplausibleDataError(f"{at}: side: expected 'left' or 'right', got {b.side!r}")
     names = {b.name for b in clip.bodies}

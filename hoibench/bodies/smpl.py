@@ -229,9 +229,9 @@ def clip_hand_convention(clip: dict) -> bool:
     convention), True otherwise."""
     if "flat_hand_mean" in clip:
         return bool(np.asarray(clip["flat_hand_mean"]))
-    import json
+    from ..core.io import load_json_bytes
     try:
-        prov = json.loads(str(clip.get("provenance", "{}")))
+        prov = load_json_bytes(str(clip.get("provenance", "{}")), "provenance")
     except ValueError:
         prov = {}
     return not (isinstance(prov, dict) and prov.get("source") == "rich")

@@ -34,6 +34,8 @@ REQUIRED_KEYS = ("version", "title", "terms", "pages", "tasks", "phases", "leade
 PHASE_LIMITS = {"dev": {"max_submissions_per_day": 5, "max_submissions": 100},
                 "test": {"max_submissions_per_day": 1, "max_submissions": 2}}
 SCORING_COMMAND = "python3 /app/program/score.py /app/input /app/output"
+#: the largest bundle :func:`check_bundle` reads
+MAX_BUNDLE_BYTES = 64 * 1024 ** 3
 #: Codabench column titles and keys are at most 36 characters
 MAX_KEY = 36
 
@@ -139,7 +141,7 @@ def _zip_folder(folder: Path) -> bytes:
             info = zipfile.ZipInfo(p.relative_to(folder).as_posix(), (1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
-            z.writestr(info, p.read_bytes())
+            z.writestr(info, p.read_bytes())  # read-ok: files this function's caller just wrote
     return buf.getvalue()
 
 
@@ -205,14 +207,19 @@ def check_bundle(path: str | Path) -> list[str]:
     scoring program with a ``command``. Empty when it would unpack."""
     import yaml
     probs: list[str] = []
-    with zipfile.ZipFile(path) as z:
+    from ..core.io import read_regular_file
+    data = read_regular_file(path, MAX_BUNDLE_BYTES, "bundle")
+    with zipfile.ZipFile(io.BytesIO(data)) as z:  # read-ok: bytes read through the guarded reader
         names = set(z.namelist())
+        big = [i.filename for i in z.infolist() if i.filename.endswith((".yaml", ".md")) and i.file_size > 1 << 20]
+        if big:
+            return [f"{big[0]}: over 1 MiB"]
         for f in REQUIRED_FILES:
             if f not in names:
                 probs.append(f"missing file {f}")
         if "competition.yaml" not in names:
             return probs
-        comp = yaml.safe_load(z.read("competition.yaml"))
+        comp = yaml.safe_load(z.read("competition.yaml"))  # read-ok: size checked above; safe_load builds plain data
         for k in REQUIRED_KEYS:
             if k not in comp:
                 probs.append(f"competition.yaml: missing key {k}")
@@ -233,7 +240,9 @@ def check_bundle(path: str | Path) -> list[str]:
                 probs.append(f"task {t.get('index')}: no scoring program")
             elif t["scoring_program"] in names:
                 with zipfile.ZipFile(io.BytesIO(z.read(t["scoring_program"]))) as sp:
-                    meta = yaml.safe_load(sp.read("metadata.yaml")) if "metadata.yaml" in sp.namelist() else None
+                    meta = (yaml.safe_load(sp.read("metadata.yaml"))  # read-ok: plain data from the bundle's own member
+                            if "metadata.yaml" in sp.namelist() and sp.getinfo("metadata.yaml").file_size < 1 << 16
+                            else None)
                     if not isinstance(meta, dict) or not meta.get("command"):
                         probs.append(f"task {t.get('index')}: scoring program without metadata.yaml command")
         for p in comp.get("phases", []):

@@ -32,8 +32,10 @@ def main_challenge(args) -> int:
     from ..publish.leaderboard_commands import resolve_root
     from .engine_results import add_hosted_rows
     try:
-        with zipfile.ZipFile(args.bundle) as z:
-            info = json.loads(z.read("challenge.json"))
+        with zipfile.ZipFile(args.bundle) as z:  # read-ok: only challenge.json is read, capped at 1 MiB
+            if z.getinfo("challenge.json").file_size > 1 << 20:
+                raise ValueError(f"{args.bundle}: challenge.json over 1 MiB")
+            info = json.loads(z.read("challenge.json"))  # read-ok: the capped member above
     except (KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
         raise ValueError(f"{args.bundle}: not a hoibench challenge bundle (challenge.json: {exc})") from None
     written, refused = add_hosted_rows(args.export, info, track_folder(resolve_root(args.root), args.track),

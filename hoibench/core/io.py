@@ -1,7 +1,13 @@
-"""Atomic file writes: write to a temporary file in the target folder, then rename.
+"""Atomic file writes and the one guarded reader.
 
-A crash never leaves a half-written file under the final name, so interrupted runs can
-resume by checking which outputs exist.
+Writes go to a temporary file in the target folder, then a rename: a crash never leaves a
+half-written file under the final name, so interrupted runs can resume by checking which
+outputs exist. Files are created with the usual ``0666 & ~umask`` permissions.
+
+Reads of files a user names or raw data holds go through :func:`read_regular_file` (and the
+helpers built on it): regular files only, opened without blocking, within a byte budget per
+kind of file (the ``MAX_*`` constants below). ``tests/test_guarded_reads.py`` fails on a read
+elsewhere in the package that does not say why it may bypass them.
 """
 from __future__ import annotations
 
@@ -16,11 +22,34 @@ from pathlib import Path
 import numpy as np
 
 
+#: prefix of every temporary file the toolkit writes (``.hoibench-<name>.<random>.tmp``):
+#: stale-temp cleanup removes only names with it, never another program's ``.*.tmp``
+TMP_PREFIX = ".hoibench-"
+
+
+def current_umask() -> int:
+    """The process umask, read without changing it where the platform says it
+    (``/proc/self/status``), else by the set-and-restore idiom."""
+    try:
+        for line in read_regular_file("/proc/self/status", 1 << 20, "process status").decode().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (ValueError, IndexError):
+        pass
+    mask = os.umask(0o22)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file renamed into place; the file gets
+    ``0666 & ~umask`` (``mkstemp`` alone would leave it ``0600``)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        if hasattr(os, "fchmod"):
+            os.fchmod(fd, 0o666 & ~current_umask())
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -34,8 +63,9 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
 
 
 def is_atomic_tmp(name: str) -> bool:
-    """Whether ``name`` is a temporary file of :func:`atomic_write_bytes` (``.<name>.*.tmp``)."""
-    return name.startswith(".") and name.endswith(".tmp") and len(name) > len("..tmp")
+    """Whether ``name`` is a temporary file of :func:`atomic_write_bytes`
+    (``.hoibench-<name>.<random>.tmp``); another program's ``.<name>.tmp`` is not."""
+    return name.startswith(TMP_PREFIX) and name.endswith(".tmp") and len(name) > len(TMP_PREFIX) + len(".tmp")
 
 
 def clean_stale_tmp(*folders: str | os.PathLike) -> list[Path]:
@@ -164,8 +194,9 @@ def read_regular_file(path: str | os.PathLike, max_bytes: int | None = None, wha
         os.close(fd)
 
 
-def load_json_bytes(raw: bytes, source: str | os.PathLike) -> object:
-    """Strict JSON from bytes: UTF-8, no ``NaN``/``Infinity`` tokens, bounded nesting.
+def load_json_bytes(raw: bytes | str, source: str | os.PathLike) -> object:
+    """Strict JSON from bytes (or text): UTF-8, no ``NaN``/``Infinity`` tokens, no key twice
+    in one object, bounded nesting.
     ``ValueError`` naming ``source`` otherwise (deep nesting raises ``RecursionError`` in
     the standard parser; reported as such, never as a traceback)."""
     def _no_constants(tok: str):
@@ -176,8 +207,16 @@ def load_json_bytes(raw: bytes, source: str | os.PathLike) -> object:
         if value in (float("inf"), float("-inf")):
             raise ValueError(f"the number {text[:40]} overflows a float (numbers must be finite)")
         return value
+    def _unique(pairs: list) -> dict:
+        out = {}
+        for key, value in pairs:
+            if key in out:
+                raise ValueError(f"duplicate key {key!r:.60} (a JSON object names each key once)")
+            out[key] = value
+        return out
     try:
-        return json.loads(raw.decode("utf-8"), parse_constant=_no_constants, parse_float=_finite)
+        text = raw.decode("utf-8") if isinstance(raw, (bytes, bytearray)) else str(raw)
+        return json.loads(text, parse_constant=_no_constants, parse_float=_finite, object_pairs_hook=_unique)
     except RecursionError:
         raise ValueError(f"{source}: JSON nested too deeply: not read") from None
     except UnicodeDecodeError as e:
@@ -186,9 +225,55 @@ def load_json_bytes(raw: bytes, source: str | os.PathLike) -> object:
         raise ValueError(f"{source}: not valid JSON: {e}") from None
 
 
-def read_json_file(path: str | os.PathLike, max_bytes: int = 64 * 1024 ** 2, what: str = "JSON file") -> object:
+#: budgets of the guarded reader per kind of file (bytes)
+MAX_JSON_BYTES = 64 * 1024 ** 2          # manifests, split files, label files, indexes
+MAX_SMALL_JSON_BYTES = 1024 ** 2         # one record: info.json, multicam2world, cards, configs, annotations
+MAX_TEXT_BYTES = 16 * 1024 ** 2          # split lists, caption files, a track's about.md
+MAX_CLIP_BYTES = 256 * 1024 ** 2         # one clip or sample array file of a store or export
+
+
+def read_json_file(path: str | os.PathLike, max_bytes: int = MAX_JSON_BYTES, what: str = "JSON file") -> object:
     """:func:`read_regular_file` + :func:`load_json_bytes`."""
     return load_json_bytes(read_regular_file(path, max_bytes, what), path)
+
+
+def read_text_file(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "text file") -> str:
+    """UTF-8 text of a regular file of at most ``max_bytes``; ``ValueError`` naming the file."""
+    raw = read_regular_file(path, max_bytes, what)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: {what} is not UTF-8 text ({e.reason} at byte {e.start})") from None
+
+
+def load_npy_file(path: str | os.PathLike, max_bytes: int = MAX_CLIP_BYTES, what: str = "array file"):
+    """One plain ``.npy`` array (no pickles) of a regular file of at most ``max_bytes``."""
+    raw = read_regular_file(path, max_bytes, what)
+    try:
+        arr = np.load(io.BytesIO(raw), allow_pickle=False)
+    except Exception as e:  # not an .npy, pickled objects, truncated
+        raise ValueError(f"{path}: {what} is not a plain .npy array ({type(e).__name__}: "
+                         f"{str(e).split('.')[0][:120]})") from None
+    if not isinstance(arr, np.ndarray):
+        raise ValueError(f"{path}: {what} is an .npz archive, not one .npy array")
+    return arr
+
+
+def sha256_regular_file(path: str | os.PathLike, h=None, what: str = "file"):
+    """Feed the bytes of a regular file to ``h`` (a new sha256 when None) in 1 MiB chunks,
+    without a size budget (hashing holds no more than a chunk); refuses special files."""
+    import hashlib
+    h = hashlib.sha256() if h is None else h
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    try:
+        _refuse_special(os.fstat(fd).st_mode, path, what)
+        while True:
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                return h
+            h.update(chunk)
+    finally:
+        os.close(fd)
 
 
 #: raw capture arrays (.npz) may hold at most this much, compressed or not: a BEHAVE
@@ -209,21 +294,29 @@ def check_regular_file(path: str | os.PathLike, what: str = "file") -> Path:
     return Path(path)
 
 
-def load_raw_npz(path: str | os.PathLike, max_bytes: int = MAX_RAW_NPZ_BYTES, what: str = "file") -> dict:
+def load_raw_npz(path: str | os.PathLike, max_bytes: int = MAX_RAW_NPZ_BYTES, what: str = "file",
+                 keys=None) -> dict:
     """Arrays of a raw ``.npz`` (no pickles) read within ``max_bytes``: the file must be
     regular and no larger, and its members' declared uncompressed sizes together no larger
-    (a deflate bomb is refused before anything is inflated). ``ValueError`` naming the file."""
+    (a deflate bomb is refused before anything is inflated). ``keys``: only those members.
+    ``ValueError`` naming the file."""
     raw = read_regular_file(path, max_bytes, what)
     try:
         with zipfile.ZipFile(io.BytesIO(raw)) as zf:
-            claimed = sum(i.file_size for i in zf.infolist())
+            infos = zf.infolist()
+            claimed = sum(i.file_size for i in infos)
     except (zipfile.BadZipFile, ValueError, EOFError) as e:
         raise ValueError(f"{path}: not a valid .npz ({e})") from None
+    names = [i.filename for i in infos]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"{path}: member {twice[0]!r} appears twice (which copy counts would be up to the "
+                         "reader): not read")
     if claimed > max_bytes:
         raise ValueError(f"{path}: its arrays would inflate to {claimed} bytes, over the {max_bytes}-byte "
                          "limit for a raw file: not read")
     with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
+        return {k: z[k] for k in z.files if keys is None or k in keys}
 
 
 def atomic_save_figure(fig, path: str | os.PathLike, dpi: int = 100) -> Path:

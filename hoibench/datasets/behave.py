@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.io import MAX_RAW_MESH_BYTES, check_regular_file, load_raw_npz, read_json_file
+from ..core.io import MAX_RAW_MESH_BYTES, MAX_SMALL_JSON_BYTES, check_regular_file, load_raw_npz, read_json_file
 
 from ..core import geometry as geo
 from ..core import plausibility as pl
@@ -371,7 +371,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         except SequenceError as exc:
             split, loader, args = "unknown", fail_unit, (str(exc),)
         try:
-            obj = json.loads((seq / "info.json").read_text()).get("cat") or parse_name(name).object
+            obj = read_json_file(seq / "info.json", MAX_SMALL_JSON_BYTES, "info.json").get("cat") or parse_name(name).object
             template = object_template_path(root / "objects", obj)
         except Exception:   # the unit reports the reason when it loads
             template = seq / "<no template>"

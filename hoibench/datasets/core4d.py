@@ -302,6 +302,16 @@ def _size_checked(path: Path, rel: str, limit: int, where: str) -> None:
         raise SequenceError(f"{where}: {rel}: {size} bytes, over the {limit}-byte limit: not read")
 
 
+def _guarded_bytes(path: Path, limit: int, rel: str, where: str):
+    """The file's bytes (regular file, at most ``limit``) as a stream for ``np.load``."""
+    import io
+    from ..core.io import read_regular_file
+    try:
+        return io.BytesIO(read_regular_file(path, limit, rel))
+    except ValueError as exc:
+        raise SequenceError(f"{where}: {exc}") from None
+
+
 def _key(data: dict, key: str, rel: str, where: str) -> np.ndarray:
     if key not in data:
         raise SequenceError(f"{where}: {rel}: missing key {key!r}")
@@ -332,7 +342,7 @@ def read_person_file(path: str | Path, where: str = "") -> dict[str, np.ndarray]
     where = where or f"{path.parent.parent.name}.{path.parent.name}"
     _size_checked(path, rel, MAX_PERSON_FILE_BYTES, where)
     try:
-        with np.load(path, allow_pickle=True) as z:
+        with np.load(_guarded_bytes(path, MAX_PERSON_FILE_BYTES, rel, where), allow_pickle=True) as z:  # read-ok: CORE4D person files are pickles (own download, docs/security.md)
             if "arr_0" not in z.files:
                 raise SequenceError(f"{where}: {rel}: missing key 'arr_0' (CORE4D's person files are np.savez "
                                     f"of one dict; members: {z.files[:6]})")
@@ -379,7 +389,7 @@ def read_object_poses(path: str | Path, where: str = "") -> tuple[np.ndarray, np
     where = where or f"{path.parent.parent.name}.{path.parent.name}"
     _size_checked(path, rel, MAX_POSE_FILE_BYTES, where)
     try:
-        raw = np.load(path, allow_pickle=False)
+        raw = np.load(_guarded_bytes(path, MAX_POSE_FILE_BYTES, rel, where), allow_pickle=False)  # read-ok: bytes read by _guarded_bytes
     except Exception as exc:
         raise SequenceError(f"{where}: {rel}: unreadable ({type(exc).__name__}: {str(exc)[:160]})") from None
     if not isinstance(raw, np.ndarray):

@@ -31,11 +31,14 @@ import numpy as np
 
 from ..core.geometry import matrix_to_axis_angle
 from ..core.ids import check_id
-from ..core.io import atomic_save_npy, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text
+from ..core.io import (atomic_save_npy, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text,
+                       load_npy_file, read_text_file)
 from ..representations import hml263
 from .store import Store
 
 FORMATS = ("humanml3d", "hoidiff")
+#: the report every export writes last: a folder holding it is an earlier export
+REPORT = "hoibench_export.json"
 
 
 def _checked_ids(store: Store) -> dict[str | None, list[str]]:
@@ -49,15 +52,30 @@ def _checked_ids(store: Store) -> dict[str | None, list[str]]:
 
 def _texts(store: Store, clip_id: str) -> str | None:
     path = store.root / "texts" / f"{clip_id}.txt"
-    return path.read_text() if path.exists() else None
+    return read_text_file(path, what="caption file") if path.exists() else None
 
 
-def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
-    """Write ``data`` (a store) to ``out`` in ``fmt``; returns a report (counts, missing texts)."""
+def check_export_out(out: Path, overwrite: bool = False) -> None:
+    """``out`` must be new, empty, or an earlier export (it holds ``hoibench_export.json``);
+    FileExistsError otherwise, unless ``overwrite`` (files of the same names are replaced)."""
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out}: exists and is not a folder; choose a new folder")
+    if out.is_dir() and not overwrite and not (out / REPORT).is_file():
+        held = sorted(p.name for p in out.iterdir())
+        if held:
+            raise FileExistsError(f"{out}: not empty and not an earlier export (holds {', '.join(held[:3])}"
+                                  f"{'...' if len(held) > 3 else ''}); choose a new folder, or pass --overwrite "
+                                  f"to replace files of the same names")
+
+
+def export(data: str | Path, out: str | Path, fmt: str = "humanml3d", overwrite: bool = False) -> dict:
+    """Write ``data`` (a store) to ``out`` in ``fmt``; returns a report (counts, missing texts).
+    ``out`` must be new, empty or an earlier export unless ``overwrite`` (:func:`check_export_out`)."""
     if fmt not in FORMATS:
         raise ValueError(f"--format: expected one of {FORMATS}, got {fmt!r}")
-    store = Store(data)
     out = Path(out)
+    check_export_out(out, overwrite)
+    store = Store(data)
     ids = _checked_ids(store)
     no_text: list[str] = []
     if fmt == "humanml3d":
@@ -104,7 +122,7 @@ def export(data: str | Path, out: str | Path, fmt: str = "humanml3d") -> dict:
         atomic_save_npy(root / "Std_local.npy", stats.std)
     report = {"format": fmt, "clips": len(store.clip_ids()), "missing_texts": no_text,
               "source_manifest": {k: store.manifest[k] for k in ("dataset", "toolkit_version", "representations")}}
-    atomic_write_json(out / "hoibench_export.json", report)
+    atomic_write_json(out / REPORT, report)
     return report
 
 
@@ -137,7 +155,7 @@ def read_humanml3d(root: str | Path) -> dict[str, dict]:
         p = root / f"{split}.txt"
         if not p.exists():
             continue
-        for line in p.read_text().splitlines():
+        for line in read_text_file(p, what="split list").splitlines():
             cid = line.strip()
             if not cid:
                 continue
@@ -150,18 +168,19 @@ def read_humanml3d(root: str | Path) -> dict[str, dict]:
         texts = []
         tp = root / "texts" / f"{cid}.txt"
         if tp.exists():
-            for line in tp.read_text().splitlines():
+            for line in read_text_file(tp, what="caption file").splitlines():
                 parts = line.strip().split("#")
                 if len(parts) != 4:
                     raise ValueError(f"{tp}: expected caption#tokens#start#end, got {line!r}")
                 texts.append((parts[0], parts[1].split(" "), float(parts[2]), float(parts[3])))
-        out[cid] = {"features": np.load(root / "new_joint_vecs" / f"{cid}.npy"),
-                    "joints": np.load(root / "new_joints" / f"{cid}.npy"), "texts": texts, "split": split}
+        out[cid] = {"features": load_npy_file(root / "new_joint_vecs" / f"{cid}.npy", what="feature file"),
+                    "joints": load_npy_file(root / "new_joints" / f"{cid}.npy", what="joint file"), "texts": texts,
+                    "split": split}
     return out
 
 
-def main_export(data: str | Path, out: str | Path, fmt: str) -> int:
-    report = export(data, out, fmt)
+def main_export(data: str | Path, out: str | Path, fmt: str, overwrite: bool = False) -> int:
+    report = export(data, out, fmt, overwrite)
     print(f"exported {report['clips']} clips to {out} ({fmt}); "
           f"{len(report['missing_texts'])} without texts")
     return 0

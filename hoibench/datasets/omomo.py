@@ -139,7 +139,7 @@ def read_pickle(path: str | Path) -> Any:
         raise ImportError("reading OMOMO's pickles needs the 'joblib' package: pip install joblib") from exc
     from ..core.io import check_regular_file
     check_regular_file(path, "OMOMO pickle")
-    return joblib.load(str(path))
+    return joblib.load(str(path))  # read-ok: OMOMO's release is a pickle (own download, docs/security.md)
 
 
 @lru_cache(maxsize=64)
@@ -180,7 +180,7 @@ def _check_beta_capacity(model, betas: np.ndarray, body_models, gender: str, nam
     found = f"the model has {nb} shape components"
     if path.suffix == ".npz":
         try:
-            with np.load(path, allow_pickle=False) as z:
+            with np.load(path, allow_pickle=False, mmap_mode="r") as z:  # read-ok: the user's SMPL-X model file
                 k = int(z["shapedirs"].shape[-1])
             found = (f"its shapedirs has {k} components (SMPL-X v1.0 layout: 10 shape + 10 expression)" if k < 400
                      else f"its shapedirs has {k} components")
@@ -222,10 +222,11 @@ def _text(seq: dict, key: str, name: str) -> str:
 def _texts(path: str | None, name: str) -> list[dict]:
     if not path or not Path(path).exists():
         return []
+    from ..core.io import read_json_file
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SequenceError(f"{name}: {Path(path).name}: invalid JSON ({exc})") from None
+        data = read_json_file(path, what="OMOMO text file")
+    except ValueError as exc:
+        raise SequenceError(f"{name}: {exc}") from None
     value = data.get(name) if isinstance(data, dict) else None
     if value is None:
         raise SequenceError(f"{name}: {Path(path).name}: no entry for {name!r}")

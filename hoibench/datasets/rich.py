@@ -85,6 +85,7 @@ from ..core import geometry as geo
 from ..core import plausibility as pl
 from ..core.ids import InvalidIdError, check_id
 from ..core.skeleton import NUM_JOINTS
+from ..core.io import read_json_file, read_text_file
 from .behave import SequenceError, _lerp, _slerp_resample, load_split_file
 from .omomo import ZUP_TO_YUP
 from .sequence import BodyParams, HOISequence
@@ -195,7 +196,7 @@ def _npz_weights(root: Path, model_type: str, shape: tuple) -> tuple[np.ndarray,
         p = root / model_type / f"{MODEL_FILE_PREFIX[model_type]}_{g}.npz"
         if p.is_file():
             try:
-                with np.load(p, allow_pickle=False) as z:
+                with np.load(p, allow_pickle=False) as z:  # read-ok: the user's body model file (is_file checked)
                     w = np.asarray(z["weights"], dtype=np.float64)
                 if w.shape[:len(shape)] == shape:
                     return w, f"{model_type}/{p.name}"
@@ -232,8 +233,8 @@ def read_deftrafo(path: str | Path) -> np.ndarray:
     path = Path(path)
     check_regular_file(path, "deformation transfer setup")
     try:
-        with open(path, "rb") as fh:
-            setup = pickle.load(fh, encoding="latin1")
+        with open(path, "rb") as fh:  # read-ok: SMPL-X's own pickle, own download (docs/security.md)
+            setup = pickle.load(fh, encoding="latin1")  # read-ok: SMPL-X's own pickle, own download
         mat = setup["mtx"] if "mtx" in setup else setup["matrix"]
         mat = np.asarray(mat.todense() if hasattr(mat, "todense") else mat, dtype=np.float64)
     except Exception as exc:
@@ -353,8 +354,8 @@ def _unpickle(path: Path, seq: str, data_root: Path):
     try:
         from ..core.io import check_regular_file
         check_regular_file(path, "RICH pickle")
-        with open(path, "rb") as fh:
-            return pickle.load(fh, encoding="latin1")
+        with open(path, "rb") as fh:  # read-ok: RICH's release is pickles (own download, docs/security.md)
+            return pickle.load(fh, encoding="latin1")  # read-ok: RICH's release is pickles (own download)
     except Exception as exc:
         raise SequenceError(f"{seq}: {rel}: unreadable pickle ({type(exc).__name__}: {exc})") from None
 
@@ -462,8 +463,11 @@ def _smplx_forward(model, pose55, betas, expr, transl, chunk: int = 256):
 
 
 def _read_transform(path: Path, seq: str) -> tuple[float, np.ndarray, np.ndarray]:
+    from ..core.io import MAX_SMALL_JSON_BYTES, read_json_file
+    if not Path(path).exists():
+        raise SequenceError(f"{seq}: missing multicam2world file {Path(path).name}")
     try:
-        d = json.loads(Path(path).read_text())
+        d = read_json_file(path, MAX_SMALL_JSON_BYTES, "multicam2world file")
         c = float(d["c"])
         R = np.asarray(d["R"], dtype=np.float64).reshape(3, 3)
         t = np.asarray(d["t"], dtype=np.float64).reshape(3)
@@ -691,7 +695,7 @@ def read_meta(resource: Path | None) -> dict[tuple[str, str], dict]:
         p = resource / "meta" / f"{split}.txt"
         if not p.is_file():
             continue
-        for line in p.read_text().splitlines():
+        for line in read_text_file(p, what="RICH meta file").splitlines():
             cols = line.strip().split("\t")
             if len(cols) >= 6 and cols[0]:
                 out[(cols[0], cols[3].zfill(3))] = {"scene": cols[1], "scan": cols[2],
@@ -704,9 +708,9 @@ def _gender_json(resource: Path | None) -> dict[str, str]:
     if p is None or not p.is_file():
         return {}
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
+        data = read_json_file(p, what="gender.json")
         return {str(int(k)): v.lower() for k, v in data.items() if isinstance(v, str)}
-    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, ValueError, TypeError) as exc:
+    except (AttributeError, ValueError, TypeError) as exc:
         raise ValueError(f"{p}: expected a JSON object {{subject number: gender}} "
                          f"({type(exc).__name__}: {exc})") from None
 
@@ -716,7 +720,7 @@ def shipped_scans() -> dict[str, str]:
     """``{sequence: scan}`` for the RICH sequences whose scene has several scans, as
     rich_toolkit's meta files name them (``hoibench/datasets/rich_scans.json``); used when the
     download has no meta files."""
-    data = json.loads((Path(__file__).with_name("rich_scans.json")).read_text(encoding="utf-8"))
+    data = read_json_file(Path(__file__).with_name("rich_scans.json"), what="shipped scan table")
     return dict(data["scans"])
 
 

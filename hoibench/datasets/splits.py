@@ -9,11 +9,11 @@ The folder is ``$HOIBENCH_SPLITS_DIR`` when set, else ``splits/`` next to the pa
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 from ..core.ids import InvalidIdError, check_id
+from ..core.io import read_json_file
 
 SPLIT_NAMES = ("train", "val", "test")
 
@@ -53,12 +53,12 @@ def split_assignment(data: object, source: str) -> dict[str, str]:
 def read_split_file(path: str | os.PathLike) -> dict[str, str]:
     """A user ``--split-file`` -> {id: split} (see :func:`split_assignment`)."""
     path = Path(path)
+    if not path.exists():
+        raise SplitFileError(f"--split-file: no file {path}")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise SplitFileError(f"--split-file: no file {path}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SplitFileError(f"{path}: invalid JSON ({exc})") from None
+        data = read_json_file(path, what="split file")
+    except ValueError as exc:
+        raise SplitFileError(str(exc)) from None
     return split_assignment(data, str(path))
 
 
@@ -80,7 +80,7 @@ def load(dataset: str) -> dict:
     path = splits_dir() / f"{dataset}.json"
     if not path.exists():
         raise FileNotFoundError(f"dataset: no split file {path} (available: {', '.join(available())})")
-    data = json.loads(path.read_text())
+    data = read_json_file(path, what="split file")
     for name, sp in data.get("splits", {}).items():
         if any(k in sp for k in SPLIT_NAMES):
             split_assignment(sp, f"{path} split {name!r}")

@@ -22,6 +22,7 @@ before anything is written.
 """
 from __future__ import annotations
 
+import io
 import hashlib
 import json
 import sys
@@ -36,13 +37,18 @@ import numpy as np
 from .. import __version__
 from ..core.errors import StrictStop
 from ..core.ids import InvalidIdError, check_id
-from ..core.io import (atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text, clean_stale_tmp, npz_bytes, read_json_file, strict_json_dumps)
+from ..core.io import (MAX_CLIP_BYTES, atomic_save_npz, atomic_write_bytes, atomic_write_json, atomic_write_text,
+                       clean_stale_tmp, is_atomic_tmp, load_raw_npz, npz_bytes, read_json_file, read_regular_file, sha256_regular_file,
+                       strict_json_dumps)
 from ..core.plausibility import check_fps, check_sequence
 from ..core.parallel import map_units
 from ..representations import hml263, hoi269, joint_level, normalization
 
 MANIFEST = "manifest.json"
 ERRORS = "errors.jsonl"
+#: what a store folder may hold (prepare writes the first five, annotate the last two): an
+#: existing --out holding anything else is not a store and is never written into
+STORE_ENTRIES = frozenset({"clips", "objects", "stats", MANIFEST, ERRORS, "texts", "annotations"})
 
 
 @dataclass(frozen=True)
@@ -70,9 +76,10 @@ def file_sha256(paths: Sequence[Path], extra: str = "") -> str:
         elif not p.is_file():            # FIFO, device, socket: never read (the unit reports it)
             h.update(b"<not a regular file>")
         else:
-            with open(p, "rb") as fh:
-                for chunk in iter(lambda: fh.read(1 << 20), b""):
-                    h.update(chunk)
+            try:
+                sha256_regular_file(p, h)
+            except ValueError:           # swapped for a special file since the check
+                h.update(b"<not a regular file>")
     h.update(extra.encode())
     return h.hexdigest()
 
@@ -158,8 +165,9 @@ class Store:
         check_id(clip_id, "clip id", self.root / MANIFEST)
         path = self.root / "clips" / f"{clip_id}.npz"
         try:
-            with np.load(path, allow_pickle=False) as z:
-                return {k: z[k] for k in z.files if keys is None or k in keys}
+            if not path.exists():
+                raise FileNotFoundError(path)
+            return load_raw_npz(path, MAX_CLIP_BYTES, "clip file", keys=keys)
         except FileNotFoundError:
             if clip_id not in self.clip_ids():
                 raise FileNotFoundError(f"{self.root / MANIFEST}: no clip {clip_id!r} (not an id of this store's "
@@ -174,8 +182,8 @@ class Store:
 
     def object_template(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         check_id(name, "object name", self.root / MANIFEST)
-        with np.load(self.root / "objects" / f"{name}.npz", allow_pickle=False) as z:
-            return z["vertices"], z["faces"]
+        z = load_raw_npz(self.root / "objects" / f"{name}.npz", MAX_CLIP_BYTES, "object template")
+        return z["vertices"], z["faces"]
 
     def stats(self, name: str) -> normalization.NormStats:
         return normalization.NormStats.from_npz(self.root / "stats" / f"{name}.npz")
@@ -223,7 +231,7 @@ def _stored_result(path: Path, clip_id: str, split: str, sha: str) -> UnitResult
     """The already-prepared clip at ``path`` when its ``source_sha256`` equals ``sha`` (one
     read of the file); None when it is missing, unreadable or stale."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with np.load(io.BytesIO(read_regular_file(path, MAX_CLIP_BYTES, "clip file")), allow_pickle=False) as z:
             if "source_sha256" not in z.files or str(z["source_sha256"]) != sha:
                 return None
             if "layout" in z.files:          # a multi-body clip
@@ -311,7 +319,7 @@ def _write_object(out_dir: Path, name: str, vertices: np.ndarray, faces: np.ndar
     earlier run is replaced, never kept)."""
     opath = out_dir / "objects" / f"{check_id(name, 'object name')}.npz"
     data = npz_bytes({"vertices": vertices.astype(np.float32), "faces": faces.astype(np.int32)})
-    if not opath.exists() or opath.read_bytes() != data:
+    if not opath.exists() or read_regular_file(opath, len(data) + 1, "object template") != data:
         atomic_write_bytes(opath, data)
 
 
@@ -412,8 +420,8 @@ def prepare(jobs: list[tuple], out: str | Path, config: PrepareConfig, executor:
     out = Path(out)
     for line in warnings:
         print(f"[prepare] WARNING: {line}", file=sys.stderr)
-    (out / "clips").mkdir(parents=True, exist_ok=True)
     _refuse_foreign_store(out, config, source or {})
+    (out / "clips").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(out, out / "clips", out / "objects", out / "stats")
     jobs = check_jobs(jobs)
     results, errors = _run_jobs(jobs, out, executor, strict, f"prepare {config.dataset}")
@@ -448,7 +456,14 @@ def _refuse_foreign_store(out: Path, config: PrepareConfig, source: dict) -> Non
     """``out`` may be new, or a store of the same dataset, config and raw root (a resume);
     preparing other data into an existing store would mix two stores silently."""
     mpath = out / MANIFEST
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out}: exists and is not a folder; choose a new folder")
     if not mpath.exists():
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in STORE_ENTRIES
+                         and not is_atomic_tmp(p.name)) if out.is_dir() else []
+        if foreign:
+            raise FileExistsError(f"--out {out}: not empty and not a store (holds {', '.join(foreign[:3])}"
+                                  f"{'...' if len(foreign) > 3 else ''}); choose a new or empty folder")
         return
     try:
         old = read_json_file(mpath, what=MANIFEST)
@@ -507,9 +522,9 @@ def _write_stats(out: Path, train_ids: list[str], config: PrepareConfig) -> dict
     for key in ("hml263", "hoi269"):
         clips = []
         for cid in train_ids:
-            with np.load(out / "clips" / f"{cid}.npz", allow_pickle=False) as z:
-                if key in z.files:
-                    clips.append(z[key])
+            z = load_raw_npz(out / "clips" / f"{cid}.npz", MAX_CLIP_BYTES, "clip file", keys=(key,))
+            if key in z:
+                clips.append(z[key])
         if clips:
             st = normalization.compute_stats(clips, mode=stat_mode)
             atomic_write_bytes(out / "stats" / f"{key}.npz", st.to_npz_bytes())

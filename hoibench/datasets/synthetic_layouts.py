@@ -96,8 +96,10 @@ def _write_frame_file(path: Path, data: bytes) -> None:
     """Write a per-frame file atomically (temporary file + rename) but without ``fsync``:
     a RICH layout has thousands of tiny files and the data can be regenerated at will."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    from ..core.io import TMP_PREFIX, current_umask
+    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~current_umask())
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         os.replace(tmp, path)

@@ -15,6 +15,37 @@ EMBED_DIM = 512
 VARIANTS = ("human", "hoi")
 SIZES = ("paper", "tiny")
 
+#: inclusive bounds of every architecture field: room around what the ``paper`` and ``tiny``
+#: sizes need (a re-signed card cannot make loading allocate gigabytes; the id is a hash,
+#: not a signature)
+MODEL_BOUNDS = {"width": (8, 2048), "layers": (1, 32), "heads": (1, 64), "ff_dim": (8, 8192),
+                "embed_dim": (8, 4096), "max_frames": (2, 4096), "text_max_tokens": (1, 512)}
+#: (lower, upper, lower inclusive) of the real-valued model fields
+MODEL_REAL_BOUNDS = {"dropout": (0.0, 1.0, True), "init_temperature": (0.0, 10.0, False),
+                     "max_logit_scale": (1.0, 1000.0, True)}
+TRAIN_BOUNDS = {"epochs": (1, 100_000), "batch_size": (2, 4096), "warmup_epochs": (0, 100_000),
+                "text_unfreeze_epoch": (0, 100_000), "text_finetune_layers": (0, 64), "min_frames": (1, 4096),
+                "threads": (0, 1024)}
+TRAIN_REAL_BOUNDS = {"lr": (0.0, 1.0, False), "text_lr": (0.0, 1.0, True), "weight_decay": (0.0, 1.0, True)}
+#: motion-branch parameters may be at most this multiple of the ``paper`` size's
+MAX_PARAMETER_FACTOR = 2
+#: hml263 rows and the object-relative rows of the ``hoi`` variant (hoibench.evaluator.features)
+_BODY_DIM, _OBJ_DIM = 263, 15
+
+
+def check_fields(cfg, ints: dict, reals: dict, section: str) -> None:
+    """ValueError naming ``section.field`` for a value of the wrong type or out of its range."""
+    for name, (lo, hi) in ints.items():
+        v = getattr(cfg, name)
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ValueError(f"{section}.{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+    for name, (lo, hi, closed) in reals.items():
+        v = getattr(cfg, name)
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and (lo <= v if closed else lo < v) and v <= hi
+        if not ok or (name == "dropout" and v >= 1):
+            raise ValueError(f"{section}.{name}: expected a number in {'[' if closed else '('}{lo:g}, {hi:g}"
+                             f"{')' if name == 'dropout' else ']'}, got {v!r}")
+
 
 @dataclass(frozen=True)
 class ModelConfig:
@@ -39,8 +70,26 @@ class ModelConfig:
     def __post_init__(self):
         if self.variant not in VARIANTS:
             raise ValueError(f"variant: expected one of {VARIANTS}, got {self.variant!r}")
+        check_fields(self, MODEL_BOUNDS, MODEL_REAL_BOUNDS, "model")
         if self.width % self.heads:
-            raise ValueError(f"width: {self.width} is not divisible by heads={self.heads}")
+            raise ValueError(f"model.width: {self.width} is not divisible by model.heads={self.heads}")
+        limit = MAX_PARAMETER_FACTOR * _PAPER_PARAMETERS.get(self.variant, 0)
+        if limit and self.motion_parameters() > limit:
+            raise ValueError(f"model: width {self.width}, layers {self.layers}, ff_dim {self.ff_dim}, embed_dim "
+                             f"{self.embed_dim} give {self.motion_parameters():,} motion-branch parameters, over "
+                             f"{MAX_PARAMETER_FACTOR} x the paper size's ({limit:,}): refused before allocating")
+
+    def motion_parameters(self) -> int:
+        """Parameters of the motion branch (:class:`hoibench.evaluator.model.MotionEncoder`) from
+        the config alone: input projections, class token, ``layers`` pre-norm transformer
+        layers (attention 4 w^2 + 4 w, feed-forward 2 w f + f + w, two norms 4 w), the final
+        norm and the head."""
+        w, f = self.width, self.ff_dim
+        n = (_BODY_DIM + 1) * w + w
+        if self.variant == "hoi":
+            n += (_OBJ_DIM + 1) * w + 2 * w
+        n += self.layers * (4 * w * w + 4 * w + 2 * w * f + f + w + 4 * w)
+        return n + 2 * w + (w + 1) * self.embed_dim
 
 
 @dataclass(frozen=True)
@@ -73,8 +122,7 @@ class TrainConfig:
             raise ValueError(f"negatives: expected 'mask_same_caption' or 'all', got {self.negatives!r}")
         if self.control not in ("none", "shuffled_texts"):
             raise ValueError(f"control: expected 'none' or 'shuffled_texts', got {self.control!r}")
-        if self.epochs < 1 or self.batch_size < 2:
-            raise ValueError("epochs must be >= 1 and batch_size >= 2")
+        check_fields(self, TRAIN_BOUNDS, TRAIN_REAL_BOUNDS, "train")
 
 
 @dataclass(frozen=True)
@@ -96,6 +144,9 @@ class EvaluatorConfig:
     def sha256(self) -> str:
         return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()
 
+
+_PAPER_PARAMETERS: dict[str, int] = {}
+_PAPER_PARAMETERS.update({v: ModelConfig(variant=v).motion_parameters() for v in VARIANTS})
 
 #: Share of the epochs trained with the sentence encoder frozen, per size (paper: 50 of 300).
 FROZEN_FRACTION = {"paper": 1.0 / 6.0, "tiny": 0.75}

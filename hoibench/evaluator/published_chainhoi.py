@@ -87,11 +87,8 @@ class ChainHOIImportError(EvaluatorError):
 
 
 def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 22), b""):
-            h.update(chunk)
-    return h.hexdigest()
+    from ..core.io import sha256_regular_file
+    return sha256_regular_file(path, what="ChainHOI file").hexdigest()
 
 
 # --------------------------------------------------------------------------- inputs
@@ -106,7 +103,8 @@ def read_stats(folder: Path) -> dict:
             raise ChainHOIImportError(f"--stats {folder}: {name} is missing (ChainHOI's dataset folder, e.g. "
                                       f"dataset/behave_t2m, holds Mean_local.npy and Std_local.npy)")
         try:
-            a = np.load(path, allow_pickle=False)
+            from ..core.io import load_npy_file
+            a = load_npy_file(path, 64 << 20, "ChainHOI statistics file")
         except Exception as exc:
             raise ChainHOIImportError(f"{path}: not a readable .npy array ({' '.join(str(exc).split())[:160]})") \
                 from None
@@ -294,7 +292,8 @@ def import_chainhoi(out: Path, checkpoint: Path, text_model: Path, stats: Path) 
                if k != "logit_scale" and k not in _TEXT_BUFFERS}
     copied = {}
     for name, path in sorted(text_files.items()):
-        data = path.read_bytes()
+        from ..core.io import read_regular_file
+        data = read_regular_file(path, 64 << 20, "RoBERTa tokenizer/config file")
         atomic_write_bytes(Path(out) / TEXT_DIR / name, data)
         copied[name] = hashlib.sha256(data).hexdigest()
     card = {

@@ -34,6 +34,8 @@ __all__ = ["WINDOW", "FEATURE_DIM", "VERSION", "clip_features", "train_recognize
 VERSION = "multibody-recognizer-1.0"
 WINDOW = 48
 FEATURE_DIM = 64
+#: a recognizer's weights are read up to this size (the shipped architecture needs about 1 MiB)
+MAX_RECOGNIZER_BYTES = 64 * 1024 ** 2
 _SLOTS = (("human", 0, 22), ("human", 1, 22), ("hand:left", 0, 21), ("hand:right", 0, 21), ("object", 0, 0),
           ("object", 1, 0))
 
@@ -243,11 +245,11 @@ def load_recognizer(folder) -> Recognizer:
         if not p.is_file():
             raise FileNotFoundError(f"{folder}: not a recognizer folder (missing {p.name}; "
                                     f"make one with `hoibench train-recognizer DATA --out {folder}`)")
-    try:
-        card = json.loads(cpath.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{cpath}: unreadable JSON ({exc})") from None
-    weights = wpath.read_bytes()
+    from ..core.io import MAX_SMALL_JSON_BYTES, read_json_file, read_regular_file
+    card = read_json_file(cpath, MAX_SMALL_JSON_BYTES, "recognizer card")
+    if not isinstance(card, dict):
+        raise ValueError(f"{cpath}: expected a JSON object")
+    weights = read_regular_file(wpath, MAX_RECOGNIZER_BYTES, "recognizer weights")
     body = {k: v for k, v in card.items() if k != "recognizer_id"}
     want = hashlib.sha256(weights + json.dumps(body, sort_keys=True).encode()).hexdigest()[:12]
     if card.get("recognizer_id") != want:

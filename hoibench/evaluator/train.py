@@ -34,7 +34,8 @@ import numpy as np
 import torch
 
 from .. import __version__
-from ..core.io import atomic_save_figure, atomic_torch_save, atomic_write_text, clean_stale_tmp, finished_output
+from ..core.io import (atomic_save_figure, atomic_torch_save, atomic_write_text, check_regular_file, clean_stale_tmp,
+                       finished_output)
 from ..datasets.store import Store, legacy_manifest_sha256, manifest_sha256
 from . import card as card_mod
 from . import text as text_mod
@@ -187,7 +188,8 @@ def _read_checkpoint(path: Path, device) -> dict:
     """``torch.load(..., weights_only=True)`` of ``path``; :class:`CheckpointError` naming
     the file when it is not a readable checkpoint (truncated, garbage, pickled objects)."""
     try:
-        ck = torch.load(path, map_location=device, weights_only=True)
+        check_regular_file(path, "training checkpoint")
+        ck = torch.load(path, map_location=device, weights_only=True)  # read-ok: weights_only, regular file checked
     except Exception as exc:                  # torch raises many types for a bad file
         raise CheckpointError(f"{path}: not a readable training checkpoint ({type(exc).__name__}: "
                               f"{' '.join(str(exc).split())[:200]}); delete it to restart training from epoch 0 "
@@ -209,7 +211,7 @@ def resume_checkpoint(path: Path, ident: dict, epochs: int, model, opt, sched, d
                               f"{', '.join(other)}); delete it to start over or use another output folder")
     try:
         epoch = ck["epoch"]
-        curve = json.loads(ck["curve"])
+        curve = json.loads(ck["curve"])  # read-ok: a string inside the checkpoint read above
         if not isinstance(epoch, int) or not 1 <= epoch <= epochs or not isinstance(curve, list) \
                 or len(curve) != epoch:
             raise ValueError(f"epoch {epoch!r} with {len(curve) if isinstance(curve, list) else '?'} curve entries "

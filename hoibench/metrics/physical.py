@@ -422,7 +422,12 @@ def load_groups(data) -> dict[str, list[str]] | None:
     p = Path(data) / "annotations" / "index.json"
     if not p.is_file():
         return None
-    return {g: list(ids) for g, ids in json.loads(p.read_text()).get("groups", {}).items()}
+    from ..core.io import read_json_file
+    index = read_json_file(p, what="annotation index")
+    groups = index.get("groups", {}) if isinstance(index, dict) else None
+    if not isinstance(groups, dict) or not all(isinstance(v, list) for v in groups.values()):
+        raise ValueError(f"{p}: groups: expected an object {{group id: [clip ids]}}")
+    return {g: list(ids) for g, ids in groups.items()}
 
 
 def gt_contact_labels(store, clip: Mapping[str, np.ndarray], mode: str = "chainhoi", rule: str = "signed",

@@ -119,9 +119,16 @@ def read_entry(path: str | Path) -> dict:
         raise LeaderboardError(f"{path}: field format: {e['format']!r} is not {ENTRY_FORMAT!r}")
     if e["source"] not in SOURCES:
         raise LeaderboardError(f"{path}: field source: expected one of {SOURCES}, got {e['source']!r}")
-    for name, m in e["metrics"].items():
-        if not (isinstance(m, dict) and isinstance(m.get("mean"), (int, float)) and not isinstance(m.get("mean"), bool)):
-            raise LeaderboardError(f"{path}: field metrics.{name}: expected {{\"mean\": number, \"ci95\": number}}")
+    from ..scoring.results import counts_problem, metrics_problem
+    problem = metrics_problem(e["metrics"]) or counts_problem(e, "entry")
+    if problem:
+        raise LeaderboardError(f"{path}: {problem.replace('field entry.', 'field ')}")
+    for key in ("method", "notes", "citation", "url"):
+        v = e.get(key)
+        if v is not None and not isinstance(v, str):
+            raise LeaderboardError(f"{path}: field {key}: expected a string, got {type(v).__name__}")
+        if isinstance(v, str) and not _utf8(v):
+            raise LeaderboardError(f"{path}: field {key}: not valid Unicode text (a lone surrogate escape)")
     if e["source"] == "reported" and not e.get("citation"):
         raise LeaderboardError(f"{path}: field citation: a reported row needs the paper it is copied from")
     want = e.get("comparable_with")
@@ -132,6 +139,14 @@ def read_entry(path: str | Path) -> dict:
     e["role"] = role_of(e)
     e["_file"] = path.name
     return e
+
+
+def _utf8(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+        return True
+    except UnicodeEncodeError:
+        return False
 
 
 def comparable(entry: dict, reported: dict) -> bool:

@@ -15,11 +15,15 @@ import base64
 import csv
 import html
 import io
+import re
 from pathlib import Path
 
-from ..core.io import atomic_write_bytes, atomic_write_text
+from ..core.io import atomic_write_bytes, atomic_write_text, read_text_file
 from .leaderboard import (BANDS, SHORT, LeaderboardError, band, comparable, comparable_citations, load_track, order,
                           ranks, shares_evaluator_text_encoder, table_columns, training_of)
+
+#: a track's about.md is read up to this size
+MAX_ABOUT_BYTES = 1024 ** 2
 
 ARROW = {True: "↑", False: "↓", None: "≈GT"}
 #: bar and point colour of each band (:data:`~hoibench.publish.leaderboard.BANDS`)
@@ -142,11 +146,48 @@ def _any_k1(entries: list[dict], cols: list[str]) -> bool:
                for e in entries for c in cols)
 
 
+_MD_SPECIAL = re.compile(r"([\\`\[\]|])")
+
+
+def md_text(text) -> str:
+    """Entry text (method, citation, flags) for a README table cell: one line, HTML escaped
+    (no tag, image or script survives), and the Markdown punctuation that makes links, images,
+    code or cells (backslash, backtick, brackets, pipe) backslash-escaped."""
+    one = " ".join(str(text).split())
+    return _MD_SPECIAL.sub(r"\\\1", html.escape(one, quote=False))
+
+
+def csv_text(text) -> str:
+    """Entry text for a CSV cell: a cell a spreadsheet would read as a formula (leading ``=``,
+    ``+``, ``-``, ``@``, tab or carriage return) gets a leading apostrophe."""
+    text = str(text)
+    return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
+
+
+def plot_text(text) -> str:
+    """A method name drawn by matplotlib as plain text (``$`` would start mathtext)."""
+    return str(text).replace("$", r"\$")
+
+
+def safe_link(target: str) -> bool:
+    """Whether a link target may stay: an http(s) URL or a relative path (no ``javascript:``,
+    ``data:``, ``file:`` or any other scheme)."""
+    target = target.strip()
+    return bool(re.match(r"(?i)^https?://", target)) or not re.match(r"^[A-Za-z][A-Za-z0-9+.-]*:", target)
+
+
+def md_about(text: str) -> str:
+    """A track's ``about.md`` for README.md: its Markdown kept, raw HTML escaped, and every
+    link or image whose target is not http(s) or relative pointed at ``#``."""
+    text = text.replace("&", "&amp;").replace("<", "&lt;")      # no tag; '>' stays for block quotes
+    return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
+
+
 def markdown(track: str, entries: list[dict], about: str = "") -> str:
     """README.md: one table, its rows in bands (:func:`_bands`); only methods and baselines
     carry a rank."""
     cols = _columns(entries)
-    lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [
+    lines = [f"# {track} leaderboard", ""] + ([md_about(about.strip()), ""] if about.strip() else []) + [
         _context(entries) + ". Cells: mean ± 95% CI over the protocol's replications. ↑ higher is better, "
         "↓ lower is better, ≈GT closest to the ground truth.", "",
         "Rows: " + "; ".join(f"{BAND_LEGEND[b]}" for b, _, _ in _bands(entries)) + ".", "",
@@ -155,13 +196,13 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
     for b, head, rows in _bands(entries):
         lines.append(f"| | ***{head}*** | |" + " |" * (len(cols) + 1))
         for r, e in rows:
-            name = f"**{e['method']}**" if b == "ground-truth" else (f"*{e['method']}*" if b == "reference"
-                                                                     else e["method"])
+            m = md_text(e["method"])
+            name = f"**{m}**" if b == "ground-truth" else (f"*{m}*" if b == "reference" else m)
             if e["source"] == "reported":
-                name += f" ({e.get('citation')})"
+                name += f" ({md_text(e.get('citation'))})"
             k = e.get("samples_per_prompt")
-            lines.append(f"| {r or ''} | {name} | {', '.join(_flags(e, entries))} | "
-                         + " | ".join(fmt(e["metrics"].get(c), k) for c in cols) + f" | {budget(e)} |")
+            lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))} | "
+                         + " | ".join(fmt(e["metrics"].get(c), k) for c in cols) + f" | {md_text(budget(e))} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else [])
     lines += ["", "Bar and point colours: " + ", ".join(f"{_COLOR_NAMES[b]} {b.replace('-', ' ')}"
@@ -182,9 +223,10 @@ def write_csv(entries: list[dict]) -> str:
                 "train_wall_seconds", "train_hardware", "conditioner_text_encoder"]
                + [f"{n}{s}" for n in names for s in ("", "_ci95")])
     for r, e in zip(ranks(entries), entries):
-        row = ["" if r is None else r, band(e), e["method"], e["role"], e["source"], e.get("citation", ""),
-               e.get("complete", True), e.get("samples_per_prompt", ""), e.get("evaluator_id", ""),
-               e.get("protocol", ""), e.get("protocol_version", ""), e.get("toolkit_version", "")]
+        row = ["" if r is None else r, band(e)] + [csv_text(e.get(k) or "") for k in ("method", "role", "source",
+                                                                                     "citation")] \
+            + [e.get("complete", True), e.get("samples_per_prompt", "")] \
+            + [csv_text(e.get(k) or "") for k in ("evaluator_id", "protocol", "protocol_version", "toolkit_version")]
         t = training_of(e)
         row += [t.get("steps", ""), t.get("parameters", ""), t.get("wall_seconds", ""), t.get("hardware", ""),
                 (t.get("text_encoder") or {}).get("encoder", "")]
@@ -216,7 +258,7 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     rk = ranks(entries)
     fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 2.0),
                              squeeze=False)
-    labels = [_label(r, e) for r, e in zip(rk, entries)]
+    labels = [plot_text(_label(r, e)) for r, e in zip(rk, entries)]
     colors = [COLORS[band(e)] for e in entries]
     breaks = [i - 0.5 for i in range(1, len(entries)) if band(entries[i]) != band(entries[i - 1])]
     for ax, c in zip(axes[0], cols):
@@ -246,7 +288,7 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
                     color=col, capsize=3)
         pts.append((max(f["mean"], 0.0), r1["mean"]))
         errs.append((f.get("ci95") or 0.0, r1.get("ci95") or 0.0))
-        names.append(_label(r, e))
+        names.append(plot_text(_label(r, e)))
         pcol.append(col)
     ax.set_xlabel("FID ↓ (squared embedding distance)")
     ax.set_ylabel("R-precision top-1 ↑")
@@ -442,6 +484,13 @@ Click a column to sort (inside each band). Units: {units}.</p>
 """
 
 
+def read_about(track_dir: str | Path) -> str:
+    """The track's ``about.md`` (empty when absent), a regular file of at most
+    :data:`MAX_ABOUT_BYTES` read through the guarded reader."""
+    path = Path(track_dir) / "about.md"
+    return read_text_file(path, MAX_ABOUT_BYTES, "about.md") if path.exists() or path.is_symlink() else ""
+
+
 def build(track_dir: str | Path) -> dict[str, Path]:
     """Render ``track_dir``'s entries into README.md (``about.md``, when present, above the
     table), leaderboard.csv, index.html and the PNG plots (atomically). Returns the paths."""
@@ -451,8 +500,7 @@ def build(track_dir: str | Path) -> dict[str, Path]:
         raise LeaderboardError(f"{track_dir}/entries: no entries to render")
     track = track_dir.name
     figures = _figures(track, entries)
-    about_path = track_dir / "about.md"           # the track's own words, kept above the table
-    about = about_path.read_text(encoding="utf-8") if about_path.exists() else ""
+    about = read_about(track_dir)                 # the track's own words, kept above the table
     out = {"README.md": atomic_write_text(track_dir / "README.md", markdown(track, entries, about) + "\n"),
            "leaderboard.csv": atomic_write_text(track_dir / "leaderboard.csv", write_csv(entries)),
            "index.html": atomic_write_text(track_dir / "index.html", page(track, entries, figures))}

@@ -279,9 +279,8 @@ class _Sink:
         else:
             self.writer.close()
             self.writer = None
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(self.tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
+        from ..core.io import current_umask
+        os.chmod(self.tmp, 0o666 & ~current_umask())  # mkstemp makes 0600; give the usual permissions
         os.replace(self.tmp, self.out)
         return self.out
 
@@ -640,6 +639,12 @@ def render_comparison(submission, store_root, clip_id: str, out_path, *, sample:
             raise ValueError(f"{submission}: no sample for id {clip_id!r}")
         arrays = sub.load(clip_id)
         method = str((sub.meta or {}).get("method", "submission"))
+    for key, value in arrays.items():
+        bad = np.flatnonzero(~np.isfinite(np.asarray(value, np.float64)).reshape(len(value), -1).all(-1)) \
+            if np.asarray(value).dtype.kind in "fc" and len(value) else []
+        if len(bad):
+            raise ValueError(f"{submission}: samples/{clip_id}.npz: {key}: non-finite values (NaN or inf) in sample "
+                             f"{int(bad[0])}: not drawn (hoibench validate lists every problem)")
     joints = np.asarray(arrays["joints"], np.float64)
     if not 0 <= sample < len(joints):
         raise ValueError(f"--sample: {sample} out of range: {submission} has {len(joints)} sample(s) for {clip_id}")
@@ -684,4 +689,4 @@ def render_comparison(submission, store_root, clip_id: str, out_path, *, sample:
         else:
             iio.imwrite(tmp_out, both[0])
         from ..core.io import atomic_write_bytes
-        return atomic_write_bytes(out, tmp_out.read_bytes())
+        return atomic_write_bytes(out, tmp_out.read_bytes())  # read-ok: our own file in our own temporary folder

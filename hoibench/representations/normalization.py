@@ -55,8 +55,9 @@ class NormStats:
 
     @classmethod
     def from_npz(cls, path) -> "NormStats":
-        with np.load(path, allow_pickle=False) as z:
-            return cls(z["mean"].astype(np.float32), z["std"].astype(np.float32), int(z["count"]))
+        from ..core.io import MAX_CLIP_BYTES, load_raw_npz
+        z = load_raw_npz(path, MAX_CLIP_BYTES, "normalisation statistics")
+        return cls(z["mean"].astype(np.float32), z["std"].astype(np.float32), int(z["count"]))
 
 
 def compute_stats(clips: Iterable[np.ndarray], mode: str = "clean") -> NormStats:

@@ -35,7 +35,8 @@ def outside(a: tuple[float, float], b: tuple[float, float]) -> bool:
 def _method(r: dict, path: str | Path) -> str:
     """A row's name: the submission's method (a result), the entry's method (a leaderboard
     entry), else the file's stem."""
-    return str((r.get("submission") or {}).get("method") or r.get("method") or Path(path).stem)
+    from ..core.errors import printable
+    return printable(str((r.get("submission") or {}).get("method") or r.get("method") or Path(path).stem))
 
 
 def _k(r: dict):
@@ -104,7 +105,8 @@ def plot(paths: list[str | Path], out: str | Path, names: list[str] | None = Non
         vals = [(_mc(r, m) or (float("nan"), 0.0)) for r in results]
         ax.barh(range(len(names)), [v[0] for v in vals], xerr=[v[1] for v in vals], capsize=3, color="#dd6b20")
         ax.set_yticks(range(len(names)))
-        ax.set_yticklabels(names if ax is axes[0][0] else [""] * len(names), fontsize=8)
+        ax.set_yticklabels([n.replace("$", r"\$") for n in names] if ax is axes[0][0] else [""] * len(names),
+                           fontsize=8)
         ax.invert_yaxis()
         ax.set_title(m, fontsize=9)
         ax.grid(axis="x", alpha=0.3)

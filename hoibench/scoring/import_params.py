@@ -90,34 +90,45 @@ def _gender(z, path: Path, default: str) -> str:
     return g.lower()
 
 
-def read_param_file(path: Path, model_type: str, gender: str, models, up: str) -> dict[str, np.ndarray]:
+class _Members(dict):
+    """The arrays of one ``.npz`` (``files`` as ``np.load``'s result names them)."""
+
+    @property
+    def files(self) -> list[str]:
+        return list(self)
+
+
+def read_param_file(path: Path, model_type: str, gender: str, models, up: str, budget=None) -> dict[str, np.ndarray]:
     """One sample: ``{"joints" (T, 22, 3)[, "obj_rot" (T, 3, 3), "obj_trans" (T, 3)]}``, y-up.
-    ``models``: a cache ``{gender: model}`` filled by :func:`load_model`."""
+    ``models``: a cache ``{gender: model}`` filled by :func:`load_model`; ``budget``: the
+    import's :class:`~hoibench.scoring.importers.ReadBudget` (None: the guarded reader's default)."""
     from ..bodies.smpl import body_forward
+    from ..core.io import load_raw_npz
     try:
-        with np.load(path, allow_pickle=False) as z:
-            poses = _poses(z, path, model_type)
-            T = len(poses)
-            if not 1 <= T <= _MAX_FRAMES:
-                raise _problem(f"{path}: field poses: {T} frames (expected 1..{_MAX_FRAMES})")
-            betas = _array(z, "betas", path, (1, 2)) if "betas" in z.files else None
-            if betas is not None and betas.ndim == 2 and len(betas) not in (1, T):
-                raise _problem(f"{path}: field betas: {len(betas)} rows; expected 1 or T = {T}")
-            if betas is not None and betas.ndim == 2 and len(betas) == 1:
-                betas = betas[0]
-            trans = _array(z, "trans", path, (2,), (3,)) if "trans" in z.files else np.zeros((T, 3))
-            if len(trans) != T:
-                raise _problem(f"{path}: field trans: {len(trans)} frames but poses has {T}")
-            g = _gender(z, path, gender)
-            obj = {}
-            if "obj_rot" in z.files:
-                obj["rot"] = _array(z, "obj_rot", path, (3,), (3, 3))
-            elif "obj_rotvec" in z.files:
-                obj["rot"] = axis_angle_to_matrix(_array(z, "obj_rotvec", path, (2,), (3,)))
-            if "obj_trans" in z.files:
-                obj["trans"] = _array(z, "obj_trans", path, (2,), (3,))
+        z = _Members(budget.npz(path, "body-parameter file") if budget is not None
+                     else load_raw_npz(path, what="body-parameter file"))
+        poses = _poses(z, path, model_type)
+        T = len(poses)
+        if not 1 <= T <= _MAX_FRAMES:
+            raise _problem(f"{path}: field poses: {T} frames (expected 1..{_MAX_FRAMES})")
+        betas = _array(z, "betas", path, (1, 2)) if "betas" in z.files else None
+        if betas is not None and betas.ndim == 2 and len(betas) not in (1, T):
+            raise _problem(f"{path}: field betas: {len(betas)} rows; expected 1 or T = {T}")
+        if betas is not None and betas.ndim == 2 and len(betas) == 1:
+            betas = betas[0]
+        trans = _array(z, "trans", path, (2,), (3,)) if "trans" in z.files else np.zeros((T, 3))
+        if len(trans) != T:
+            raise _problem(f"{path}: field trans: {len(trans)} frames but poses has {T}")
+        g = _gender(z, path, gender)
+        obj = {}
+        if "obj_rot" in z.files:
+            obj["rot"] = _array(z, "obj_rot", path, (3,), (3, 3))
+        elif "obj_rotvec" in z.files:
+            obj["rot"] = axis_angle_to_matrix(_array(z, "obj_rotvec", path, (2,), (3,)))
+        if "obj_trans" in z.files:
+            obj["trans"] = _array(z, "obj_trans", path, (2,), (3,))
     except (OSError, ValueError, KeyError, EOFError) as exc:
-        if type(exc).__name__ == "ImportProblem":
+        if isinstance(exc, ImportProblem):
             raise
         raise _problem(f"{path}: not a readable .npz ({type(exc).__name__}: {exc})") from None
     if len(obj) == 1:
@@ -155,7 +166,7 @@ def load_model(models: dict, model_type: str, gender: str):
 
 
 def read_param_files(folder: Path, ids: list[str], up: str, body_models, model_type: str,
-                     gender: str) -> list[tuple[str, str, dict]]:
+                     gender: str, budget=None) -> list[tuple[str, str, dict]]:
     """``(key, "", arrays)`` per file group (``<id>.npz`` / ``<id>_<r>.npz``): samples stacked
     (K, T, ...) and cut to the shortest."""
     if body_models is None:
@@ -165,7 +176,7 @@ def read_param_files(folder: Path, ids: list[str], up: str, body_models, model_t
     models: dict = {"dir": str(body_models)}
     out = []
     for key, files in _group_files(Path(folder), ".npz", ids).items():
-        samples = [read_param_file(p, model_type, gender, models, up) for p in files]
+        samples = [read_param_file(p, model_type, gender, models, up, budget) for p in files]
         kinds = {tuple(sorted(s)) for s in samples}
         if len(kinds) > 1:
             raise _problem(f"{files[0].parent}: samples of {key} differ in what they carry (object pose in some only)")

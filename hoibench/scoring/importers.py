@@ -53,6 +53,53 @@ SOURCE_FPS = {"mdm": 20.0, "hoidiff": 20.0, "chois": 30.0}
 from .import_common import ImportProblem, _group_files  # noqa: E402,F401  (re-exported)
 
 
+class ReadBudget:
+    """Bytes the files of one import may read: each file at most the largest per-id budget of a
+    submission for the store's test split, all files together at most the whole-submission
+    budget (:func:`hoibench.scoring.submission.limits_for`: K cap x longest accepted sample x
+    every known array at float64). A deflate bomb or a huge file is refused before it is
+    inflated or read."""
+
+    def __init__(self, per_file: int, total: int):
+        self.per_file, self.left = int(per_file), int(total)
+
+    @classmethod
+    def for_store(cls, store: Store) -> "ReadBudget":
+        from .validate import submission_context
+        from .submission import FILE_OVERHEAD_BYTES, limits_for
+        rows, fps, cap, _ = submission_context(store, None)
+        limits = limits_for(rows, fps, cap)
+        return cls(limits.largest_file_bytes + FILE_OVERHEAD_BYTES, limits.total_bytes + FILE_OVERHEAD_BYTES)
+
+    def take(self, path: Path) -> int:
+        """The budget for ``path`` (refused when the import as a whole is over budget)."""
+        try:
+            size = Path(path).stat().st_size
+        except OSError as exc:
+            raise ImportProblem(f"{path}: cannot read ({exc.strerror or exc})") from None
+        if size > self.left:
+            raise ImportProblem(f"{path}: the files read so far and this one exceed the import's budget of a "
+                                f"whole submission for this store: not read")
+        self.left -= size
+        return min(self.per_file, max(self.left + size, 0))
+
+    def npy(self, path: Path, what: str) -> np.ndarray:
+        from ..core.io import load_npy_file
+        try:
+            return load_npy_file(path, self.take(path), what)
+        except ImportProblem:
+            raise
+        except ValueError as exc:
+            raise ImportProblem(str(exc)) from None
+
+    def npz(self, path: Path, what: str, keys=None) -> dict:
+        from ..core.io import load_raw_npz
+        try:
+            return load_raw_npz(path, self.take(path), what, keys=keys)
+        except ValueError as exc:
+            raise ImportProblem(str(exc)) from None
+
+
 # ------------------------------------------------------------------------------ conversions
 def z_up_to_y_up(x: np.ndarray) -> np.ndarray:
     """(..., 3) z-up points to y-up: ``(x, y, z) -> (x, z, -y)`` (a rotation by -90 deg about x)."""
@@ -138,12 +185,33 @@ class Matcher:
 
 
 # ------------------------------------------------------------------------------ readers
-def _load_pickled_results(path: Path, trust_pickle: bool, fmt: str) -> dict:
+def read_mapping(path: str | Path) -> dict:
+    """A ``--map`` file: a JSON object {entry: test id} (strings), read through the guarded reader."""
+    from ..core.io import MAX_JSON_BYTES, read_json_file
+    try:
+        table = read_json_file(path, MAX_JSON_BYTES, "mapping file")
+    except ValueError as exc:
+        raise ImportProblem(f"{exc} (expected a JSON mapping file)") from None
+    if not isinstance(table, dict):
+        raise ImportProblem(f"{path}: expected a JSON object {{entry: test id}}")
+    bad = [k for k, v in table.items() if not isinstance(v, str)]
+    if bad:
+        raise ImportProblem(f"{path}: {bad[0]!r:.60}: expected a test id (a string), got {table[bad[0]]!r:.40}")
+    return table
+
+
+def _load_pickled_results(path: Path, trust_pickle: bool, fmt: str, budget: ReadBudget | None = None) -> dict:
     if not trust_pickle:
         raise ImportProblem(f"{path}: {fmt}'s results.npy is a pickle (np.save of a dict): loading it can run code; "
                             f"pass --trust-pickle if you produced this file yourself")
+    import io
+    from ..core.io import read_regular_file
     try:
-        d = np.load(path, allow_pickle=True)
+        raw = read_regular_file(path, budget.left if budget is not None else None, f"{fmt} results.npy")
+    except ValueError as exc:
+        raise ImportProblem(str(exc)) from None
+    try:
+        d = np.load(io.BytesIO(raw), allow_pickle=True)  # read-ok: --trust-pickle, bytes read through the guard
         d = d.item() if isinstance(d, np.ndarray) and d.dtype == object and d.shape == () else d
     except Exception as exc:                   # numpy raises many types for a bad file
         raise ImportProblem(f"{path}: not a readable results.npy ({type(exc).__name__})") from None
@@ -156,13 +224,35 @@ def _load_pickled_results(path: Path, trust_pickle: bool, fmt: str) -> dict:
     return d
 
 
-def read_mdm(path: Path, trust_pickle: bool, with_object: bool) -> list[tuple[str, str, dict]]:
-    """(key, text, arrays) per prompt: K = num_repetitions samples (repetition-major entries)."""
-    d = _load_pickled_results(path, trust_pickle, "HOI-Diff" if with_object else "MDM")
-    motion = np.asarray(d["motion"])
-    n, reps = int(d["num_samples"]), int(d["num_repetitions"])
+def _real(path: Path, key: str, value) -> np.ndarray:
+    """``value`` as a float64 array when it holds real numbers (complex, object or text refused)."""
+    a = np.asarray(value)
+    if a.dtype.kind not in "fiu":
+        raise ImportProblem(f"{path}: field {key}: expected real numbers, got dtype {a.dtype}")
+    return a.astype(np.float64)
+
+
+def _count(path: Path, key: str, value) -> int:
+    a = np.asarray(value)
+    if a.ndim != 0 or a.dtype.kind not in "iuf" or not np.isfinite(a) or a != np.round(a) or a < 1:
+        raise ImportProblem(f"{path}: field {key}: expected a positive whole number, got {value!r:.40}")
+    return int(a)
+
+
+def read_mdm(path: Path, trust_pickle: bool, with_object: bool,
+             budget: ReadBudget | None = None) -> list[tuple[str, str, dict]]:
+    """(key, text, arrays) per prompt: K = num_repetitions samples (repetition-major entries).
+    Each ``lengths`` entry must be a whole number in 1..T (the motion's frames)."""
+    d = _load_pickled_results(path, trust_pickle, "HOI-Diff" if with_object else "MDM", budget)
+    motion = _real(path, "motion", d["motion"])
+    n, reps = _count(path, "num_samples", d["num_samples"]), _count(path, "num_repetitions", d["num_repetitions"])
     if motion.ndim != 4 or motion.shape[1:3] != (22, 3):
         raise ImportProblem(f"{path}: field motion: expected (N, 22, 3, T), got {motion.shape}")
+    lengths_arr = _real(path, "lengths", d["lengths"]).ravel()
+    bad = np.flatnonzero((lengths_arr < 1) | (lengths_arr > motion.shape[-1]) | (lengths_arr != np.round(lengths_arr)))
+    if len(bad):
+        raise ImportProblem(f"{path}: field lengths: entry {int(bad[0])} is {lengths_arr[bad[0]]:g}, expected a whole "
+                            f"number of frames in 1..{motion.shape[-1]} (the motion's length)")
     if motion.shape[0] != n * reps or len(d["text"]) != n * reps or len(d["lengths"]) != n * reps:
         raise ImportProblem(f"{path}: fields motion/text/lengths: expected num_samples x num_repetitions = "
                             f"{n * reps} entries, got {motion.shape[0]}, {len(d['text'])}, {len(d['lengths'])}")
@@ -170,7 +260,7 @@ def read_mdm(path: Path, trust_pickle: bool, with_object: bool) -> list[tuple[st
     if with_object:
         if "motion_obj" not in d:
             raise ImportProblem(f"{path}: field motion_obj missing (HOI-Diff's (N, 1, 6, T) object motion)")
-        obj = np.asarray(d["motion_obj"])
+        obj = _real(path, "motion_obj", d["motion_obj"])
         if obj.shape[0] != n * reps or obj.shape[-2] != 6:
             raise ImportProblem(f"{path}: field motion_obj: expected (N, 1, 6, T), got {obj.shape}")
         obj = obj.reshape(obj.shape[0], 6, obj.shape[-1])
@@ -188,19 +278,20 @@ def read_mdm(path: Path, trust_pickle: bool, with_object: bool) -> list[tuple[st
     return out
 
 
-def read_joint_files(folder: Path, ids: list[str], up: str, chois: bool) -> list[tuple[str, str, dict]]:
+def read_joint_files(folder: Path, ids: list[str], up: str, chois: bool, budget: ReadBudget) -> list[tuple[str, str, dict]]:
+    """(key, "", {"joints"}) per group of ``<id>[_<r>]`` files, each read within ``budget``."""
     out = []
     for key, files in _group_files(folder, ".npz" if chois else ".npy", ids).items():
         samples = []
         for p in files:
             try:
                 if chois:
-                    with np.load(p, allow_pickle=False) as z:
-                        if "global_jpos" not in z.files:
-                            raise ImportProblem(f"{p}: field global_jpos missing (CHOIS's (T, 24, 3) joints)")
-                        j = np.asarray(z["global_jpos"])[:, :22]
+                    z = budget.npz(p, "CHOIS sample file", keys=("global_jpos",))
+                    if "global_jpos" not in z:
+                        raise ImportProblem(f"{p}: field global_jpos missing (CHOIS's (T, 24, 3) joints)")
+                    j = np.asarray(z["global_jpos"])[:, :22]
                 else:
-                    j = np.load(p, allow_pickle=False)
+                    j = budget.npy(p, "joint file")
             except ImportProblem:
                 raise
             except Exception as exc:
@@ -213,14 +304,16 @@ def read_joint_files(folder: Path, ids: list[str], up: str, chois: bool) -> list
     return out
 
 
-def read_features(folder: Path, ids: list[str], store: Store, normalized: bool) -> list[tuple[str, str, dict]]:
+def read_features(folder: Path, ids: list[str], store: Store, normalized: bool, budget: ReadBudget) -> list[tuple[str, str, dict]]:
     from ..representations import hml263, hoi269
     out = []
     for key, files in _group_files(folder, ".npy", ids).items():
         samples = []
         for p in files:
             try:
-                f = np.load(p, allow_pickle=False).astype(np.float64)
+                f = _real(p, "features", budget.npy(p, "feature file"))
+            except ImportProblem:
+                raise
             except Exception as exc:
                 raise ImportProblem(f"{p}: not a readable array ({type(exc).__name__})") from None
             if f.shape[-1] not in (hml263.DIM, hoi269.DIM) or f.ndim not in (2, 3):
@@ -260,23 +353,17 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
     how = "map" if mapping else (match or ("text" if fmt in ("mdm", "hoidiff") else "id"))
     if how not in ("id", "text", "map"):
         raise ImportProblem(f"--match: expected id or text, got {how!r}")
-    table = None
-    if mapping:
-        try:
-            table = json.loads(Path(mapping).read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ImportProblem(f"{mapping}: not a JSON mapping file ({type(exc).__name__})") from None
-        if not isinstance(table, dict):
-            raise ImportProblem(f"{mapping}: expected a JSON object {{entry: test id}}")
+    table = read_mapping(mapping) if mapping else None
+    budget = ReadBudget.for_store(store)
     if fmt in ("mdm", "hoidiff"):
-        entries = read_mdm(results, trust_pickle, fmt == "hoidiff")
+        entries = read_mdm(results, trust_pickle, fmt == "hoidiff", budget)
     elif fmt in ("joints", "chois"):
-        entries = read_joint_files(results, ids, "z" if fmt == "chois" else up, fmt == "chois")
+        entries = read_joint_files(results, ids, "z" if fmt == "chois" else up, fmt == "chois", budget)
     elif fmt == "params":
         from .import_params import read_param_files
-        entries = read_param_files(results, ids, up, body_models, model_type, gender)
+        entries = read_param_files(results, ids, up, body_models, model_type, gender, budget)
     else:
-        entries = read_features(results, ids, store, normalized)
+        entries = read_features(results, ids, store, normalized, budget)
     if not entries:
         raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt in ('chois', 'params') else '.npy'} sample files "
                             f"or entries found)")

@@ -27,8 +27,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..core.io import atomic_write_text
+from ..core.io import MAX_SMALL_JSON_BYTES, atomic_write_text, read_json_file
 from ..datasets.store import Store
+
+
+def _group_id(path: Path) -> str | None:
+    """``group_id`` of a clip's annotation file (read through the guarded reader)."""
+    ann = read_json_file(path, MAX_SMALL_JSON_BYTES, "annotation file")
+    group = ann.get("group_id") if isinstance(ann, dict) else None
+    if group is not None and not isinstance(group, (str, int)):
+        raise ValueError(f"{path}: group_id: expected a string, got {type(group).__name__}")
+    return group
 
 
 def prompts(data: str | Path, split: str = "test") -> list[dict]:
@@ -50,7 +59,7 @@ def prompts(data: str | Path, split: str = "test") -> list[dict]:
         clip = st.load(cid, keys=("joints", "object_name"))
         name = str(clip["object_name"]) if "object_name" in clip else None
         ann = st.root / "annotations" / f"{cid}.json"
-        group = json.loads(ann.read_text()).get("group_id") if ann.exists() else None
+        group = _group_id(ann) if ann.exists() else None
         out.append({"id": cid, "captions": [c.text for c in caps], "frames": int(clip["joints"].shape[0]),
                     "fps": fps, "object": name,
                     "object_mesh": str((st.root / "objects" / f"{name}.npz").resolve()) if name else None,
@@ -59,8 +68,38 @@ def prompts(data: str | Path, split: str = "test") -> list[dict]:
     return out
 
 
+#: the fields every line of a prompts file has
+PROMPT_FIELDS = ("captions", "fps", "frames", "id")
+
+
+def is_prompts_file(path: str | Path) -> bool:
+    """Whether ``path`` is a prompts file this toolkit wrote: every line a JSON object with
+    :data:`PROMPT_FIELDS` (read through the guarded reader; a special file is not)."""
+    from ..core.io import MAX_JSON_BYTES, load_json_bytes, read_text_file
+    try:
+        lines = [s for s in read_text_file(path, MAX_JSON_BYTES, "prompts file").splitlines() if s.strip()]
+        rows = [load_json_bytes(s, path) for s in lines]
+    except ValueError:
+        return False
+    return bool(rows) and all(isinstance(r, dict) and all(k in r for k in PROMPT_FIELDS) for r in rows)
+
+
+def check_prompts_out(out: str | Path) -> None:
+    """FileExistsError unless ``out`` is new or an earlier prompts file."""
+    p = Path(out)
+    if p.is_dir():
+        raise FileExistsError(f"--out {out}: is a folder; name a new file such as {p / 'prompts.jsonl'}")
+    if (p.exists() or p.is_symlink()) and not is_prompts_file(p):
+        raise FileExistsError(f"--out {out}: exists and is not a prompts file written by hoibench: not "
+                              f"overwritten; choose a new file")
+
+
 def write_prompts(data: str | Path, out: str | Path | None = None, split: str = "test") -> str:
-    """The JSON lines of :func:`prompts`; written atomically to ``out`` when given."""
+    """The JSON lines of :func:`prompts`; written atomically to ``out`` when given. An existing
+    ``out`` is replaced only when it is a prompts file (:func:`is_prompts_file`): any other file
+    is refused before the store is read, never overwritten."""
+    if out is not None:
+        check_prompts_out(out)
     text = "".join(json.dumps(p, sort_keys=True, allow_nan=False) + "\n" for p in prompts(data, split))
     if out is not None:
         atomic_write_text(out, text)

@@ -22,7 +22,53 @@ def read_result(path: str | Path) -> dict:
         raise ResultError(str(exc)) from None
     if not isinstance(result, dict) or not isinstance(result.get("metrics"), dict):
         raise ResultError(f"{path}: field metrics: not a result of `hoibench evaluate`")
+    problem = metrics_problem(result["metrics"]) or counts_problem(result.get("counts", {}), "counts")
+    if problem:
+        raise ResultError(f"{path}: {problem}")
     return result
 
 
-__all__ = ["ResultError", "read_result", "MAX_RESULT_BYTES"]
+def _number(v) -> bool:
+    import math
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def metrics_problem(metrics: dict, prefix: str = "metrics") -> str | None:
+    """What is wrong with a ``metrics`` block (``field ...: ...``), or None: each metric an
+    object whose ``mean`` is a number or a non-empty list of numbers, ``ci95`` absent, null
+    or of the same form, ``n`` absent, null or a whole number."""
+    for name, m in metrics.items():
+        at = f"field {prefix}.{name}"
+        if not isinstance(m, dict):
+            return f"{at}: expected an object {{\"mean\", \"ci95\", \"n\"}}, got {type(m).__name__}"
+        mean, ci = m.get("mean"), m.get("ci95")
+        if isinstance(mean, list):
+            if not mean or not all(_number(x) for x in mean):
+                return f"{at}.mean: expected a non-empty list of numbers"
+            if ci is not None and not (isinstance(ci, list) and len(ci) == len(mean) and all(_number(x) for x in ci)):
+                return f"{at}.ci95: expected a list of {len(mean)} numbers, like mean"
+        elif not _number(mean):
+            return f"{at}.mean: expected a number, got {type(mean).__name__}"
+        elif ci is not None and not _number(ci):
+            return f"{at}.ci95: expected a number, got {type(ci).__name__}"
+        n = m.get("n")
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int)):
+            return f"{at}.n: expected a whole number, got {type(n).__name__}"
+    return None
+
+
+def counts_problem(counts, prefix: str = "counts") -> str | None:
+    """What is wrong with a ``counts`` block (or a leaderboard entry's top-level counts)."""
+    if not isinstance(counts, dict):
+        return f"field {prefix}: expected an object, got {type(counts).__name__}"
+    for key in ("samples_per_prompt", "scored_ids", "test_ids"):
+        v = counts.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 0):
+            return f"field {prefix}.{key}: expected a whole number, got {v!r:.40}"
+    ids = counts.get("missing_ids")
+    if ids is not None and not (isinstance(ids, list) and all(isinstance(i, str) for i in ids)):
+        return f"field {prefix}.missing_ids: expected a list of ids, got {type(ids).__name__}"
+    return None
+
+
+__all__ = ["ResultError", "read_result", "MAX_RESULT_BYTES", "metrics_problem", "counts_problem"]

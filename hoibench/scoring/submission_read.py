@@ -59,7 +59,8 @@ class Problem:
     severity: str = "error"
 
     def __str__(self) -> str:
-        return f"{self.severity}: {self.id}: {self.field}: {self.message}"
+        from ..core.errors import printable
+        return printable(f"{self.severity}: {self.id}: {self.field}: {self.message}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -115,10 +116,14 @@ class SubmissionLimits:
         return max(self.per_id_bytes.values(), default=0)
 
 
-def limits_for(rows: Mapping[str, Mapping], fps: float, max_samples: int) -> SubmissionLimits:
-    """:class:`SubmissionLimits` for test ``rows`` (id -> manifest row with ``frames``)."""
-    per = {sid: max_samples * max_frames(int(r["frames"]), fps) * VALUES_PER_FRAME * BYTES_PER_VALUE
-           + FILE_OVERHEAD_BYTES for sid, r in rows.items()}
+def limits_for(rows: Mapping[str, Mapping], fps: float, max_samples: int,
+               values_per_frame: Mapping[str, int] | None = None) -> SubmissionLimits:
+    """:class:`SubmissionLimits` for test ``rows`` (id -> manifest row with ``frames``);
+    ``values_per_frame``: per id, for a layout other than the single-body arrays (a
+    multi-body clip: 12 per rigid body, 3 per joint of an articulated one)."""
+    vpf = values_per_frame or {}
+    per = {sid: max_samples * max_frames(int(r["frames"]), fps) * int(vpf.get(sid, VALUES_PER_FRAME))
+           * BYTES_PER_VALUE + FILE_OVERHEAD_BYTES for sid, r in rows.items()}
     return SubmissionLimits(per, sum(per.values()), int(max_samples), 2 * len(rows) + 64)
 
 
@@ -139,7 +144,7 @@ def npz_headers(source, max_array_bytes: int = MAX_ARRAY_BYTES) -> dict[str, Arr
     shapes need more than ``max_array_bytes`` together or more bytes than a member holds."""
     src = io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else source
     try:
-        zf = zipfile.ZipFile(src)
+        zf = zipfile.ZipFile(src)  # read-ok: bytes read within a budget by the caller
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
         raise SubmissionError(f"not a valid .npz (zip) file: {e}") from None
     out: dict[str, ArrayHeader] = {}
@@ -160,7 +165,7 @@ def npz_headers(source, max_array_bytes: int = MAX_ARRAY_BYTES) -> dict[str, Arr
             if info.flag_bits & 0x1:
                 raise SubmissionError(f"array {key!r} is encrypted: not read")
             try:
-                with zf.open(info) as f:
+                with zf.open(info) as f:  # read-ok: a member of the in-memory archive, headers only
                     shape, fortran, dtype = _read_npy_header(f)
                     header_len = f.tell()
             except Exception as e:  # malformed header, unsupported compression, corrupt data
@@ -196,7 +201,7 @@ def load_npz(source, max_array_bytes: int = MAX_ARRAY_BYTES,
     headers = npz_headers(io.BytesIO(data) if data is not None else source, max_array_bytes)
     wanted = [k for k in headers if keys is None or k in set(keys)]
     try:
-        with np.load(io.BytesIO(data) if data is not None else source, allow_pickle=False) as z:
+        with np.load(io.BytesIO(data) if data is not None else source, allow_pickle=False) as z:  # read-ok: headers checked above
             return {k: z[k] for k in wanted}
     except Exception as e:
         raise SubmissionError(f"could not read the arrays: {type(e).__name__}: {e}") from None
@@ -221,7 +226,7 @@ def zip_directory_size(path: str | Path) -> tuple[int, int]:
     """(entries, central directory bytes) of a ``.zip`` from its end records, read before
     ``zipfile`` parses (and holds in memory) the whole directory; (-1, -1) when no end
     record is found (``zipfile`` then reports the archive as invalid)."""
-    with open(path, "rb") as f:
+    with open(path, "rb") as f:  # read-ok: the caller checked it is a regular file; reads the last 64 KiB only
         f.seek(0, 2)
         size = f.tell()
         tail_len = min(size, 22 + 65535)
@@ -354,7 +359,7 @@ class Submission:
                                                          f"({_fmt_bytes(max(cd_size, 0))} of directory): over the "
                                                          f"limit of {self._max_files} files; not read"))
                 return
-            self._zip = zipfile.ZipFile(self.path)
+            self._zip = zipfile.ZipFile(self.path)  # read-ok: a regular file whose directory size was checked
         except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
             self.problems.append(Problem("*", "path", f"{self.path.name}: neither a folder nor a valid .zip ({e})"))
             self._zip = None

@@ -71,10 +71,22 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _check_meta(meta: dict | None, store_fps: float, protocol) -> list[Problem]:
+def accepted_representations(manifest: dict) -> set[str]:
+    """``representation`` values a submission for this store may declare: the store's own
+    representation versions, or ``joints`` (joint positions only); ``""`` too when the store
+    records none."""
+    reps = {str(v) for v in (manifest.get("representations") or {}).values()}
+    return reps | {"joints"} if reps else {"", "joints"}
+
+
+def _check_meta(meta: dict | None, store_fps: float, protocol, accepted: set[str] | None = None) -> list[Problem]:
     if meta is None:
         return []
     out = []
+    rep = meta.get("representation")
+    if accepted is not None and isinstance(rep, str) and rep not in accepted:
+        out.append(Problem("*", SUBMISSION_JSON, f"field 'representation' is {rep[:60]!r}, which does not match the "
+                                                 f"store (one of {sorted(accepted)})"))
     for key, kind in REQUIRED_FIELDS.items():
         if key not in meta:
             out.append(Problem("*", SUBMISSION_JSON, f"missing field {key!r}"))
@@ -247,6 +259,8 @@ def validation_report(sub, store, split: str = "test", protocol=None,
     if protocol is not None and not hasattr(protocol, "fps"):
         from ..tracks.protocol import get_protocol
         protocol = get_protocol(protocol)
+    if _is_multibody(st):
+        return multibody_report(sub, st, split, protocol)
     rows, fps, cap, mode = submission_context(st, protocol, split)
     limits = limits_for(rows, fps, cap)
     if max_array_bytes is not None:
@@ -258,7 +272,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         s.limits = limits
     try:
         problems = list(s.problems)
-        problems += _check_meta(s.meta, fps, protocol)
+        problems += _check_meta(s.meta, fps, protocol, accepted_representations(st.manifest))
         flags = (s.meta or {}).get("flags", {}) if isinstance((s.meta or {}).get("flags", {}), dict) else {}
         test_ids = sorted(rows)
         found = set(s.ids)
@@ -304,6 +318,65 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                                                       f"{protocol.mm_samples} and will not be computed", "warning"))
         problems.sort(key=lambda p: (p.id != "*", p.id, p.field, p.message))
         return ValidationReport(problems, test_ids, valid, kvals[0] if len(kvals) == 1 else None, sorted(found),
+                                foreign_ids_line(s.path, st.root, found, test_ids))
+    finally:
+        if own:
+            s.close()
+
+
+def _is_multibody(st) -> bool:
+    """Whether the store holds multi-body clips; False when its first clip file cannot be read
+    (validation then needs only the manifest, as before)."""
+    try:
+        return bool(st.is_multibody)
+    except (OSError, ValueError):
+        return False
+
+
+def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationReport:
+    """:func:`validation_report` for a multi-body store: the container and ``submission.json``
+    as for single-body stores, each file within its budget
+    (:func:`hoibench.scoring.multibody.multibody_limits`), and every sample read as the
+    scorer reads it (one array per body of the clip, its shape, finite values within 1 km,
+    at most 50 m/s, rotation matrices)."""
+    from ..bodies.multibody import MultiBodyClip
+    from .multibody_samples import clip_from_sample, multibody_limits
+    if protocol is None:
+        from ..tracks.protocol import default_protocol
+        protocol = default_protocol(st.manifest)
+    cap = int(getattr(protocol, "samples_per_prompt", None) or DEFAULT_MAX_SAMPLES_PER_PROMPT)
+    rows = {c["id"]: c for c in st.manifest["clips"] if c["split"] == split}
+    test_ids, fps = sorted(rows), float(st.manifest["config"]["fps"])
+    own = not isinstance(sub, Submission)
+    s = Submission(sub, limits=multibody_limits(st, test_ids, cap)) if own else sub
+    try:
+        accepted = accepted_representations(st.manifest) | {"multibody-joints"}
+        problems = list(s.problems) + _check_meta(s.meta, fps, None, accepted)
+        found, valid, ks = set(s.ids), [], set()
+        problems += [Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz") for sid in test_ids
+                     if sid not in found]
+        problems += [Problem(sid, SAMPLES_DIR, f"extra file: not in the {split!r} split (not read)")
+                     for sid in sorted(found - set(rows))]
+        for sid in (i for i in test_ids if i in found):
+            try:
+                arrays = s.load(sid, keys=None)
+                K = len(next(iter(arrays.values()))) if arrays else 0
+                if not 1 <= K <= cap:
+                    raise ValueError(f"{sid}: samples: K = {K} samples per prompt, expected 1..{cap}")
+                gt = MultiBodyClip.from_arrays(st.load(sid))
+                for k in range(K):
+                    clip_from_sample(gt, arrays, k, sid)
+            except ValueError as e:
+                parts = str(e).split(": ")
+                field_ = parts[1] if len(parts) > 2 and parts[0] == sid else "file"
+                problems.append(Problem(sid, field_, ": ".join(parts[2:]) if field_ != "file" else str(e)))
+                continue
+            ks.add(K)
+            valid.append(sid)
+        if len(ks) > 1:
+            problems.append(Problem("*", SAMPLES_DIR, f"samples per prompt differ between files: K in {sorted(ks)}"))
+        problems.sort(key=lambda p: (p.id != "*", p.id, p.field, p.message))
+        return ValidationReport(problems, test_ids, valid, min(ks) if len(ks) == 1 else None, sorted(found),
                                 foreign_ids_line(s.path, st.root, found, test_ids))
     finally:
         if own:

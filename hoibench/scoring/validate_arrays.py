@@ -125,8 +125,14 @@ def _check_joints(sid: str, joints: np.ndarray, fps: float) -> tuple[list[Proble
     for a, axis in enumerate("xyz"):
         for sign in (1, -1):
             frac[("" if sign > 0 else "-") + axis] = float(np.isin((sign * J[..., a]).argmin(-1), feet).mean())
-    best = max(frac, key=frac.get)
-    if best != "y" and frac[best] >= 0.8 and frac["y"] < 0.5:
+    # a tie (a foot is also the extreme joint along the facing direction): the up axis is the
+    # one along which the head stands highest above the lowest foot
+    top = max(frac.values())
+    rise = {k: float(np.median((1 if k[0] != "-" else -1) * (J[..., 15, "xyz".index(k[-1])]
+                                                             - J[..., feet, "xyz".index(k[-1])].min(-1))))
+            if J.shape[-2] > 15 else 0.0 for k in frac}
+    best = max((k for k in frac if frac[k] >= top - 0.05), key=lambda k: rise[k])
+    if best != "y" and frac[best] >= 0.8 and (frac["y"] < 0.5 or rise[best] > 2 * rise["y"]):
         return [Problem(sid, "joints", f"looks {best}-up: the feet are the lowest joints along {best} in "
                                        f"{100 * frac[best]:.0f}% of frames but along y in {100 * frac['y']:.0f}%; "
                                        "hoibench is y-up", "warning")], best

@@ -54,7 +54,8 @@ from typing import Sequence
 import numpy as np
 
 from ..core.errors import StrictStop
-from ..core.io import atomic_write_json, atomic_write_text, clean_stale_tmp
+from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_write_json, atomic_write_text, clean_stale_tmp, load_json_bytes,
+                       load_raw_npz, read_json_file, read_text_file)
 from ..core.parallel import map_units
 from .captions import ANNOTATOR_ID, SOURCE, ClipAnnotation, annotate_clip, humanml3d_line, parse_humanml3d_line
 from .spec import SPEC_ENV, AnnotatorSpec, SpecError, Token, default_spec_dir, load_spec, parse_phrase
@@ -87,7 +88,7 @@ def load_action_labels(path: str | Path) -> dict:
     * the generic form ``{"clips": {clip_id: [{"action", "start", "end"}, ...]}}`` (seconds
       from the clip start): returned as ``{"scheme": "generic", "clips": ...}``.
     """
-    data = json.loads(Path(path).read_text())
+    data = read_json_file(path, what="action label file")
     if isinstance(data, dict) and "action_label" in data:
         desc = {str(d["id"]): str(d["description"]) for d in data.get("label_description", [])}
         clips: dict[str, list] = {}
@@ -140,8 +141,8 @@ def _label_origin(root: Path, manifest: dict, clip_id: str, prov: dict) -> tuple
         path = Path(src) / "sequences" / clip_id / "smpl_fit_all.npz"
         if path.exists():
             try:
-                with np.load(path, allow_pickle=False) as z:
-                    return float(str(z["frame_times"][0]).lstrip("t")), "raw frame_times[0]"
+                z = load_raw_npz(path, what="BEHAVE smpl_fit_all.npz", keys=("frame_times",))
+                return float(str(z["frame_times"][0]).lstrip("t")), "raw frame_times[0]"
             except Exception:   # unreadable raw file: fall back below
                 pass
     return None, "first label"
@@ -159,8 +160,8 @@ def _human_texts(root: Path, clip_id: str, clip: dict) -> list[dict]:
             if not s:
                 continue
             try:
-                d = json.loads(s)
-            except json.JSONDecodeError:
+                d = load_json_bytes(s, f"{clip_id}: texts")
+            except ValueError:
                 d = None
             if isinstance(d, dict):
                 out.append(d)
@@ -172,17 +173,17 @@ def _human_texts(root: Path, clip_id: str, clip: dict) -> list[dict]:
     ours: set[str] = set()
     if prev_path.exists():
         try:
-            prev = json.loads(prev_path.read_text())
+            prev = read_json_file(prev_path, MAX_SMALL_JSON_BYTES, "annotation file")
             for t in prev.get("texts", []):
                 if t.get("source") == SOURCE:
                     ours.add(humanml3d_line(t))
                 else:
                     out.append(t)
-        except (json.JSONDecodeError, AttributeError):
+        except (ValueError, AttributeError):
             pass
     tpath = root / TEXTS / f"{clip_id}.txt"
     if tpath.exists():
-        for line in tpath.read_text(encoding="utf-8").splitlines():
+        for line in read_text_file(tpath, what="caption file").splitlines():
             if line.strip() and line not in ours:
                 try:
                     d = parse_humanml3d_line(line)
@@ -218,7 +219,7 @@ def _annotate_unit(job: tuple) -> dict:
         from ..datasets.store import Store
         store = Store(root)
         clip = store.load(clip_id)
-        prov = json.loads(str(clip["provenance"])) if "provenance" in clip else {}
+        prov = load_json_bytes(str(clip["provenance"]), f"{clip_id}: provenance") if "provenance" in clip else {}
         partner = None
         if "object_name" in clip and str(clip["object_name"]):
             object_name = str(clip["object_name"])

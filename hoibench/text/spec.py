@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from ..core import skeleton as sk
+from ..core.io import read_text_file, sha256_regular_file
 
 SPEC_ENV = "HOIBENCH_ANNOTATORS_DIR"
 SPEC_FILE = "spec.yaml"
@@ -153,7 +154,7 @@ def _read_yaml(path: Path) -> Any:
     if not path.exists():
         raise SpecError(f"{path}: missing spec file")
     try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
+        return yaml.safe_load(read_text_file(path, what="annotator spec"))  # read-ok: text read by read_text_file
     except yaml.YAMLError as exc:
         raise SpecError(f"{path}: invalid YAML ({exc})") from None
 
@@ -209,7 +210,7 @@ def _sha256_files(root: Path, names: Sequence[str]) -> str:
     h = hashlib.sha256()
     for name in sorted(set(names)):
         h.update(name.encode() + b"\0")
-        h.update((root / name).read_bytes())
+        sha256_regular_file(root / name, h, "annotator spec")
     return h.hexdigest()
 
 

@@ -367,10 +367,11 @@ def read_protocol_yaml(path: str | Path):
     import yaml
 
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise FileNotFoundError(f"protocol: no file at {p}")
     try:
-        return yaml.safe_load(p.read_text())
+        from ..core.io import read_text_file
+        return yaml.safe_load(read_text_file(p, 1024 ** 2, "protocol file"))  # read-ok: text read by read_text_file
     except yaml.YAMLError as e:
         raise ValueError(f"{p}: not valid YAML: {e}") from None
 
@@ -515,7 +516,8 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
                 return 2
             p = get_protocol(name)
             print(f"# {p.ref}  sha256 {p.sha256}\n# file: {p.source}")
-            print(Path(p.source).read_text().rstrip())
+            from ..core.io import read_text_file
+            print(read_text_file(p.source, 1024 ** 2, "protocol file").rstrip())
             return 0
         print(f"hoibench protocols: error: unknown action {action!r}; expected 'ls' or 'show'", file=sys.stderr)
         return 2

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
-from ..config import check_ints, dotted_replace, section_from_dict, TEXT_ENCODERS
+from ..config import check_architecture, check_ints, dotted_replace, section_from_dict, TEXT_ENCODERS
 
 CORRUPTION_MODES = ("token", "unit")
 SECTIONS = ("vq", "text", "gpt", "object", "train")
@@ -170,6 +170,10 @@ class CatmoConfig:
     gpt: GPTConfig = field(default_factory=GPTConfig)
     object: ObjectHeadConfig = field(default_factory=ObjectHeadConfig)
     train: CatmoTrainConfig = field(default_factory=CatmoTrainConfig)
+
+    def __post_init__(self) -> None:
+        for s in SECTIONS:
+            check_architecture(getattr(self, s), s)
 
     def to_dict(self) -> dict:
         return {"name": self.name, **{s: asdict(getattr(self, s)) for s in SECTIONS}}

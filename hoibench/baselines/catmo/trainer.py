@@ -29,6 +29,8 @@ module, the current stage's optimiser, the curves) is written atomically every
 from __future__ import annotations
 
 import json
+
+from ...core.io import MAX_SMALL_JSON_BYTES, read_json_file
 import shutil
 import time
 from pathlib import Path
@@ -328,7 +330,7 @@ def _load(path: Path, ident: dict, model, device) -> tuple[int, int, dict, dict,
         if not 0 <= stage <= len(STAGES) or step < 0:
             raise ValueError(f"stage {stage} step {step} out of range")
         model.load_state_dict(ck["model"])
-        return stage, step, ck["optimizer"], json.loads(ck["curves"]), json.loads(ck["window"])
+        return stage, step, ck["optimizer"], json.loads(ck["curves"]), json.loads(ck["window"])  # read-ok: strings inside a checkpoint read by read_checkpoint
     return read_checkpoint(path, ident, device, restore)
 
 
@@ -431,7 +433,7 @@ def _write_result(out: Path, model: CATMO, data_: CD.CatmoData, cfg: CatmoConfig
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
                                             "hardware": ckpt.hardware(dev), "stage_seconds": stage_seconds})
     drop_checkpoint(cpath)
-    card = json.loads((out / ckpt.CARD).read_text())
+    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "checkpoint card")
     mv, ct = reports.get("test", reports["train"])["motion"], reports.get("test", reports["train"])["contact"]
     log(f"{tag} VQ ({'test' if 'test' in reports else 'train'}): motion MPJPE {mv['mpjpe_m'] * 100:.2f} cm, "
         f"perplexity {mv['perplexity']:.1f} ({mv['codes_used']}/{mv['codebook']} codes); contacts accuracy "
@@ -462,6 +464,10 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
         return finished
     text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, data_.vocab)
     torch.manual_seed(_seed(cfg.train.seed, "init"))
+    from ..config import check_parameter_count
+    from .config import preset as _preset
+    check_parameter_count(lambda c: CATMO(c, len(text.vocab or []), text.width, data_.with_object), cfg,
+                          _preset("paper"), "config")
     model = CATMO(cfg, len(text.vocab or []), text.width, data_.with_object).to(dev)
     steps_of = stage_steps(cfg, data_.with_object)
     ident = {"config": json.dumps(cfg.to_dict(), sort_keys=True), "baseline": NAME,
