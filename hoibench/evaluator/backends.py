@@ -66,6 +66,17 @@ register_backend(Backend("recognizer", "recognizer", "recognizer.json", ".recogn
                          "the multi-body action recognizer (hoibench train-recognizer)"))
 
 
+register_backend(Backend(
+    "interact", "interact", "card.json", ".interact:load_interact",
+    "InterAct's published text-to-interaction evaluator (markers + object BPS, DistilBERT text branch)",
+    importer=".interact_import:import_interact",
+    import_files=(ImportFile("checkpoint", "the evaluator checkpoint (InterAct: markersbps.ckpt)"),
+                  ImportFile("distilbert", "local distilbert-base-uncased folder (config.json + tokenizer files)"),
+                  ImportFile("mean", "InterAct: mean_train_markersbps.npy (615,)"),
+                  ImportFile("std", "InterAct: std_train_markersbps.npy (615,)"),
+                  ImportFile("bps_basis", "InterAct: bps_basis_set_128_1.npy (128, 3)"))))
+
+
 def list_backends() -> list[Backend]:
     return _BACKENDS.values()
 
