@@ -144,3 +144,50 @@ def test_bad_input_is_one_line(interact_raw, tmp_path):
     np.savez(seq / "object.npz", angles=np.zeros((5, 3)), trans=np.zeros((5, 3)), name=np.array("box"))
     with pytest.raises(ValueError, match=r"x_box_0: human.npz: poses: 100 columns, at least 156 expected"):
         interact.load_sequence(str(seq), str(tmp_path), str(raw / "body_models"), "behave")
+
+
+def test_rows_from_the_store_equal_rows_from_interact_files(interact_raw, interact_store):
+    """The evaluator's input built from a stored clip (centred template, hoibench's object
+    translation) equals the one built from InterAct's own files (its mesh frame and
+    translation): the BPS basis sits at InterAct's object origin either way."""
+    from scipy.spatial.transform import Rotation
+    from hoibench.evaluator.interact_features import clip_rows, interact_rows
+    raw, info = interact_raw
+    _, store = interact_store
+    basis = np.random.default_rng(5).uniform(-0.5, 0.5, (128, 3))
+    for source, name, obj in info["sequences"]:
+        seq = raw / source / "sequences_canonical" / name
+        o = np.load(seq / "object.npz")
+        clip = store.load(f"{source}-{name}")
+        markers = np.load(seq / "markers.npy") if (seq / "markers.npy").exists() else clip["markers"]
+        want = interact_rows(markers, np.load(raw / source / "objects" / obj / "sample_points.npy"),
+                             Rotation.from_rotvec(o["angles"]).as_matrix(), o["trans"], basis)
+        assert np.abs(clip_rows(clip, basis) - want).max() <= 1e-5
+        # a submission's sample (hoibench's conventions, rotation vectors) gives the same rows
+        sample = {"markers": clip["markers"][None], "obj_trans": clip["obj_trans"][None],
+                  "obj_rotvec": Rotation.from_matrix(clip["obj_rot"]).as_rotvec()[None],
+                  "object_sample_points": clip["object_sample_points"], "object_origin": clip["object_origin"]}
+        assert np.abs(clip_rows(sample, basis, 0) - want).max() <= 1e-5
+
+
+def test_submission_markers_are_validated(interact_store, tmp_path):
+    from hoibench.scoring.submission import from_store, validation_report, write_submission
+    _, store = interact_store
+    gt = from_store(store.root, tmp_path / "gt")
+    report = validation_report(gt, store.root, protocol="interact-clean")
+    assert not report.errors, report.errors
+    sid = store.clip_ids("test")[0]
+    arrays = dict(np.load(gt / "samples" / f"{sid}.npz"))
+    meta = json.loads((gt / "submission.json").read_text())
+    no_markers = {k: v for k, v in arrays.items() if k != "markers"}
+    write_submission(tmp_path / "a", meta, {sid: no_markers})
+    errs = validation_report(tmp_path / "a", store.root, protocol="interact-clean").errors
+    assert any(p.field == "markers" and "missing: this track's evaluator reads markers" in p.message for p in errs)
+    moved = dict(arrays, markers=arrays["markers"] + np.array([0, 0, 1.0], np.float32))
+    write_submission(tmp_path / "b", meta, {sid: moved})
+    errs = validation_report(tmp_path / "b", store.root, protocol="interact-clean").errors
+    assert any(p.field == "markers" and "from every joint" in p.message for p in errs)
+    bad_shape = dict(arrays, markers=arrays["markers"][:, :, :70])
+    write_submission(tmp_path / "c", meta, {sid: bad_shape})
+    errs = validation_report(tmp_path / "c", store.root, protocol="interact-clean").errors
+    assert any(p.field == "markers" and "expected shape (K, T, 77, 3)" in p.message for p in errs)

@@ -223,7 +223,7 @@ def load_sequence(seq_dir: str, objects_root: str, body_models: str, source: str
         raise SequenceError(f"{name}: object {obj!r}: mesh {mesh_path} not found")
     v, f = read_mesh(mesh_path, f"{name}: object {obj!r}", process=True)
     mean = v.mean(0)
-    arrays = {"markers": markers.astype(np.float32)}
+    arrays = {"markers": markers.astype(np.float32), "object_origin": (-mean).astype(np.float64)}
     spath = Path(objects_root) / obj / "sample_points.npy"
     if spath.is_file():
         p = np.load(io.BytesIO(read_regular_file(spath, 64 << 20, "sample_points.npy")), allow_pickle=False)
@@ -233,6 +233,7 @@ def load_sequence(seq_dir: str, objects_root: str, body_models: str, source: str
     prov = {"source": "interact", "source_dataset": source, "sequence": name, "source_fps": SOURCE_FPS,
             "resampled_to_fps": float(fps), "source_frames": T, "template": f"{obj}.obj",
             "template_mean_subtracted": mean.tolist(), "markers": markers_src,
+            "object_origin": "InterAct's object frame origin in the centred template (-mean): its BPS anchor",
             "body": (f"{spec.model_type}, subject template vtemp (body parameters not stored)" if spec.vtemp else
                      f"{spec.model_type}, {spec.num_betas} betas, flat_hand_mean={spec.flat_hand_mean}"
                      + (f", {spec.pca} PCA hand components converted to axis-angle" if spec.pca else "")),

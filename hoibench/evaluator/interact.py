@@ -29,7 +29,7 @@ import torch
 from .card import WEIGHTS, CARD, FORMAT, check_safetensors, compute_id, changed_parts
 from .embed import EMBED_THREADS, as_clip_list, deterministic
 from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
-from .interact_features import ROW_WIDTH
+from .interact_features import ROW_WIDTH, clip_rows
 from .interact_model import MotionEncoder, TextEncoder
 
 BACKEND = "interact"
@@ -127,6 +127,27 @@ class InteractEvaluator:
 
     def embed(self, features, lengths=None, batch_size: int = 64) -> np.ndarray:
         return self.embed_motion(features, lengths, batch_size)
+
+    # ------------------------------------------------------------------ rows for scoring
+    _CLIP_KEYS = ("markers", "obj_rot", "obj_trans", "object_sample_points", "object_origin")
+
+    def store_rows(self, store, clip_id: str) -> np.ndarray:
+        """(T, 615) rows of a stored clip (what ``hoibench prepare interact`` stores)."""
+        try:
+            return clip_rows(store.load(clip_id, keys=self._CLIP_KEYS), self.basis)
+        except ValueError as exc:
+            raise ValueError(f"{store.root}: clip {clip_id}: {exc}; prepare the store with "
+                             f"`hoibench prepare interact`") from None
+
+    def sample_rows(self, arrays: dict, k: int, store, clip_id: str) -> np.ndarray:
+        """(T, 615) rows of sample ``k`` of a submission file (``markers``, ``obj_rot`` or
+        ``obj_rotvec``, ``obj_trans``), with the ground-truth clip's object points and origin."""
+        gt = store.load(clip_id, keys=("object_sample_points", "object_origin"))
+        sample = {key: v for key, v in arrays.items() if key in ("markers", "obj_rot", "obj_rotvec", "obj_trans")}
+        try:
+            return clip_rows({**sample, **gt}, self.basis, k)
+        except ValueError as exc:
+            raise ValueError(f"{clip_id}: {exc}") from None
 
     def embed_text(self, texts: Sequence[str], tokens=None, batch_size: int = 128) -> np.ndarray:
         """(N, 256) float32 ``.loc`` embeddings of captions (``tokens`` is not used: the

@@ -42,12 +42,15 @@ def bps_deltas(points: np.ndarray, basis: np.ndarray, trans: np.ndarray) -> np.n
 
 
 def interact_rows(markers: np.ndarray, object_points: np.ndarray, obj_rot: np.ndarray, obj_trans: np.ndarray,
-                  basis: np.ndarray) -> np.ndarray:
+                  basis: np.ndarray, origin: np.ndarray | None = None) -> np.ndarray:
     """``(T, 615)`` float32 evaluator rows of one clip.
 
     ``markers``: (T, 77, 3) or (T, 231); ``object_points``: (P, 3) sample points in the
     object's frame; ``obj_rot``: (T, 3, 3) rotation matrices; ``obj_trans``: (T, 3);
-    ``basis``: (128, 3) InterAct's evaluation BPS basis."""
+    ``basis``: (128, 3) InterAct's evaluation BPS basis. ``origin``: where InterAct's object
+    frame has its origin, in the template frame of ``object_points`` (hoibench centres
+    templates on their vertex mean, InterAct does not: ``origin = -mean``); the basis sits at
+    the posed origin ``R @ origin + t``. None: at ``t`` (points already in InterAct's frame)."""
     m = np.asarray(markers, np.float64)
     T = len(m)
     m = m.reshape(T, -1)
@@ -62,8 +65,29 @@ def interact_rows(markers: np.ndarray, object_points: np.ndarray, obj_rot: np.nd
     if np.shape(basis) != (BPS_POINTS, 3):
         raise ValueError(f"interact rows: the BPS basis must be ({BPS_POINTS}, 3), got {np.shape(basis)}")
     posed = np.einsum("tij,pj->tpi", R, p0) + t[:, None, :]
-    d = bps_deltas(posed, basis, t).reshape(T, -1)
+    anchor = t if origin is None else t + R @ np.asarray(origin, np.float64).reshape(3)
+    d = bps_deltas(posed, basis, anchor).reshape(T, -1)
     return np.concatenate([m, d], axis=1).astype(np.float32)
 
 
-__all__ = ["MARKER_COLUMNS", "BPS_POINTS", "ROW_WIDTH", "bps_deltas", "interact_rows"]
+def clip_rows(clip: dict, basis: np.ndarray, k: int | None = None) -> np.ndarray:
+    """Rows of a stored clip or of sample ``k`` of a submission file: ``markers``, ``obj_rot``
+    (or ``obj_rotvec``), ``obj_trans``, ``object_sample_points`` and ``object_origin``
+    (what ``hoibench prepare interact`` stores per clip)."""
+    def take(key):
+        a = np.asarray(clip[key])
+        return a if k is None else a[k]
+    for key in ("markers", "obj_trans", "object_sample_points"):
+        if key not in clip:
+            raise ValueError(f"interact rows: no {key!r} (the interact evaluator needs markers, the object pose and "
+                             f"InterAct's object sample points)")
+    if "obj_rot" in clip:
+        R = take("obj_rot")
+    else:
+        from ..core.geometry import axis_angle_to_matrix
+        R = np.asarray(axis_angle_to_matrix(take("obj_rotvec")))
+    return interact_rows(take("markers"), clip["object_sample_points"], R, take("obj_trans"), basis,
+                         clip.get("object_origin"))
+
+
+__all__ = ["MARKER_COLUMNS", "BPS_POINTS", "ROW_WIDTH", "bps_deltas", "interact_rows", "clip_rows"]

@@ -153,7 +153,7 @@ def import_interact(out: Path, checkpoint: Path, distilbert: Path, mean: Path, s
             "motion": {"nfeats": ROW_WIDTH, "markers": 77, "bps_points": BPS_POINTS, "latent": LATENT,
                        "ff_size": FF_SIZE, "layers": LAYERS, "heads": HEADS, "pos_len": pos_len,
                        "embedding": "loc"},
-            "dataset": {"representation": REPRESENTATION}}
+            "dataset": {"name": "interact", "fps": 30.0, "rows": REPRESENTATION}}
     (out / TOKENIZER_DIR).mkdir(parents=True, exist_ok=True)
     for n, p in tok_files.items():
         shutil.copyfile(p, out / TOKENIZER_DIR / n)
