@@ -127,6 +127,9 @@ def _cmd_prepare(args) -> int:
     manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
                        source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type},
                        warnings=warnings)
+    finish = getattr(loader, "write_texts", None)     # sources whose texts come with the data (interact)
+    if finish is not None:
+        finish(args.out, manifest)
     print(summary_table(manifest))
     missing = manifest.get("incomplete") or []
     if missing:

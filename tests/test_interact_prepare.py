@@ -29,6 +29,7 @@ def _prepare(raw, out, split="object", sources=None, fps=30.0):
     cfg = PrepareConfig("interact", fps=fps, body_model_type="smplx")
     manifest = prepare(interact.prepare_jobs(raw, raw / "body_models", out, cfg, sources=sources, split=split),
                        out, cfg)
+    interact.write_texts(out, manifest)
     return manifest, Store(out)
 
 
@@ -90,6 +91,9 @@ def test_joints_objects_texts_markers_match(interact_raw, interact_store):
         assert [t["text"] for t in texts] == [f"A person lifts the {obj} with both hands.",
                                               f"the person carries the {obj}  "]   # as InterAct reads it
         assert texts[0]["tokens"] == f"a/DET person/NOUN lift/VERB the/DET {obj}/NOUN"
+        # the scorer's caption file: InterAct's captions, whole-clip (its loader ignores time tags)
+        lines = (store.root / "texts" / f"{source}-{name}.txt").read_text().splitlines()
+        assert lines[0] == f"A person lifts the {obj} with both hands.#a/DET person/NOUN lift/VERB the/DET {obj}/NOUN#0.0#0.0"
         prov = json.loads(str(clip["provenance"]))
         assert prov["source_dataset"] == source
         mfile = raw / source / "sequences_canonical" / name / "markers.npy"

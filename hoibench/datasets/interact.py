@@ -132,7 +132,7 @@ def read_texts(path: Path, name: str) -> list[dict]:
         parts = line.strip().split("#")
         if parts[0]:
             out.append({"text": parts[0], "tokens": parts[1] if len(parts) > 1 else "", "start": None, "end": None,
-                        "source": "interact"})
+                        "source": "interact", "line": line.strip()})
     return out
 
 
@@ -249,6 +249,24 @@ def load_sequence(seq_dir: str, objects_root: str, body_models: str, source: str
     return seq
 
 
+def write_texts(out: str | Path, manifest: dict) -> int:
+    """``DATA/texts/<clip>.txt`` of every prepared clip from its InterAct texts, one
+    ``caption#tokens#0.0#0.0`` line each (whole-clip captions: InterAct's loader ignores the
+    line's time tags and uses every caption for the whole sequence). Returns the files written."""
+    import json
+    from ..core.io import atomic_write_text
+    from .store import Store
+    st, n = Store(out), 0
+    for c in manifest.get("clips", []):
+        clip = st.load(c["id"], keys=("texts",))
+        texts = [json.loads(str(t)) for t in np.asarray(clip.get("texts", [])).ravel()]
+        lines = [f"{t['text']}#{t.get('tokens', '')}#0.0#0.0" for t in texts if t.get("source") == "interact"]
+        if lines:
+            atomic_write_text(Path(out) / "texts" / f"{c['id']}.txt", "\n".join(lines) + "\n")
+            n += 1
+    return n
+
+
 def read_test_ids(root: Path, split: str) -> set[str]:
     """The test ids of ``split`` (``object``: object names from ``test.txt``; ``sequence``:
     sequence names from ``test_seq.txt``)."""
@@ -309,4 +327,5 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
 
 
 __all__ = ["SOURCES", "SourceSpec", "SOURCE_FPS", "load_sequence", "prepare_jobs", "read_texts", "read_test_ids",
+           "write_texts",
            "hoibench_poses"]

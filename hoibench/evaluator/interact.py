@@ -102,6 +102,11 @@ class InteractEvaluator:
         return REPRESENTATION
 
     @property
+    def variant(self) -> str:
+        """What its motion branch reads (recorded in results)."""
+        return "interact"
+
+    @property
     def embed_dim(self) -> int:
         return int(self.motion.mu_token.shape[0])
 
