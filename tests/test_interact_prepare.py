@@ -195,3 +195,23 @@ def test_submission_markers_are_validated(interact_store, tmp_path):
     write_submission(tmp_path / "c", meta, {sid: bad_shape})
     errs = validation_report(tmp_path / "c", store.root, protocol="interact-clean").errors
     assert any(p.field == "markers" and "expected shape (K, T, 77, 3)" in p.message for p in errs)
+
+
+def test_pose_layouts_of_the_other_sources():
+    """InterCap's 12 PCA components per hand and CHAIRS' jaw/eyes after the hands become
+    hoibench's axis-angle layouts (root, body, [jaw, eyes,] left hand, right hand)."""
+    from hoibench.datasets.interact import SOURCES, hoibench_poses
+    rng = np.random.default_rng(0)
+    comps = (rng.normal(size=(12, 45)), rng.normal(size=(12, 45)))
+    p = rng.normal(size=(4, 90))
+    out = hoibench_poses(p, SOURCES["intercap"], comps, "s")
+    np.testing.assert_allclose(out[:, :66], p[:, :66])
+    np.testing.assert_allclose(out[:, 66:111], p[:, 66:78] @ comps[0])
+    np.testing.assert_allclose(out[:, 111:156], p[:, 78:90] @ comps[1])
+    q = rng.normal(size=(4, 165))
+    out = hoibench_poses(q, SOURCES["chairs"], None, "s")
+    np.testing.assert_array_equal(out[:, 66:75], q[:, 156:165])       # jaw, left eye, right eye
+    np.testing.assert_array_equal(out[:, 75:165], q[:, 66:156])       # hands
+    np.testing.assert_array_equal(hoibench_poses(q, SOURCES["omomo"], None, "s"), q[:, :156])
+    with pytest.raises(ValueError, match="s: human.npz: poses: 80 columns, 90 expected"):
+        hoibench_poses(p[:, :80], SOURCES["intercap"], comps, "s")
