@@ -151,3 +151,6 @@ def test_cli_import(interact, tmp_path, capsys):
                str(f["bps_basis"]), "--out", str(tmp_path / "ev")])
     assert rc == 0
     assert interact["id"] in capsys.readouterr().out      # the same files give the same id
+    assert main(["evaluator", "show", str(tmp_path / "ev")]) == 0
+    out = capsys.readouterr().out
+    assert f"interact evaluator {interact['id']} (verified)" in out and "615 inputs" in out

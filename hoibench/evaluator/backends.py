@@ -47,6 +47,9 @@ class Backend:
     description: str
     importer: str | None = None
     import_files: tuple[ImportFile, ...] = ()
+    #: ``"module:function"`` giving ``(summary text, verified)`` of a folder for
+    #: ``hoibench evaluator show`` (None: the contrastive card summary)
+    show: str | None = None
 
     def load(self, folder: str | Path, **options) -> Any:
         return load_object(self.loader, __package__)(folder, **options)
@@ -69,7 +72,7 @@ register_backend(Backend("recognizer", "recognizer", "recognizer.json", ".recogn
 register_backend(Backend(
     "interact", "interact", "card.json", ".interact:load_interact",
     "InterAct's published text-to-interaction evaluator (markers + object BPS, DistilBERT text branch)",
-    importer=".interact_import:import_interact",
+    importer=".interact_import:import_interact", show=".interact:show_interact",
     import_files=(ImportFile("checkpoint", "the evaluator checkpoint (InterAct: markersbps.ckpt)"),
                   ImportFile("distilbert", "local distilbert-base-uncased folder (config.json + tokenizer files)"),
                   ImportFile("mean", "InterAct: mean_train_markersbps.npy (615,)"),

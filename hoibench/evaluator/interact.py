@@ -177,6 +177,20 @@ def split_state(tensors: dict) -> tuple[dict, dict, dict]:
     return text, motion, rest
 
 
+def show_interact(folder: str | Path) -> tuple[str, dict]:
+    """(summary, card) of a verified ``interact`` folder, for ``hoibench evaluator show``."""
+    folder = Path(folder)
+    card, _ = _verify(folder)
+    src, m, tm = card.get("source", {}), card.get("motion", {}), card.get("text_model", {}).get("config", {})
+    text = (f"interact evaluator {card['evaluator_id']} (verified)\n"
+            f"  imported from {src.get('checkpoint')} (sha256 {str(src.get('checkpoint_sha256'))[:12]}...)\n"
+            f"  motion: {m.get('nfeats')} inputs (77 markers + {m.get('bps_points')} BPS deltas), latent "
+            f"{m.get('latent')}, {m.get('layers')} layers, embedding = {m.get('embedding')}\n"
+            f"  text: DistilBERT dim {tm.get('dim')}, {tm.get('n_layers')} layers, vocabulary {tm.get('vocab_size')}\n"
+            f"  scores: dataset {card.get('dataset', {}).get('name')} at {card.get('dataset', {}).get('fps')} fps")
+    return text, card
+
+
 def load_interact(folder: str | Path, *, threads: int | None = None, device: str = "cpu", **_ignored
                   ) -> InteractEvaluator:
     """Load and verify an ``interact`` evaluator folder (one-line errors naming the file)."""
@@ -203,5 +217,5 @@ def load_interact(folder: str | Path, *, threads: int | None = None, device: str
 
 
 
-__all__ = ["BACKEND", "REPRESENTATION", "InteractEvaluator", "load_interact", "build_text_encoder",
+__all__ = ["BACKEND", "REPRESENTATION", "InteractEvaluator", "load_interact", "show_interact", "build_text_encoder",
            "build_motion_encoder", "split_state"]
