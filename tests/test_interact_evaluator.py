@@ -64,8 +64,14 @@ def test_bps_deltas_nearest_point_analytic():
 
 
 def test_markers_pick_vertex_ids():
+    import hashlib
     from hoibench.bodies.markers import MARKERS_SMPLH, MARKERS_SMPLX, markers_from_vertices
     assert len(set(MARKERS_SMPLH)) == len(set(MARKERS_SMPLX)) == 77
+    # sha256 of ",".join(ids) of markerset_smplh / markerset_smplx in InterAct's
+    # text2interaction/utils/markerset.py (wzyabcas/InterAct, commit daa7945), imported and hashed
+    digest = lambda ids: hashlib.sha256(",".join(map(str, ids)).encode()).hexdigest()   # noqa: E731
+    assert digest(MARKERS_SMPLH) == "0bd58e4e73cf2c29410985c72a19123d5ff72071cfd58c6b49d7844b676b00a4"
+    assert digest(MARKERS_SMPLX) == "f030ab3dc02b6ce43eccfdce7fd0fd7ec3ac4fcd1c48a154ea74e167e0ca0398"
     v = np.arange(2 * 6890 * 3, dtype=float).reshape(2, 6890, 3)
     np.testing.assert_array_equal(markers_from_vertices(v), v[:, list(MARKERS_SMPLH)])
     vx = np.random.default_rng(0).normal(size=(10475, 3))

@@ -8,9 +8,11 @@ below mark the same 77 anatomical places on the two topologies, in the same orde
 marker array ``(T, 77, 3)`` means the same thing whichever model posed the body.
 
 The ids are the ``markerset_smplh`` / ``markerset_smplx`` lists of InterAct's public code
-(``process/markerset.py``, repeated in ``text2interaction/utils/markerset.py``); they are
-mesh-topology facts (vertex indices), checked in ``tests/test_interact_evaluator.py``
-against that file's values.
+(``process/markerset.py``, repeated in ``text2interaction/utils/markerset.py``; GitHub
+``wzyabcas/InterAct``, commit ``daa7945``): mesh-topology facts (vertex indices), copied as
+numbers. ``tests/test_interact_evaluator.py`` compares their hash with the lists of that
+file; ``tests/test_interact_prepare.py`` checks that prepared clips carry the vertices at
+these ids of the independently posed meshes.
 """
 from __future__ import annotations
 

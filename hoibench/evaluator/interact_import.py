@@ -133,7 +133,8 @@ def import_interact(out: Path, checkpoint: Path, distilbert: Path, mean: Path, s
     basis = _array(Path(bps_basis), (BPS_POINTS, 3), "BPS basis")
     sd = read_checkpoint(Path(checkpoint))
     pe_key = "sequence_pos_encoding.pe"
-    pos_len = int(sd.get("motionencoder." + pe_key, torch.zeros(5000)).shape[0])
+    pe = sd.get("motionencoder." + pe_key)
+    pos_len = int(pe.shape[0]) if isinstance(pe, torch.Tensor) and pe.ndim == 3 else 5000   # else _slice names it
     text_ref = build_text_encoder(config, pos_len).state_dict()
     motion_ref = build_motion_encoder(pos_len).state_dict()
     text = _slice(sd, "textencoder.", text_ref, Path(checkpoint), (pe_key,))
