@@ -394,7 +394,8 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--sources", default=None,
                    help="interact: comma-separated source datasets (default: every one present), e.g. behave,grab")
     s.add_argument("--split", choices=["object", "sequence"], default=None,
-                   help="interact: InterAct's object split (test.txt, default) or sequence split (test_seq.txt)")
+                   help="interact: InterAct's sequence split (test_seq.txt, default: what its evaluation script "
+                        "uses) or object split (test.txt)")
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)

@@ -40,7 +40,8 @@ Facts and where they come from (GitHub ``wzyabcas/InterAct``, commit ``daa7945``
   and moves the mean into the translation. ``sample_points.npy`` (the evaluator's object
   points) is kept per clip in the same centred frame.
 * Splits: ``dataset.py`` takes a sequence as test when its object name is in ``test.txt``
-  (object split) or its folder name is in ``test_seq.txt`` (sequence split).
+  (object split, ``--obj_split``) or its folder name is in ``test_seq.txt`` (sequence split:
+  the default, and what ``text2interaction/scripts/eval.sh`` evaluates on).
 
 Clip ids are ``<source>-<sequence>``; object names ``<source>-<object>`` (the same name,
 e.g. ``chair``, is a different object in different sources). Each clip records its source
@@ -281,7 +282,7 @@ def read_test_ids(root: Path, split: str) -> set[str]:
 
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config, split_file=None,
-                 sources: str | None = None, split: str = "object") -> list[tuple]:
+                 sources: str | None = None, split: str = "sequence") -> list[tuple]:
     """One :func:`hoibench.datasets.store.run_unit` job per sequence of the chosen sources
     (default: every supported source folder present under ``root``)."""
     from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates
