@@ -142,7 +142,9 @@ def load_evaluator(folder: str | Path, kind: str | None = None, **options) -> An
         backend = get_backend(kind or "contrastive")     # its loader names the missing file
     elif kind is not None and backend.kind != kind:
         make = {"contrastive": "hoibench train-evaluator DATA --out EV",
-                "recognizer": "hoibench train-recognizer DATA --out EV"}.get(kind, f"a {kind} evaluator")
+                "recognizer": "hoibench train-recognizer DATA --out EV"}.get(
+            kind, f"hoibench evaluator import {kind} ... --out EV" if kind in _BACKENDS and
+            _BACKENDS.get(kind).importer else f"a {kind} evaluator")
         raise ValueError(f"{folder}: a {backend.kind} evaluator ({backend.marker}), this track needs a {kind} one "
                          f"(make it with `{make}`)")
     return backend.load(folder, **options)
