@@ -143,6 +143,10 @@ def test_folder_tamper_and_wrong_inputs_are_refused(interact, tmp_path):
         interact["ev"].embed_motion([np.zeros((4, 263), np.float32)])
     with pytest.raises(ValueError, match="a interact evaluator|this track needs a contrastive"):
         load_evaluator(ev_dir, kind="contrastive")
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "recognizer.json").write_text("{}")
+    with pytest.raises(ValueError, match=r"needs a interact one \(make it with `hoibench evaluator import interact"):
+        load_evaluator(tmp_path / "rec", kind="interact")
     vocab = ev_dir / "tokenizer" / "vocab.txt"
     vocab.write_text(vocab.read_text() + "extra\n")
     with pytest.raises(ValueError, match="vocab.txt: sha256 differs from card field"):
