@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.interact_fixture import CAPTIONS, clip_inputs, write_interact_files
+from interact_fixture import CAPTIONS, clip_inputs, write_interact_files
 
 REF = Path(__file__).parent / "data" / "interact_evaluator_reference.npz"
 
