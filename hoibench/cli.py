@@ -86,6 +86,8 @@ SYNTH_LAYOUTS = {
                   "(hoibench's multi-body layout)"),
     "grab": (".datasets.grab_layout", "write_grab_layout", "grab sequences", "in GRAB's layout"),
     "core4d": (".datasets.core4d_layout", "write_core4d_layout", "core4d sequences", "in CORE4D's layout"),
+    "interact": (".datasets.interact_layout", "write_interact_layout", "interact sequences",
+                 "in InterAct's processed layout"),
 }
 
 
@@ -117,11 +119,17 @@ def _cmd_prepare(args) -> int:
         raise ValueError(f"prepare {args.dataset}: --body-models is required (the folder with smplh/ or smplx/)")
     cfg = PrepareConfig(name, fps=args.fps, mode=args.mode,
                         body_model_type="smplh" if args.dataset == "behave" else "smplx")
-    jobs = loader.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file)
+    extra = {k: getattr(args, k) for k in ("sources", "split") if getattr(args, k, None) is not None}
+    if extra and args.dataset != "interact":
+        raise ValueError(f"prepare {args.dataset}: --{next(iter(extra))} is read by `prepare interact` only")
+    jobs = loader.prepare_jobs(args.root, args.body_models, args.out, cfg, split_file=args.split_file, **extra)
     warnings = getattr(loader, "prepare_warnings", lambda root, models: [])(args.root, args.body_models)
     manifest = prepare(jobs, args.out, cfg, executor=args.executor, strict=args.strict,
                        source={"root": str(Path(args.root).resolve()), "body_models": cfg.body_model_type},
                        warnings=warnings)
+    finish = getattr(loader, "write_texts", None)     # sources whose texts come with the data (interact)
+    if finish is not None:
+        finish(args.out, manifest)
     print(summary_table(manifest))
     counts = manifest.get("counts", {})
     if not counts.get("clips") and counts.get("failed"):
@@ -390,7 +398,8 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--out", type=Path, required=True, help="the raw-layout folder to write")
     s.add_argument("--clips", type=int, default=24, help="how many clips (default 24; 120 for the evaluator gate)")
     s.add_argument("--seed", type=int, default=0, help=H_SEED)
-    s.add_argument("--layout", choices=["behave", "omomo", "rich", "multibody", "grab", "core4d"], default="behave",
+    s.add_argument("--layout", choices=["behave", "omomo", "rich", "multibody", "grab", "core4d", "interact"],
+                   default="behave",
                    help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d: "
                         "multi-body sequences in GRAB's / CORE4D's release layout (proxy body models)")
     s.add_argument("--defect", action="append", default=[],
@@ -401,8 +410,8 @@ def _add_data_commands(sub) -> None:
     s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich, multibody) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab"],
-                   help="the raw layout to read")
+    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab", "interact"],
+                   help="the raw layout to read (interact: InterAct's processed data/ folder)")
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
     s.add_argument("--body-models", type=Path, default=None,
                    help="folder with smplh/ (BEHAVE) or smplx/ (OMOMO, RICH) model files: yours or the proxy "
@@ -412,6 +421,11 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--mode", choices=["clean", "legacy", "legacy-hoidiff"], default="clean",
                    help="representation mode (legacy-hoidiff: HOI-Diff's features, for behave-legacy/omomo-legacy)")
     s.add_argument("--split-file", type=Path, default=None, help="JSON {train: [...], test: [...]}")
+    s.add_argument("--sources", default=None,
+                   help="interact: comma-separated source datasets (default: every one present), e.g. behave,grab")
+    s.add_argument("--split", choices=["object", "sequence"], default=None,
+                   help="interact: InterAct's sequence split (test_seq.txt, default: what its evaluation script "
+                        "uses) or object split (test.txt)")
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)

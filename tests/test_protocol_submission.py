@@ -34,12 +34,13 @@ def test_shipped_protocols_fix_the_design_numbers():
             "synthetic-clean", "synthetic-legacy"} <= set(protos)
     for p in protos.values():
         # legacy protocols run ChainHOI's released loop: one replication, as its src/eval.py
-        assert p.replications == (1 if p.mode == "legacy" else 20) and p.fps == 20 and p.mode in ("legacy", "clean")
+        assert p.replications == (1 if p.mode == "legacy" else 20) and p.mode in ("legacy", "clean")
+        assert p.fps == (30 if p.dataset == "interact" else 20)       # InterAct's evaluator reads 30 fps rows
         assert p.embedding_loop == ("chainhoi" if p.mode == "legacy" else "hoibench")
         assert p.physical_config().mode == p.mode
         assert p.physical_config().shift_to_floor == (p.mode == "legacy")
         if p.dataset != "synthetic":
-            assert p.r_precision_pool_size == 32
+            assert p.r_precision_pool_size == (64 if p.dataset == "interact" else 32)   # InterAct's batch
             assert (p.mm_texts, p.mm_samples, p.mm_pairs) == (100, 30, 10)
             assert p.diversity_pairs == (100 if p.mode == "legacy" else 200 if p.dataset == "behave" else 300)
     assert protos["behave-clean"].representation == "hml263-clean-1.0"

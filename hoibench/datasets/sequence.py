@@ -76,6 +76,9 @@ class HOISequence:
     #: ``object_name`` / ``object_vertices`` / ``obj_rot`` / ``obj_trans`` describe (the one
     #: the representations and metrics use); empty for a one-part object.
     parts: list[ObjectPart] = field(default_factory=list)
+    #: further per-clip arrays a source provides, written into the clip file as they are
+    #: (InterAct: ``markers`` (T, 77, 3), ``object_sample_points`` (P, 3) in the template frame)
+    extra_arrays: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def num_frames(self) -> int:

@@ -114,6 +114,10 @@ def clip_arrays(seq, mode: str, split: str, source_sha256: str) -> dict[str, np.
         out["contacts"] = seq.contacts.astype(bool)
     if seq.texts:   # dataset texts (e.g. OMOMO's annotations), one JSON object per entry
         out["texts"] = np.array([strict_json_dumps(t, sort_keys=True) for t in seq.texts])
+    for k, v in getattr(seq, "extra_arrays", {}).items():
+        if k in out:
+            raise ValueError(f"{seq.name}: extra array {k!r} would replace a clip field")
+        out[k] = np.asarray(v)
     out["provenance"] = np.array(strict_json_dumps(seq.provenance, sort_keys=True))
     return out
 

@@ -47,6 +47,9 @@ class Backend:
     description: str
     importer: str | None = None
     import_files: tuple[ImportFile, ...] = ()
+    #: ``"module:function"`` giving ``(summary text, verified)`` of a folder for
+    #: ``hoibench evaluator show`` (None: the contrastive card summary)
+    show: str | None = None
 
     def load(self, folder: str | Path, **options) -> Any:
         return load_object(self.loader, __package__)(folder, **options)
@@ -74,6 +77,17 @@ register_backend(Backend("chainhoi", "contrastive", "card.json", ".published_cha
                                         "merges.txt)"),
                              ImportFile("stats", "ChainHOI's dataset folder holding Mean_local.npy and Std_local.npy "
                                         "(dataset/behave_t2m or dataset/omomo)"))))
+
+
+register_backend(Backend(
+    "interact", "interact", "card.json", ".interact:load_interact",
+    "InterAct's published text-to-interaction evaluator (markers + object BPS, DistilBERT text branch)",
+    importer=".interact_import:import_interact", show=".interact:show_interact",
+    import_files=(ImportFile("checkpoint", "the evaluator checkpoint (InterAct: markersbps.ckpt)"),
+                  ImportFile("distilbert", "local distilbert-base-uncased folder (config.json + tokenizer files)"),
+                  ImportFile("mean", "InterAct: mean_train_markersbps.npy (615,)"),
+                  ImportFile("std", "InterAct: std_train_markersbps.npy (615,)"),
+                  ImportFile("bps_basis", "InterAct: bps_basis_set_128_1.npy (128, 3)"))))
 
 
 def list_backends() -> list[Backend]:
@@ -138,7 +152,9 @@ def load_evaluator(folder: str | Path, kind: str | None = None, **options) -> An
         backend = get_backend(kind or "contrastive")     # its loader names the missing file
     elif kind is not None and backend.kind != kind:
         make = {"contrastive": "hoibench train-evaluator DATA --out EV",
-                "recognizer": "hoibench train-recognizer DATA --out EV"}.get(kind, f"a {kind} evaluator")
+                "recognizer": "hoibench train-recognizer DATA --out EV"}.get(
+            kind, f"hoibench evaluator import {kind} ... --out EV" if kind in _BACKENDS and
+            _BACKENDS.get(kind).importer else f"a {kind} evaluator")
         raise ValueError(f"{folder}: a {backend.kind} evaluator ({backend.marker}), this track needs a {kind} one "
                          f"(make it with `{make}`)")
     return backend.load(folder, **options)

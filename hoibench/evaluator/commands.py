@@ -50,6 +50,15 @@ def main_show(dir, as_json: bool = False) -> int:
     from .card import read_card, summary, verify_folder
     from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
     backend = backend_of(dir)
+    if backend is not None and backend.show:       # imported evaluators have their own card
+        from ..core.registry import load_object
+        try:
+            text, card = load_object(backend.show, __package__)(dir)
+        except EvaluatorIntegrityError as exc:
+            print(f"hoibench evaluator: error: {exc}", file=sys.stderr)
+            return 2 if isinstance(exc, CorruptEvaluatorFile) else 1
+        print(json.dumps(card, indent=1, sort_keys=True) if as_json else text)
+        return 0
     if backend is not None and backend.importer is not None:
         return _show_imported(dir, backend, as_json)
     try:

@@ -106,10 +106,11 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
                 gen[k, i] = e
             pending.clear()
 
+    rows_of = getattr(ev, "sample_rows", None)     # evaluators with their own motion input (interact)
     for i, cid in enumerate(ids):
         arrays = sub.load(cid)
         for k in ks_embed:
-            feats = encode_sample(arrays, k, mode, fps)
+            feats = rows_of(arrays, k, store, cid) if rows_of else encode_sample(arrays, k, mode, fps)
             if not np.isfinite(feats).all():      # validate refuses these; never embed them
                 raise ValueError(f"{cid}: sample {k} encodes to non-finite features")
             pending.append((k, i, feats))
@@ -212,7 +213,7 @@ class HOIScorer(Scorer):
         if no_text:
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
-        self.real_all = ev.embed_motion([_real_features(store, cid) for cid in test_ids])
+        self.real_all = ev.embed_motion([_real_features(store, cid, ev) for cid in test_ids])
         all_caps = sorted({c for caps in captions.values() for c in caps})
         cap_emb = dict(zip(all_caps, ev.embed_text(all_caps)))
         self.sets_all = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in test_ids]
@@ -435,7 +436,11 @@ class HOIScorer(Scorer):
         return format_result(result)
 
 
-def _real_features(store: Store, cid: str) -> np.ndarray:
+def _real_features(store: Store, cid: str, ev=None) -> np.ndarray:
+    """A test clip's evaluator input: the evaluator's own rows when it defines ``store_rows``
+    (interact: markers + object BPS), else the stored hoi269 (or hml263) rows."""
+    if hasattr(ev, "store_rows"):
+        return ev.store_rows(store, cid)
     clip = store.load(cid, keys=("hoi269", "hml263"))
     return clip["hoi269"] if "hoi269" in clip else clip["hml263"]
 

@@ -9,6 +9,11 @@ A submission is a directory, or a ``.zip`` of one (read in place, never extracte
                                obj_rot   (K, T, 3, 3)  or  obj_rotvec (K, T, 3)   (one of them)
                                obj_trans (K, T, 3)     object pose v = R v_template + t
                                hml263    (K, T-1 or T, 263)  optional
+                               markers   (K, T, 77, 3) float, metres, the joints' frame:
+                                         InterAct's body-surface markers
+                                         (:mod:`hoibench.bodies.markers`); optional, required
+                                         by tracks whose evaluator reads them (``interact``:
+                                         the track's ``submission_arrays``)
 
 The object arrays are required for test clips that have an object; a human-only store's
 clips (RICH: static scenes) need ``joints`` only (object arrays there draw a warning).

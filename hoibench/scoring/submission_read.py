@@ -30,10 +30,10 @@ MAX_ARRAY_BYTES = 2 * 1024 ** 3
 MAX_JSON_BYTES = 1024 ** 2
 #: the id rule (:mod:`hoibench.core.ids`)
 ID_PATTERN = _ID_PATTERN
-KNOWN_ARRAYS = ("joints", "obj_rot", "obj_rotvec", "obj_trans", "hml263")
-#: values per frame of every known array (joints 66, obj_rot 9, obj_trans 3, hml263 263);
-#: obj_rotvec (3) is the alternative to obj_rot, so 9 bounds both
-VALUES_PER_FRAME = 22 * 3 + 9 + 3 + 263
+KNOWN_ARRAYS = ("joints", "obj_rot", "obj_rotvec", "obj_trans", "hml263", "markers")
+#: values per frame of every known array (joints 66, obj_rot 9, obj_trans 3, hml263 263,
+#: markers 231); obj_rotvec (3) is the alternative to obj_rot, so 9 bounds both
+VALUES_PER_FRAME = 22 * 3 + 9 + 3 + 263 + 77 * 3
 #: the widest accepted dtype (float64): budgets assume it
 BYTES_PER_VALUE = 8
 #: arrays an .npz may hold besides the known ones (warned about, never loaded)

@@ -147,6 +147,12 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Probl
                                  "warning"))
     if "joints" not in headers:
         probs.append(Problem(sid, "joints", "missing: every sample file needs joints (K, T, 22, 3)"))
+    for k in ctx.required:
+        if k not in headers:
+            probs.append(Problem(sid, k, f"missing: this track's evaluator reads {k} "
+                                         + ("(K, T, 77, 3): InterAct's body-surface markers, metres, the joints' "
+                                            "frame (hoibench.bodies.markers.markers_from_vertices of the posed "
+                                            "SMPL-H/SMPL-X vertices)" if k == "markers" else "")))
     if ctx.has_object and ctx.human_only:      # a human-only method on an HOI store: joints only
         for k in ("obj_rot", "obj_rotvec", "obj_trans"):
             if k in headers:
@@ -170,7 +176,8 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Probl
                    + _expect_shape(headers.get("obj_rot"), (3, 3), "obj_rot", sid)
                    + _expect_shape(headers.get("obj_rotvec"), (3,), "obj_rotvec", sid)
                    + _expect_shape(headers.get("obj_trans"), (3,), "obj_trans", sid)
-                   + _expect_shape(headers.get("hml263"), (263,), "hml263", sid))
+                   + _expect_shape(headers.get("hml263"), (263,), "hml263", sid)
+                   + _expect_shape(headers.get("markers"), (77, 3), "markers", sid))
     probs += shape_probs
     bad = {p.field for p in shape_probs}
     present = [k for k in KNOWN_ARRAYS if k in headers and k not in bad]
@@ -231,6 +238,19 @@ def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, 
     return rows, fps, int(cap), mode
 
 
+def required_arrays(protocol) -> tuple[str, ...]:
+    """Sample arrays beyond joints and object poses that ``protocol``'s track needs (its
+    ``submission_arrays`` extra: the interact track's evaluator reads ``markers``)."""
+    track = getattr(protocol, "track", "") if protocol is not None else ""
+    if not track:
+        return ()
+    from ..tracks.registry import get_track
+    try:
+        return tuple(get_track(track).extras.get("submission_arrays", ()))
+    except (KeyError, ValueError):
+        return ()
+
+
 #: a submission-wide up-axis error needs at least this many clips agreeing, and a majority
 UP_AXIS_MIN_CLIPS = 3
 #: how to convert, by the up axis the files look like
@@ -262,6 +282,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
     if _is_multibody(st):
         return multibody_report(sub, st, split, protocol)
     rows, fps, cap, mode = submission_context(st, protocol, split)
+    required = required_arrays(protocol)
     limits = limits_for(rows, fps, cap)
     if max_array_bytes is not None:
         limits = SubmissionLimits({k: min(v, max_array_bytes) for k, v in limits.per_id_bytes.items()},
@@ -289,7 +310,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
             if sid not in found or sid in refused:
                 continue
             ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
-                              bool(flags.get("uses_gt_length", False)) is True, cap, mode,
+                              bool(flags.get("uses_gt_length", False)) is True, cap, mode, required,
                               human_only=flags.get("human_only") is True)
             probs, K, up = _check_clip(s, sid, ctx)
             problems += probs

@@ -29,6 +29,7 @@ MAX_ROTVEC_RAD = 100.0
 MAX_FEATURE_ABS = 1e6
 #: array -> (bound on every |value|, unit named in the message)
 _VALUE_BOUNDS = {"joints": (MAX_ABS_COORD_M, "m"), "obj_trans": (MAX_ABS_COORD_M, "m"),
+                 "markers": (MAX_ABS_COORD_M, "m"),
                  "obj_rotvec": (MAX_ROTVEC_RAD, "rad"), "hml263": (MAX_FEATURE_ABS, "units")}
 
 
@@ -42,6 +43,7 @@ class ClipContext:
     uses_gt_length: bool
     max_samples: int
     mode: str = "clean"            # representation mode used to encode (hoi269 clean|legacy)
+    required: tuple = ()           # further arrays the track's evaluator reads (interact: markers)
     human_only: bool = False       # flags.human_only: joints only on an HOI store (object metrics n/a)
 
 
@@ -80,6 +82,11 @@ def check_arrays(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -
         probs += rp
         if rp:
             good.pop("obj_rot")
+    if "markers" in good and "joints" in finite:
+        mp = _check_markers(sid, good["markers"], finite["joints"])
+        probs += mp
+        if mp:
+            good.pop("markers")
     if "obj_trans" in good and "joints" in finite:
         tp = _check_object_trans(sid, good["obj_trans"], finite["joints"], ctx.fps)
         probs += tp
@@ -137,6 +144,23 @@ def _check_joints(sid: str, joints: np.ndarray, fps: float) -> tuple[list[Proble
                                        f"{100 * frac[best]:.0f}% of frames but along y in {100 * frac['y']:.0f}%; "
                                        "hoibench is y-up", "warning")], best
     return [], None
+
+
+#: a body-surface marker lies at most this far from its nearest joint (metres): markers sit on
+#: the skin, within ~0.2 m of a joint; a larger gap means another frame, unit or sample
+MAX_MARKER_JOINT_M = 0.35
+
+
+def _check_markers(sid: str, markers: np.ndarray, joints: np.ndarray) -> list[Problem]:
+    """Markers (K, T, 77, 3) must sit on the body of the same sample and frame."""
+    d = np.linalg.norm(markers[:, :, :, None, :] - joints[:, :, None, :, :], axis=-1).min(-1)   # (K, T, 77)
+    far = d > MAX_MARKER_JOINT_M
+    if not far.any():
+        return []
+    k, t, m = (int(i) for i in np.argwhere(far)[0])
+    return [Problem(sid, "markers", f"{int(far.sum())} marker position(s) more than {MAX_MARKER_JOINT_M:g} m from "
+                                    f"every joint of the same sample and frame, first marker {m} of sample {k} frame "
+                                    f"{t} ({float(d[k, t, m]):.3g} m): not on this body (other frame or units?)")]
 
 
 def _check_object_trans(sid: str, trans: np.ndarray, joints: np.ndarray, fps: float) -> list[Problem]:

@@ -33,6 +33,13 @@ register_track(_hoi("rich-cat", ("rich",), ("rich-cat-clean",),
                     "RICH-CAT (CATMO): a person and a static scene object; object metrics are not applicable.",
                     store_kind="human"))
 register_track(Track(
+    name="interact", datasets=("interact",), store_kind="hoi", representation="hoi269", submission="hoi",
+    metrics=HOI_METRICS, evaluator_kind="interact", columns=HOI_COLUMNS, protocols=("interact-clean",),
+    scorer="hoi", renderer="hoi",
+    description="InterAct's unified HOI data (BEHAVE, GRAB, OMOMO, InterCap, NeuralDome, IMHD, CHAIRS; "
+                "hoibench prepare interact), 30 fps, scored with InterAct's evaluator (markers + object BPS).",
+    extras={"submission_arrays": ("markers",)}))
+register_track(Track(
     name="multibody-synthetic", datasets=("multibody-synthetic",), store_kind="multibody",
     representation="multibody-syncdiff", submission="multibody", metrics=MULTIBODY_METRICS,
     evaluator_kind="recognizer", columns=MULTIBODY_METRICS, protocols=("multibody-synthetic",),
