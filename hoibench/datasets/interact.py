@@ -260,7 +260,7 @@ def write_texts(out: str | Path, manifest: dict) -> int:
     st, n = Store(out), 0
     for c in manifest.get("clips", []):
         clip = st.load(c["id"], keys=("texts",))
-        texts = [json.loads(str(t)) for t in np.asarray(clip.get("texts", [])).ravel()]
+        texts = [json.loads(str(t)) for t in np.asarray(clip.get("texts", [])).ravel()]  # read-ok: strings of a clip read through the store
         lines = [f"{t['text']}#{t.get('tokens', '')}#0.0#0.0" for t in texts if t.get("source") == "interact"]
         if lines:
             atomic_write_text(Path(out) / "texts" / f"{c['id']}.txt", "\n".join(lines) + "\n")
@@ -311,8 +311,8 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                 where.append(str(seq))
                 continue
             try:
-                with np.load(seq / "object.npz", allow_pickle=False) as z:
-                    obj = str(z["name"])
+                from ..core.io import load_raw_npz
+                obj = str(load_raw_npz(seq / "object.npz", what="InterAct object.npz", keys=("name",))["name"])
             except Exception:        # the unit reports it when it loads
                 obj = ""
             is_test = (obj in test) if split == "object" else (seq.name in test)

@@ -26,6 +26,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
+from ..core.io import read_regular_file
 from .card import WEIGHTS, CARD, FORMAT, check_safetensors, compute_id, changed_parts
 from .embed import EMBED_THREADS, as_clip_list, deterministic
 from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
@@ -73,7 +74,7 @@ def _verify(folder: Path) -> tuple[dict, bytes]:
         path = folder / TOKENIZER_DIR / name
         if not path.is_file():
             raise EvaluatorIntegrityError(f"{path}: missing (the tokenizer files are part of the evaluator)")
-        if _sha256(path.read_bytes()) != digest:
+        if _sha256(read_regular_file(path, 64 << 20, "tokenizer file")) != digest:
             raise EvaluatorIntegrityError(f"{path}: sha256 differs from card field text_model.tokenizer_files.{name}")
     return card, data
 

@@ -38,7 +38,8 @@ _DROPPED = ("text_model.embeddings.position_ids",)
 
 
 def _sha(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    from ..core.io import sha256_regular_file
+    return sha256_regular_file(path, what="InterAct file").hexdigest()
 
 
 def read_checkpoint(path: Path) -> dict:
@@ -46,7 +47,7 @@ def read_checkpoint(path: Path) -> dict:
     if not path.is_file():
         raise EvaluatorError(f"{path}: checkpoint not found")
     try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)  # read-ok: weights-only unpickler (tensors, plain containers)
     except Exception as exc:      # truncated zip, not a torch file, non-allow-listed objects
         msg = " ".join(str(exc).split())[:240]
         raise EvaluatorError(f"{path}: not a readable torch checkpoint with weights_only=True ({msg})") from None
@@ -158,7 +159,7 @@ def import_interact(out: Path, checkpoint: Path, distilbert: Path, mean: Path, s
     (out / TOKENIZER_DIR).mkdir(parents=True, exist_ok=True)
     for n, p in tok_files.items():
         shutil.copyfile(p, out / TOKENIZER_DIR / n)
-    return write_folder(out, tensors, json.loads(json.dumps(card)))
+    return write_folder(out, tensors, json.loads(json.dumps(card)))  # read-ok: a deep copy of our own card
 
 
 __all__ = ["import_interact", "read_checkpoint", "TOKENIZER_FILES"]
