@@ -403,6 +403,7 @@ th { cursor: pointer; background: #edf2f7; vertical-align: bottom; }
 td.name, th.name, td.flags, th.flags { text-align: left; }
 td.name { white-space: normal; min-width: 12em; max-width: 22em; }
 td.flags { white-space: normal; max-width: 12em; font-size: 12px; }
+td.training { white-space: normal; max-width: 11em; font-size: 11px; text-align: left; color: #4a5568; }
 td small { display: block; color: #718096; font-size: 11px; }
 tr.band th { text-align: left; background: #f7fafc; font-weight: 600; color: #2d3748; cursor: default;
              border-top: 2px solid #cbd5e0; }
@@ -462,7 +463,7 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
             rows.append(f'<tr class="{cls}"><td data-v="{r or ""}">{r or ""}</td>'
                         f'<td class="name" data-v="{e_(e["method"])}">{name}</td>'
                         f'<td class="flags" data-v="{flags}">{flags}</td>{"".join(cells)}'
-                        f'<td data-v="{e_(budget(e))}">{e_(budget(e))}</td></tr>')
+                        f'<td class="training" data-v="{e_(budget(e))}">{e_(budget(e))}</td></tr>')
         bodies.append(f'<tbody class="band-{b}">\n' + "\n".join(rows) + "\n</tbody>")
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
