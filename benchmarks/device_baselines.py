@@ -64,6 +64,8 @@ def main() -> None:
     ap.add_argument("--clips", type=int, default=4)
     ap.add_argument("--jobs", default=",".join(JOBS))
     ap.add_argument("--out", type=Path, default=None, help="keep the runs here (default: a temporary folder)")
+    ap.add_argument("--set", action="append", default=[], help="an override for every job (a dry run: "
+                    "--set train.batch_size=2 --set train.max_frames=32)")
     a = ap.parse_args()
     import torch
     dev = torch.cuda.get_device_name(0) if a.device == "cuda" and torch.cuda.is_available() else a.device
@@ -71,10 +73,11 @@ def main() -> None:
     rows = []
     for job in a.jobs.split(","):
         name, config, sets = JOBS[job]
+        sets = sets + list(a.set)
         run = root / job
         shutil.rmtree(run, ignore_errors=True)
+        log = io.StringIO()
         try:
-            log = io.StringIO()
             with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
                 secs = _train(name, config, sets, a.data, run, a.steps, a.device)
             n = sum(p.numel() for p in torch.load(next(run.glob("*.pt")), map_location="cpu",
@@ -83,7 +86,8 @@ def main() -> None:
             rows.append((job, f"{a.steps}", f"{secs:.0f}", f"{a.steps / secs:.2f}", f"{ait:.2f}",
                          f"{n / 1e6:.2f} M" if n else "-"))
         except Exception as exc:          # one failing job does not stop the others
-            rows.append((job, f"{a.steps}", "-", "-", "-", f"failed: {type(exc).__name__}: {exc}"[:120]))
+            tail = (log.getvalue().strip().splitlines() or [""])[-1]
+            rows.append((job, f"{a.steps}", "-", "-", "-", f"failed: {type(exc).__name__}: {exc}; {tail}"[:300]))
         print(rows[-1], flush=True)
     print(f"\ndevice: {dev}; torch {torch.__version__}")
     print("| job | steps | train s | steps/s | AIT s/sample | notes |\n|---|---:|---:|---:|---:|---|")

@@ -52,6 +52,22 @@ def meta_parameters(build: Callable[[], object]) -> int:
     return int(sum(p.numel() for p in module.parameters()))
 
 
+#: hidden size of the packaged sentence encoder (all-MiniLM-L6-v2): sizes a config that reads it
+MINILM_WIDTH = 384
+
+
+def sizing(cfg, vocab: int, text_width: int) -> tuple[int, int]:
+    """(vocab, text width) to build ``cfg`` with for counting its parameters: a config whose
+    text encoder is the sentence encoder gets its hidden size when the run's conditioner has
+    none (the paper config is counted next to a run with word tokens), a word-token config at
+    least a two-word vocabulary."""
+    encoder = getattr(getattr(cfg, "model", None), "text_encoder", None) or \
+        getattr(getattr(cfg, "text", None), "encoder", None)
+    if encoder == "minilm":
+        return vocab, text_width or MINILM_WIDTH
+    return max(vocab, 2), text_width
+
+
 def check_parameter_count(build: Callable[[object], object], cfg, paper, where: str) -> int:
     """The parameter count of ``build(cfg)``, measured without allocating; ValueError naming
     the fields larger than the ``paper`` config's when it exceeds :data:`MAX_PARAMETER_FACTOR`

@@ -83,8 +83,9 @@ class LoadedRun:
         self.text, vocab = run_text_conditioner(self.card, self.config.model.text_encoder,
                                                 self.config.model.text_max_tokens, self.folder)
         self.device = torch.device(device)
-        from .config import check_parameter_count
-        check_parameter_count(lambda c: self.spec.build_model(c, len(vocab or []), self.text.width), self.config,
+        from .config import check_parameter_count, sizing
+        check_parameter_count(lambda c: self.spec.build_model(c, *sizing(c, len(vocab or []), self.text.width)),
+                              self.config,
                               self.spec.preset("paper"), f"{self.folder / ckpt.CARD}: config")
         self.model = self.spec.build_model(self.config, len(vocab or []), self.text.width)
         load_model_tensors(self.model, tensors, self.folder)

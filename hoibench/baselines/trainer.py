@@ -24,7 +24,7 @@ import torch
 
 from .. import __version__
 from ..core.errors import HoibenchError
-from .config import check_parameter_count
+from .config import check_parameter_count, sizing
 from ..core.interrupts import check_interrupted
 from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_save_figure, atomic_torch_save, atomic_write_json, check_regular_file,
                        clean_stale_tmp, finished_output, read_json_file)
@@ -131,7 +131,8 @@ def mesh_batch(ts: TrainingSet, items: list, wins: list, starts: list[int], Lmax
 
 def build_model(spec: Spec, cfg: RunConfig, text: TextConditioner, seed: int):
     vocab = len(text.vocab or [])
-    check_parameter_count(lambda c: spec.build_model(c, vocab, text.width), cfg, spec.preset("paper"), "config")
+    check_parameter_count(lambda c: spec.build_model(c, *sizing(c, vocab, text.width)), cfg, spec.preset("paper"),
+                          "config")
     torch.manual_seed(_seed(seed, "init"))
     return spec.build_model(cfg, vocab, text.width)
 

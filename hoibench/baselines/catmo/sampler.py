@@ -52,9 +52,10 @@ class LoadedCatmo:
         self.text, vocab = run_text_conditioner(self.card, self.config.text.encoder, self.config.text.max_tokens,
                                                 self.folder)
         self.device = torch.device(device)
-        from ..config import check_parameter_count
+        from ..config import check_parameter_count, sizing
         from .config import preset
-        check_parameter_count(lambda c: CATMO(c, len(vocab or []), self.text.width, self.requires_object), self.config,
+        check_parameter_count(lambda c: CATMO(c, *sizing(c, len(vocab or []), self.text.width), self.requires_object),
+                              self.config,
                               preset("paper"), f"{self.folder / ckpt.CARD}: config")
         self.model = CATMO(self.config, len(vocab or []), self.text.width, self.requires_object)
         load_model_tensors(self.model, tensors, self.folder)

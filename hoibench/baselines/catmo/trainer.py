@@ -464,9 +464,9 @@ def train(data: str | Path, out: str | Path, config: CatmoConfig | str = "tiny",
         return finished
     text = TextConditioner(cfg.text.encoder, cfg.text.max_tokens, data_.vocab)
     torch.manual_seed(_seed(cfg.train.seed, "init"))
-    from ..config import check_parameter_count
+    from ..config import check_parameter_count, sizing
     from .config import preset as _preset
-    check_parameter_count(lambda c: CATMO(c, len(text.vocab or []), text.width, data_.with_object), cfg,
+    check_parameter_count(lambda c: CATMO(c, *sizing(c, len(text.vocab or []), text.width), data_.with_object), cfg,
                           _preset("paper"), "config")
     model = CATMO(cfg, len(text.vocab or []), text.width, data_.with_object).to(dev)
     steps_of = stage_steps(cfg, data_.with_object)
