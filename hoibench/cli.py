@@ -86,6 +86,8 @@ SYNTH_LAYOUTS = {
                   "(hoibench's multi-body layout)"),
     "grab": (".datasets.grab_layout", "write_grab_layout", "grab sequences", "in GRAB's layout"),
     "core4d": (".datasets.core4d_layout", "write_core4d_layout", "core4d sequences", "in CORE4D's layout"),
+    "taco": (".datasets.taco_layout", "write_taco_layout", "taco sequences", "in TACO's layout"),
+    "oakink2": (".datasets.oakink2_layout", "write_oakink2_layout", "oakink2 sequences", "in OAKINK2's layout"),
 }
 
 
@@ -385,9 +387,9 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--out", type=Path, required=True, help="the raw-layout folder to write")
     s.add_argument("--clips", type=int, default=24, help="how many clips (default 24; 120 for the evaluator gate)")
     s.add_argument("--seed", type=int, default=0, help=H_SEED)
-    s.add_argument("--layout", choices=["behave", "omomo", "rich", "multibody", "grab", "core4d"], default="behave",
-                   help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d: "
-                        "multi-body sequences in GRAB's / CORE4D's release layout (proxy body models)")
+    s.add_argument("--layout", choices=list(SYNTH_LAYOUTS), default="behave",
+                   help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d / "
+                        "taco / oakink2: multi-body sequences in that release's layout (proxy body models)")
     s.add_argument("--defect", action="append", default=[],
                    help="CLIP:KIND=MAGNITUDE, KIND in foot_skating (m/s), penetration (m), lost_contact (m)")
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
@@ -396,7 +398,7 @@ def _add_data_commands(sub) -> None:
     s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich, multibody) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab"],
+    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab", "taco", "oakink2"],
                    help="the raw layout to read")
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
     s.add_argument("--body-models", type=Path, default=None,
