@@ -39,7 +39,7 @@ __all__ = ["SEQUENCES", "SOURCE_FPS", "FIRST_FRAME", "write_oakink2_layout"]
 
 SOURCE_FPS = 120.0
 FIRST_FRAME = 1000
-FRAMES = 16
+FRAMES = 24
 #: (sequence key, TaMF list, object ids) of the sequences written.
 SEQUENCES = (
     ("scene_01__A001/seq__9e46184387ba83f60895__2023-04-27-18-43-58", "train", ("O02@0011@00003", "C10001")),
@@ -111,8 +111,8 @@ def write_oakink2_layout(root: str | Path, n_sequences: int = 3, seed: int = 0, 
         tok = key.replace("/", "++")
         atomic_write_bytes(root / "anno_preview" / f"{tok}.pkl", tp.dumps(anno))
         f0 = FIRST_FRAME
-        segs = {"pour.00": ((f0, f0 + 10), (f0 + 2, f0 + 12)), "uncap.00": (None, (f0 + 6, f0 + 16))}
-        prog, desc = _program(segs["pour.00"][0], segs["pour.00"][1], segs["uncap.00"][1], (f0 + 12, f0 + 16), objs)
+        segs = {"pour.00": ((f0, f0 + 16), (f0 + 2, f0 + 18)), "uncap.00": (None, (f0 + 6, f0 + 24))}
+        prog, desc = _program(segs["pour.00"][0], segs["pour.00"][1], segs["uncap.00"][1], (f0 + 20, f0 + 24), objs)
         atomic_write_text(root / "program" / "program_info" / f"{tok}.json", json.dumps(prog, indent=1) + "\n")
         atomic_write_text(root / "program" / "desc_info" / f"{tok}.json", json.dumps(desc, indent=1) + "\n")
         tasks[key] = "make a drink"

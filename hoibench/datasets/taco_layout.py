@@ -40,7 +40,7 @@ from . import torch_pickle as tp
 __all__ = ["SEQUENCES", "SOURCE_FPS", "ellipsoid_cm", "write_taco_layout"]
 
 SOURCE_FPS = 30.0
-FRAMES = 12
+FRAMES = 16
 #: (seq, triplet folder, tool id, target id, official list) of the sequences written.
 SEQUENCES = (
     ("20230927_032", "(dust, roller, pan)", "012", "104", "train"),

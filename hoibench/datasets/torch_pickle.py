@@ -165,7 +165,7 @@ def load(path: str | Path, max_bytes: int = 1 << 32):
     size = path.stat().st_size
     if size > max_bytes:
         raise TorchPickleError(f"{path}: {size} bytes, more than the {max_bytes} accepted")
-    return loads(path.read_bytes(), str(path))
+    return loads(path.read_bytes(), path.name)
 
 
 # --------------------------------------------------------------------------- writing
