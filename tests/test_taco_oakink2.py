@@ -165,6 +165,17 @@ def test_taco_refuses_bad_files(taco_raw, tmp_path, defect, message):
         taco.load_sequence(hdir, root, taco_raw / "body_models", 30.0)
 
 
+def test_taco_refuses_a_folder_triplet_other_than_the_list(taco_raw, tmp_path):
+    assert taco.official_triplets()["20231105_019"] == "(stir, spoon, bowl)" and len(taco.official_triplets()) == 2317
+    root, hdir, odir = _copy_taco(taco_raw, tmp_path)
+    other = "(brush, brush, bowl)"
+    for d in (hdir, odir):
+        (d.parent.parent / other).mkdir()
+        shutil.move(d, d.parent.parent / other / d.name)
+    with pytest.raises(SequenceError, match=r"puts 20230927_032 under \(dust, roller, pan\)"):
+        taco.load_sequence(root / "Hand_Poses" / other / hdir.name, root, taco_raw / "body_models", 30.0)
+
+
 def test_taco_unlisted_sequence_fails_through_the_store(taco_raw, tmp_path):
     root, hdir, odir = _copy_taco(taco_raw, tmp_path)
     shutil.move(hdir, hdir.parent / "20990101_001")

@@ -38,7 +38,9 @@ Clip: id ``<date>_<take>``, subject the date, bodies ``left_hand``, ``right_hand
 Refused, naming the sequence, file and key: pickle globals outside the allow-list; frame
 keys not all ints / all digit strings or sorting differently from their numbers; shapes
 other than (48,) / (3,) / 10 betas; unequal hand and object frame counts; non-rigid poses;
-not exactly one ``tool_*`` and one ``target_*``; a missing mesh.
+not exactly one ``tool_*`` and one ``target_*``; a missing mesh; a sequence whose folder
+triplet differs from ``data_lists/v1_overall_data_sequences.txt`` (embedded,
+:mod:`hoibench.datasets.taco_triplets`; a sequence absent from it is not checked).
 """
 from __future__ import annotations
 
@@ -54,8 +56,9 @@ from . import torch_pickle
 from .behave import SequenceError, load_split_file, read_mesh, resample_times
 from .hand_object import ZUP_TO_YUP, hand_body, object_body, rigid_poses
 from .taco_split import TACO_SPLIT
+from .taco_triplets import TACO_TRIPLETS
 
-__all__ = ["SOURCE_FPS", "SequenceError", "official_lists", "official_split", "parse_triplet", "read_hand",
+__all__ = ["SOURCE_FPS", "SequenceError", "official_lists", "official_split", "official_triplets", "parse_triplet", "read_hand",
            "read_betas", "load_sequence", "prepare_jobs", "LOADER_VERSION"]
 
 SOURCE_FPS = 30.0
@@ -75,6 +78,20 @@ def official_lists() -> dict[str, str]:
                 a, _, b = tok.partition("-")
                 for k in range(int(a), int(b or a) + 1):
                     out[f"{date}_{k:03d}"] = name
+    return out
+
+
+def official_triplets() -> dict[str, str]:
+    """``{<date>_<take>: "(action, tool, target)"}`` expanded from :data:`TACO_TRIPLETS`."""
+    out, date = {}, None
+    for triplet, text in TACO_TRIPLETS.items():
+        for tok in text.split():
+            if tok.endswith(":"):
+                date = tok[:-1]
+                continue
+            a, _, b = tok.partition("-")
+            for k in range(int(a), int(b or a) + 1):
+                out[f"{date}_{k:03d}"] = triplet
     return out
 
 
@@ -180,6 +197,10 @@ def load_sequence(hand_dir: str | Path, root: str | Path, body_models: str | Pat
         raise SequenceError(str(exc)) from None
     fps = pl.check_fps(fps, "fps", cid)
     action, tool_cat, target_cat = parse_triplet(folder)
+    listed = official_triplets().get(seq)
+    if listed is not None and listed != folder:
+        raise SequenceError(f"{cid}: Hand_Poses/{folder}/{seq}: TACO's sequence list puts {seq} under {listed}, "
+                            f"not {folder}")
     rel = f"Hand_Poses/{folder}/{seq}"
     hands = {s: read_hand(hand_dir / f"{s}_hand.pkl", f"{cid}: {rel}/{s}_hand.pkl") for s in SIDES}
     betas = {s: read_betas(hand_dir / f"{s}_hand_shape.pkl", f"{cid}: {rel}/{s}_hand_shape.pkl") for s in SIDES}
@@ -258,7 +279,11 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                 continue
             listed = official_split(cid)
             split = splits.get(cid) if splits is not None else (listed[0] if listed else None)
-            files = sorted(sd.glob("*.pkl")) + sorted((root / "Object_Poses" / tri.name / sd.name).glob("*.npy"))
+            poses = sorted((root / "Object_Poses" / tri.name / sd.name).glob("*.npy"))
+            meshes = [m for p in poses for m in (root / "Object_Models" / f"{p.stem.split('_')[-1]}_cm.obj",
+                      root / "Object_Models" / "object_models_released" / f"{p.stem.split('_')[-1]}_cm.obj")
+                      if m.is_file()]
+            files = sorted(sd.glob("*.pkl")) + poses + meshes
             sha = file_sha256(files, extra=f"{cid}|{LOADER_VERSION}|" + config.sha256())
             loader, args = load_sequence, (str(sd), str(root), str(body_models), float(config.fps),
                                            listed[1] if listed else None)
