@@ -144,6 +144,11 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_datasets(args) -> int:
+    from .datasets.catalog import main_datasets
+    return main_datasets(args.action)
+
+
 def _cmd_splits(args) -> int:
     from .datasets import splits
     if args.action == "ls":
@@ -361,6 +366,7 @@ H_ACTION = "what to do: ls lists, show prints one (named next)"
 
 
 def _add_data_commands(sub) -> None:
+    from .datasets.catalog import loader_names
     """Representations, raw data, stores and texts: version, representations, represent, synth, prepare, splits, export, annotate."""
     s = sub.add_parser("version", help="print the toolkit version")
     s.set_defaults(func=_cmd_version)
@@ -395,10 +401,10 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.set_defaults(func=_cmd_synth)
 
-    s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich, multibody) -> processed store",
+    s = sub.add_parser("prepare", help="raw dataset (hoibench datasets ls) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab", "taco", "oakink2"],
+    s.add_argument("dataset", choices=loader_names(),
                    help="the raw layout to read")
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
     s.add_argument("--body-models", type=Path, default=None,
@@ -412,6 +418,11 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)
+
+    s = sub.add_parser("datasets", help="list the raw-data loaders: source, licence, split, verification",
+                       epilog="example: hoibench datasets ls")
+    s.add_argument("action", choices=["ls"], help="ls: one block per loader")
+    s.set_defaults(func=_cmd_datasets)
 
     s = sub.add_parser("splits", help="list or show the split files and their sources",
                        epilog="examples: hoibench splits ls; hoibench splits show omomo --split unseen-object")

@@ -96,6 +96,21 @@ def test_official_lists_are_the_released_ones():
     assert not set(sp["train"]) & set(sp["test"]) and not set(sp["val"]) & set(sp["test"])
 
 
+def test_datasets_ls_and_the_docs_list_every_loader(capsys):
+    from hoibench.datasets.catalog import loader_names
+    from hoibench.cli import SYNTH_LAYOUTS, build_parser
+    names = loader_names()
+    prepare = next(a for a in build_parser()._subparsers._group_actions[0].choices["prepare"]._actions
+                   if a.dest == "dataset")
+    assert list(prepare.choices) == names and {"taco", "oakink2"} <= set(SYNTH_LAYOUTS)
+    assert main(["datasets", "ls"]) == 0
+    out = capsys.readouterr().out
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "datasets.md").read_text()
+    table = docs[docs.index("## Every loader"):docs.index("## BEHAVE")]
+    for n in names:
+        assert f"\n{n}\n" in f"\n{out}" and f"| `{n}` |" in table, n
+
+
 # --------------------------------------------------------------------------- TACO
 def test_taco_prepares_to_the_ground_truth(taco_raw, taco_store):
     manifest = json.loads((taco_store / "manifest.json").read_text())
