@@ -177,6 +177,25 @@ def _mesh(root: Path, oid: str, where: str) -> tuple[np.ndarray, np.ndarray, str
     return v, f, files[0].relative_to(root).as_posix()
 
 
+def _seg_desc(desc, key: str) -> str | None:
+    """``desc_info``'s ``seg_desc`` for program key ``key``; keys are compared as the pairs
+    they spell (the toolkit ``eval``s both files' keys), not as text."""
+    if not isinstance(desc, dict):
+        return None
+    def norm(x):
+        return tuple(norm(y) for y in x) if isinstance(x, (list, tuple)) else x
+
+    want = norm(ast.literal_eval(key))
+    for k, v in desc.items():
+        try:
+            same = isinstance(k, str) and len(k) <= MAX_KEY_CHARS and norm(ast.literal_eval(k)) == want
+        except (ValueError, SyntaxError):
+            same = False
+        if same and isinstance(v, dict) and isinstance(v.get("seg_desc"), str):
+            return v["seg_desc"]
+    return None
+
+
 def _read_json(path: Path, where: str):
     try:
         return json.loads(path.read_text())
@@ -239,7 +258,7 @@ def load_primitive(root: str | Path, seq_key: str, key: str, name: str, body_mod
     texts = []
     desc = _read_json(root / "program" / "desc_info" / f"{token(seq_key)}.json", cid) \
         if (root / "program" / "desc_info" / f"{token(seq_key)}.json").is_file() else {}
-    seg = (desc.get(key) or {}).get("seg_desc") if isinstance(desc, dict) else None
+    seg = _seg_desc(desc, key)
     if isinstance(seg, str) and seg:
         texts.append({"text": seg, "source": "oakink2-seg_desc", "start": 0, "end": len(dst)})
     tt_path = root / "program" / "task_target.json"

@@ -61,8 +61,8 @@ def _program(lh_a: tuple, rh_a: tuple, rh_b: tuple, hold: tuple, objs: tuple) ->
                                             "interaction_mode": "bh_main"},
             str((None, list(rh_b))): {"primitive": "uncap", "obj_list": [objs[0]], "interaction_mode": "rh_main"},
             str((list(hold), None)): {"primitive": "hold", "obj_list": [objs[1]], "interaction_mode": "lh_main"}}
-    desc = {str((list(lh_a), list(rh_a))): {"seg_desc": "pour from the bottle into the cup"},
-            str((None, list(rh_b))): {"seg_desc": "take the cap off the bottle"}}
+    desc = {str((list(lh_a), list(rh_a))).replace(" ", ""): {"seg_desc": "pour from the bottle into the cup"},
+            str((None, tuple(rh_b))): {"seg_desc": "take the cap off the bottle"}}   # spelled unlike the program
     return prog, desc
 
 
