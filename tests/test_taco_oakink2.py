@@ -232,6 +232,7 @@ def test_oakink2_prepares_to_the_ground_truth(oi_raw, oi_store):
         assert pour.signature() == "hand:left,hand:right,object,object"
         assert pour.provenance["dropped_objects"] == ["O09@9999@00000"]
         assert pour.provenance["up_axis"] == ("+z" if key == ol.SEQUENCES[0][0] else "+y")
+        assert abs(pour.provenance["top_camera_axis_to_down_deg"] - np.degrees(0.35)) < 1e-6
     assert worst < TOL_M, worst
     # resampled by time: 30 fps = every fourth mocap frame
     key = ol.SEQUENCES[0][0]
@@ -242,7 +243,8 @@ def test_oakink2_prepares_to_the_ground_truth(oi_raw, oi_store):
 
 
 @pytest.mark.parametrize("defect, message", [
-    ("up", "up axis undetermined"), ("gap", "lacks frame 1003"), ("global", "refused global (os|posix).system")])
+    ("up", "up axis undetermined"), ("gap", "lacks frame 1003"), ("global", "refused global (os|posix).system"),
+    ("camera", "allocentric_top.* looks 1[0-9]{2} degrees")])
 def test_oakink2_refuses_bad_files(oi_raw, tmp_path, defect, message):
     import os
     root = tmp_path / "raw"
@@ -255,6 +257,9 @@ def test_oakink2_refuses_bad_files(oi_raw, tmp_path, defect, message):
         anno["raw_smplx"] = {f: {"world_rot": q[None]} for f in anno["mocap_frame_id_list"]}
     elif defect == "gap":
         anno["mocap_frame_id_list"].remove(1003)
+    elif defect == "camera":       # the top camera turned to look up
+        for E in anno["cam_extr"]["allocentric_top"].values():
+            E[:3, :3] = np.diag([1.0, -1.0, -1.0]) @ E[:3, :3]
     else:
         anno["obj_list"] = [os.system]
     path.write_bytes(pickle.dumps(anno) if defect == "global" else tp.dumps(anno))

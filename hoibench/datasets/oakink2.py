@@ -31,7 +31,9 @@ Layout read (``ROOT`` holds ``anno_preview``, ``program``, ``object_raw``)::
 * world up axis: **not established** by any official code. hoibench takes it per sequence
   from the SMPL-X body: the mean over frames of ``R(world_rot) e_y`` (SMPL-X's rest body is
   y-up) must lie within 30 degrees of one signed world axis, which is rotated to +y (the
-  angle is recorded); otherwise the sequence is refused.
+  angle is recorded); otherwise the sequence is refused. When the file has the
+  ``allocentric_top`` camera (``cam_extr``, world to camera), its optical axis must point
+  to the lower half-space of that choice (the angle to straight down is recorded).
 * split: TaMF's ``asset/split/{train,val,test}.txt`` (``splits/oakink2.json``, 431/39/157
   sequences); a clip takes its sequence's split.
 
@@ -65,6 +67,7 @@ LOADER_VERSION = "oakink2-1"
 TRANSIENT = ("hold", "rearrange", "swap", "?(unk)")
 UP_TOL_DEG = 30.0
 QUAT_NORM_TOL = 1e-3
+TOP_CAMERA = "allocentric_top"
 MAX_KEY_CHARS = 200
 MAX_PICKLE_BYTES = 4 * 1024 ** 3
 
@@ -137,6 +140,26 @@ def up_rotation(raw_smplx: dict, frames: list[int], where: str) -> tuple[np.ndar
     axis = np.zeros(3)
     axis[k] = np.sign(up[k])
     return axis_to_yup(axis), ("+" if up[k] > 0 else "-") + "xyz"[k], ang
+
+
+def top_camera_check(cam_extr, F: np.ndarray, where: str) -> float | None:
+    """Angle (degrees) between the ``allocentric_top`` camera's optical axis in the world
+    (``R^T e_z`` of its world-to-camera ``cam_extr``, first frame) and the chosen down
+    direction; SequenceError when the camera would look upwards (over 90 degrees: the body
+    and the camera disagree on the up axis). None when the file has no such camera."""
+    frames = cam_extr.get(TOP_CAMERA) if isinstance(cam_extr, dict) else None
+    if not isinstance(frames, dict) or not frames:
+        return None
+    E = np.asarray(next(iter(frames.values())), np.float64)
+    if E.shape != (4, 4) or not np.isfinite(E).all():
+        raise SequenceError(f"{where}: cam_extr[{TOP_CAMERA!r}]: expected finite 4x4 matrices, got {E.shape}")
+    axis = F @ E[2, :3]
+    down = np.array([0.0, -1.0, 0.0])
+    deg = float(np.degrees(np.arccos(np.clip(axis @ down / max(np.linalg.norm(axis), 1e-12), -1.0, 1.0))))
+    if deg > 90.0:
+        raise SequenceError(f"{where}: cam_extr[{TOP_CAMERA!r}] looks {deg:.0f} degrees away from the down "
+                            "direction the SMPL-X body gives: up axis undetermined")
+    return deg
 
 
 def _hand(raw_mano: dict, frames: list[int], pre: str, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -228,6 +251,7 @@ def load_primitive(root: str | Path, seq_key: str, key: str, name: str, body_mod
         raise SequenceError(f"{where}: mocap_frame_id_list lacks frame {missing[0]} of the interval "
                             f"[{frames[0]}, {frames[-1] + 1})")
     F, axis, ang = up_rotation(anno.get("raw_smplx") or {}, frames, where)
+    cam_deg = top_camera_check(anno.get("cam_extr"), F, where)
     T = len(frames)
     src_t = np.arange(T) / SOURCE_FPS
     dst = resample_times(src_t, fps)
@@ -269,7 +293,8 @@ def load_primitive(root: str | Path, seq_key: str, key: str, name: str, body_mod
             "interaction_mode": info.get("interaction_mode"), "lh_interval": lh, "rh_interval": rh,
             "objects": kept, "dropped_objects": [o for o in objs if o not in kept], "source_fps": SOURCE_FPS,
             "source_frames": T, "resampled_to_fps": float(fps), "up_axis": axis, "up_axis_off_deg": ang,
-            "up_axis_evidence": "mean SMPL-X R(world_rot) e_y", "floor_shift_m": 0.0, "loader": LOADER_VERSION}
+            "up_axis_evidence": "mean SMPL-X R(world_rot) e_y",
+            "top_camera_axis_to_down_deg": cam_deg, "floor_shift_m": 0.0, "loader": LOADER_VERSION}
     clip = MultiBodyClip(name=cid, dataset="oakink2", subject=seq_key.split("/")[0], fps=float(fps), bodies=bodies,
                          templates=templates, action=str(info.get("primitive")), texts=texts, provenance=prov)
     try:

@@ -6,7 +6,8 @@ its release (facts and sources in :mod:`hoibench.datasets.oakink2`)::
     OUT/anno_preview/<token>.pkl   mocap_frame_id_list (ids from 1000), obj_list, obj_transf
         {obj: {frame id: 4x4 float32 ndarray}}, raw_mano {frame id: {rh__/lh__pose_coeffs
         (1, 16, 4) w-first quaternions, __tsl (1, 3), __betas (1, 10)}} and raw_smplx
-        {frame id: {"world_rot": (1, 4)}} float32 torch tensors (pickled without torch)
+        {frame id: {"world_rot": (1, 4)}} float32 torch tensors (pickled without torch),
+        cam_extr {"allocentric_top": {frame id: 4x4}} (a camera 20 degrees off looking down)
     OUT/program/program_info/<token>.json   three segments: a two-hand affordance primitive,
         a right-hand one (``(None, [b, e])``) and a transient ``hold``
     OUT/program/desc_info/<token>.json, OUT/program/task_target.json
@@ -104,7 +105,15 @@ def write_oakink2_layout(root: str | Path, n_sequences: int = 3, seed: int = 0, 
             obj_transf[oid] = {int(fr): P[i] for i, fr in enumerate(ids)}
             Pd = P.astype(np.float64)
             verts[oid] = (np.einsum("tij,vj->tvi", Pd[:, :3, :3], 0.01 * v) + Pd[:, None, :3, 3]) @ F.T
-        anno = {"cam_def": {}, "cam_selection": [], "frame_id_list": [int(f) for f in ids[::4]],
+        # a top camera 20 degrees off straight down, world -> camera (its optical axis is E[2, :3])
+        down = np.linalg.inv(F) @ np.array([0.0, -1.0, 0.0])
+        look = np.asarray(geo.axis_angle_to_matrix(np.array([0.35, 0.0, 0.0]))) @ down
+        E = np.eye(4)
+        E[2, :3] = look
+        E[0, :3] = np.cross(look, [1.0, 0.0, 0.0] if abs(look[0]) < 0.9 else [0.0, 1.0, 0.0])
+        E[0, :3] /= np.linalg.norm(E[0, :3])
+        E[1, :3] = np.cross(E[2, :3], E[0, :3])
+        anno = {"cam_def": {}, "cam_selection": [], "cam_extr": {"allocentric_top": {int(ids[0]): E}}, "frame_id_list": [int(f) for f in ids[::4]],
                 "mocap_frame_id_list": [int(f) for f in ids], "obj_list": list(objs), "obj_transf": obj_transf,
                 "raw_mano": raw_mano, "raw_smplx": {int(f): {"world_rot": tp.Tensor(world_q[None].astype(np.float32))}
                                                     for f in ids}}
