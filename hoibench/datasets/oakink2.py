@@ -21,7 +21,9 @@ Layout read (``ROOT`` holds ``anno_preview``, ``program``, ``object_raw``)::
   **w, x, y, z** (joint 0 global, then MANO's 15 finger joints), ``rh__tsl`` / ``lh__tsl``
   (1, 3) the wrist, ``rh__betas`` / ``lh__betas`` (1, 10)}}, ``raw_smplx`` {frame id: {...,
   ``world_rot`` (1, 4)}}. MANO is ``rot_mode="quat", center_idx=0, use_pca=False,
-  flat_hand_mean=True`` plus ``tsl`` (``seg_3d.py``).
+  flat_hand_mean=True`` plus ``tsl`` (``seg_3d.py``); lixiny/manotorch 2f6a701
+  ``manolayer.py`` reads quat-mode coefficients as (16, 4) quaternions with the real part
+  first (``utils/geometry.py``) and subtracts joint 0 (the wrist) for ``center_idx=0``.
 * program: ``program_info`` keys are ``str((lh_interval, rh_interval))``, each ``[begin,
   end)`` in mocap frame ids or ``None``; values hold ``primitive`` and ``obj_list``;
   ``desc_info[key]["seg_desc"]`` describes the segment. ``hold``, ``rearrange``, ``swap`` and
