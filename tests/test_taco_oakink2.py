@@ -212,6 +212,17 @@ def test_tensor_pickles_match_torch():
     np.testing.assert_array_equal(pickle.loads(ours)["a"].numpy(), np.linspace(0, 1, 6, dtype=np.float32).reshape(2, 3))
 
 
+def test_tensor_pickles_refuse_truncated_or_foreign_storages():
+    import pickle as pk
+    blob = tp._storage_obj(np.ones(4, np.float32), "cuda:0").blob
+    assert np.array_equal(tp._load_from_bytes(blob), np.ones(4, np.float32))      # the location is ignored
+    with pytest.raises(pk.UnpicklingError, match="12 bytes present, 16 expected"):
+        tp._load_from_bytes(blob[:-4])
+    foreign = blob.replace(b"torch\nFloatStorage", b"torch\nTensorBase\n\n\n\n"[:len(b"torch\nFloatStorage")])
+    with pytest.raises(pk.UnpicklingError, match="refused global"):
+        tp._load_from_bytes(foreign)
+
+
 # --------------------------------------------------------------------------- OAKINK2
 def test_oakink2_prepares_to_the_ground_truth(oi_raw, oi_store):
     manifest = json.loads((oi_store / "manifest.json").read_text())
