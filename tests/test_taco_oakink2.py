@@ -285,7 +285,8 @@ def _protocol(tmp_path, dataset: str, fps: int):
     """The multi-body protocol with this store's dataset and fps (no TACO / OAKINK2 protocol ships)."""
     from hoibench.tracks.protocol import get_protocol
     src = Path(get_protocol("multibody-synthetic").source).read_text().splitlines()
-    keep = {"id:": f"id: {dataset}-test", "dataset:": f"dataset: {dataset}", "fps:": f"fps: {fps}"}
+    keep = {"id:": f"id: {dataset}-test", "dataset:": f"dataset: {dataset}", "fps:": f"fps: {fps}",
+            "  voxel_m:": "  voxel_m: 0.02"}          # coarse voxels: a fast test, not a reported number
     lines = [next((v for k, v in keep.items() if ln.startswith(k)), ln) for ln in src if not ln.startswith("track:")]
     path = tmp_path / f"{dataset}.yaml"
     path.write_text("\n".join(lines) + "\n")
