@@ -88,6 +88,8 @@ SYNTH_LAYOUTS = {
     "core4d": (".datasets.core4d_layout", "write_core4d_layout", "core4d sequences", "in CORE4D's layout"),
     "interact": (".datasets.interact_layout", "write_interact_layout", "interact sequences",
                  "in InterAct's processed layout"),
+    "taco": (".datasets.taco_layout", "write_taco_layout", "taco sequences", "in TACO's layout"),
+    "oakink2": (".datasets.oakink2_layout", "write_oakink2_layout", "oakink2 sequences", "in OAKINK2's layout"),
 }
 
 
@@ -153,6 +155,11 @@ def _cmd_render(args) -> int:
         raise ValueError("render: --submission goes with RESULT --worst K (for one id: render SUB --id ID)")
     print(f"wrote {main_render(args.clip, args.data, args.id, args.out, sample=args.sample, body=args.body)}")
     return 0
+
+
+def _cmd_datasets(args) -> int:
+    from .datasets.catalog import main_datasets
+    return main_datasets(args.action)
 
 
 def _cmd_splits(args) -> int:
@@ -372,6 +379,7 @@ H_ACTION = "what to do: ls lists, show prints one (named next)"
 
 
 def _add_data_commands(sub) -> None:
+    from .datasets.catalog import loader_names
     """Representations, raw data, stores and texts: version, representations, represent, synth, prepare, splits, export, annotate."""
     s = sub.add_parser("version", help="print the toolkit version")
     s.set_defaults(func=_cmd_version)
@@ -398,20 +406,20 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--out", type=Path, required=True, help="the raw-layout folder to write")
     s.add_argument("--clips", type=int, default=24, help="how many clips (default 24; 120 for the evaluator gate)")
     s.add_argument("--seed", type=int, default=0, help=H_SEED)
-    s.add_argument("--layout", choices=["behave", "omomo", "rich", "multibody", "grab", "core4d", "interact"],
-                   default="behave",
-                   help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d: "
-                        "multi-body sequences in GRAB's / CORE4D's release layout (proxy body models)")
+    s.add_argument("--layout", choices=list(SYNTH_LAYOUTS), default="behave",
+                   help="multibody: hands, people and objects in hoibench's multi-body layout; grab / core4d / "
+                        "taco / oakink2: multi-body sequences in that release's layout; interact: InterAct's "
+                        "processed layout (proxy body models)")
     s.add_argument("--defect", action="append", default=[],
                    help="CLIP:KIND=MAGNITUDE, KIND in foot_skating (m/s), penetration (m), lost_contact (m)")
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.set_defaults(func=_cmd_synth)
 
-    s = sub.add_parser("prepare", help="raw dataset (behave, omomo, rich, multibody) -> processed store",
+    s = sub.add_parser("prepare", help="raw dataset (hoibench datasets ls) -> processed store",
                        epilog="example: hoibench prepare behave --root RAW --body-models MODELS "
                               "--out DATA --fps 20 --executor processes:2")
-    s.add_argument("dataset", choices=["behave", "omomo", "rich", "multibody", "core4d", "grab", "interact"],
-                   help="the raw layout to read (interact: InterAct's processed data/ folder)")
+    s.add_argument("dataset", choices=loader_names(),
+                   help="the raw layout to read (hoibench datasets ls; interact: InterAct's processed data/ folder)")
     s.add_argument("--root", type=Path, required=True, help="raw dataset folder")
     s.add_argument("--body-models", type=Path, default=None,
                    help="folder with smplh/ (BEHAVE) or smplx/ (OMOMO, RICH) model files: yours or the proxy "
@@ -429,6 +437,11 @@ def _add_data_commands(sub) -> None:
     s.add_argument("--executor", default="serial", type=_executor_arg, help=H_EXECUTOR)
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)
+
+    s = sub.add_parser("datasets", help="list the raw-data loaders: source, licence, split, verification",
+                       epilog="example: hoibench datasets ls")
+    s.add_argument("action", choices=["ls"], help="ls: one block per loader")
+    s.set_defaults(func=_cmd_datasets)
 
     s = sub.add_parser("splits", help="list or show the split files and their sources",
                        epilog="examples: hoibench splits ls; hoibench splits show omomo --split unseen-object")
