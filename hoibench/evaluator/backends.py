@@ -64,6 +64,13 @@ register_backend(Backend("contrastive", "contrastive", "card.json", ".card:load_
                          "hoibench's contrastive text-motion evaluator (hoibench train-evaluator)"))
 register_backend(Backend("recognizer", "recognizer", "recognizer.json", ".recognizer:load_recognizer",
                          "the multi-body action recognizer (hoibench train-recognizer)"))
+register_backend(Backend("t2m", "contrastive", "card.json", ".published_t2m:load_t2m",
+                         "Guo et al.'s text-motion matching evaluator (text-to-motion's finest.tar, GloVe, meta)",
+                         importer=".published_t2m:import_t2m",
+                         import_files=(ImportFile("checkpoint", "text-to-motion's finest.tar"),
+                                       ImportFile("glove", "the glove/ folder (our_vab_data.npy, our_vab_words.pkl, "
+                                                           "our_vab_idx.pkl)"),
+                                       ImportFile("meta", "the evaluator's meta/ folder (mean.npy, std.npy)"))))
 
 
 def list_backends() -> list[Backend]:
