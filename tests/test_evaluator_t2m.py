@@ -63,12 +63,13 @@ def write_fixture(root: Path) -> dict[str, Path]:
     root.mkdir(parents=True, exist_ok=True)
     parts = fixture_tensors()
     opt_states = {}
-    for part in ("text_encoder", "motion_encoder"):              # real optimiser states, as save() writes
-        params = [torch.nn.Parameter(t.clone()) for t in parts[part].values()]
-        opt = torch.optim.Adam(params, lr=1e-4)
-        sum(p.sum() for p in params).backward()
-        opt.step()
-        opt_states[f"opt_{part}"] = opt.state_dict()
+    for part in ("text_encoder", "motion_encoder"):   # Adam.state_dict()'s layout, as save() writes it
+        ts = list(parts[part].values())
+        opt_states[f"opt_{part}"] = {
+            "state": {i: {"step": torch.tensor(81000.0), "exp_avg": t * 0.01, "exp_avg_sq": t * t * 1e-4}
+                      for i, t in enumerate(ts)},
+            "param_groups": [{"lr": 1e-4, "betas": (0.9, 0.999), "eps": 1e-8, "weight_decay": 0, "amsgrad": False,
+                              "maximize": False, "foreach": None, "params": list(range(len(ts)))}]}
     ckpt = root / "checkpoints/t2m/text_mot_match/model/finest.tar"
     ckpt.parent.mkdir(parents=True, exist_ok=True)
     torch.save({**parts, **opt_states, "epoch": 270, "iter": 81000}, ckpt)
