@@ -125,3 +125,193 @@ def test_embeddings_equal_the_reference_code(imported):
     print(np.abs(m - np.asarray(REF_MOTION, np.float32)).max(), np.abs(t - np.asarray(REF_TEXT, np.float32)).max())
     assert np.abs(m - np.asarray(REF_MOTION, np.float32)).max() <= 1e-5
     assert np.abs(t - np.asarray(REF_TEXT, np.float32)).max() <= 1e-5
+
+
+#: every tensor of the published evaluator, from the reference modules built with the sizes
+#: EvaluatorModelWrapper sets for 't2m' (dim_pose 263, word 300, POS 15, text hidden 512,
+#: motion hidden 1024, co-embedding 512) and the options' defaults (movement hidden/latent
+#: 512): ``{part: {name: tuple(shape)}}`` printed from the modules' ``state_dict()`` at the
+#: commit named in the module docstring
+PUBLISHED_SHAPES = {
+    "movement_encoder": {"main.0.weight": (512, 259, 4), "main.0.bias": (512,), "main.3.weight": (512, 512, 4),
+                         "main.3.bias": (512,), "out_net.weight": (512, 512), "out_net.bias": (512,)},
+    "motion_encoder": {"hidden": (2, 1, 1024), "input_emb.weight": (1024, 512), "input_emb.bias": (1024,),
+                       "gru.weight_ih_l0": (3072, 1024), "gru.weight_hh_l0": (3072, 1024), "gru.bias_ih_l0": (3072,),
+                       "gru.bias_hh_l0": (3072,), "gru.weight_ih_l0_reverse": (3072, 1024),
+                       "gru.weight_hh_l0_reverse": (3072, 1024), "gru.bias_ih_l0_reverse": (3072,),
+                       "gru.bias_hh_l0_reverse": (3072,), "output_net.0.weight": (1024, 2048),
+                       "output_net.0.bias": (1024,), "output_net.1.weight": (1024,), "output_net.1.bias": (1024,),
+                       "output_net.3.weight": (512, 1024), "output_net.3.bias": (512,)},
+    "text_encoder": {"hidden": (2, 1, 512), "pos_emb.weight": (300, 15), "pos_emb.bias": (300,),
+                     "input_emb.weight": (512, 300), "input_emb.bias": (512,), "gru.weight_ih_l0": (1536, 512),
+                     "gru.weight_hh_l0": (1536, 512), "gru.bias_ih_l0": (1536,), "gru.bias_hh_l0": (1536,),
+                     "gru.weight_ih_l0_reverse": (1536, 512), "gru.weight_hh_l0_reverse": (1536, 512),
+                     "gru.bias_ih_l0_reverse": (1536,), "gru.bias_hh_l0_reverse": (1536,),
+                     "output_net.0.weight": (512, 1024), "output_net.0.bias": (512,), "output_net.1.weight": (512,),
+                     "output_net.1.bias": (512,), "output_net.3.weight": (512, 512), "output_net.3.bias": (512,)},
+}
+
+
+def test_the_published_sizes_give_the_reference_state_dict():
+    assert expected_shapes(T2MDims()) == PUBLISHED_SHAPES
+
+
+def test_motion_crops_padding_columns_and_order(imported):
+    """The first 196 rows, cropped to a multiple of 4; hoi269 rows read by their first 263
+    columns; a batch in any order or size gives the same rows; fewer than 4 rows refused."""
+    root, files, _ = imported
+    ev = load_t2m(root / "ev")
+    rs = np.random.RandomState(5)
+    long = rs.standard_normal((210, 263)).astype(np.float32)
+    odd = rs.standard_normal((59, 263)).astype(np.float32)
+    base = ev.embed_motion([long[:196], odd[:56]])
+    np.testing.assert_array_equal(ev.embed_motion([long, odd]), base)
+    hoi = np.concatenate([odd, rs.standard_normal((59, 6)).astype(np.float32)], axis=1)
+    np.testing.assert_array_equal(ev.embed_motion([long, hoi]), base)
+    clips = [rs.standard_normal((n, 263)).astype(np.float32) for n in (44, 80, 60, 44, 120)]
+    all5 = ev.embed_motion(clips)
+    np.testing.assert_allclose(ev.embed_motion(clips[::-1])[::-1], all5, atol=1e-6)
+    np.testing.assert_allclose(ev.embed_motion(clips, batch_size=2), all5, atol=1e-6)
+    assert not np.allclose(all5[0], all5[3])                # different clips of equal length
+    with pytest.raises(ValueError, match=r"features\[0\]: 3 frame\(s\); the t2m evaluator needs at least 4"):
+        ev.embed_motion([long[:3]])
+
+
+def test_text_tokens_come_from_the_caller_or_the_tagger(imported):
+    from hoibench.text.tokens import tokens as tag
+    root, _, _ = imported
+    ev = load_t2m(root / "ev")
+    t = ev.embed_text(CAPTIONS, tokens=TOKENS)
+    np.testing.assert_array_equal(ev.embed_text(CAPTIONS, tokens=[s.split() for s in TOKENS]), t)
+    np.testing.assert_array_equal(ev.embed_text(CAPTIONS[:2], tokens=[None, TOKENS[1]]),
+                                  ev.embed_text(CAPTIONS[:2], tokens=[tag(CAPTIONS[0]), TOKENS[1]]))
+    np.testing.assert_array_equal(ev.embed_text(CAPTIONS), ev.embed_text(CAPTIONS, [tag(c) for c in CAPTIONS]))
+    with pytest.raises(ValueError, match=r"tokens\[0\]: token 'kick' is not 'word/POS'"):
+        ev.embed_text(["x"], tokens=[["kick"]])
+
+
+def test_text_sequences_follow_the_reference_rules():
+    """sos + 20 tokens + eos, unk padding; VIP lists override the tag; unknown words are
+    unk/OTHER (slots: text-to-motion's POS_enumerator)."""
+    from hoibench.evaluator.t2m_text import POS_SLOTS, Vocabulary, pos_slot, sequence
+    seq, n = sequence([f"w{i}/NOUN" for i in range(25)])
+    assert n == 22 and seq[0] == "sos/OTHER" and seq[-1] == "eos/OTHER" and seq[-2] == "w19/NOUN"
+    seq, n = sequence(["a/DET"])
+    assert n == 3 and seq[3:] == ["unk/OTHER"] * 19 and len(seq) == 22
+    assert POS_SLOTS[pos_slot("left", "ADJ")] == "Loc_VIP" and POS_SLOTS[pos_slot("walk", "NOUN")] == "Act_VIP"
+    assert POS_SLOTS[pos_slot("box", "PROPN")] == "OTHER" and POS_SLOTS[pos_slot("box", "NOUN")] == "NOUN"
+    vocab = Vocabulary(["sos", "eos", "unk", "box"], np.arange(4 * 300, dtype=np.float32).reshape(4, 300))
+    words, onehot, n = vocab.encode(["box/NOUN", "zebra/NOUN"])
+    assert n == 4 and words[1, 0] == 900 and words[2, 0] == 600 and onehot[2].argmax() == 14
+    assert onehot.sum() == 22 and onehot[1].argmax() == 1
+
+
+# ----------------------------------------------------------------------------- refusals
+def _release(tmp_path) -> dict[str, Path]:
+    return write_fixture(tmp_path / "release")
+
+
+def test_wrong_truncated_or_mismatched_checkpoints_are_one_line_errors(imported, tmp_path):
+    from hoibench.evaluator.errors import EvaluatorError
+    _, files, _ = imported
+    bad = tmp_path / "finest.tar"
+
+    def refused(pattern):
+        with pytest.raises(EvaluatorError, match=pattern) as exc:
+            import_t2m(tmp_path / "ev", bad, files["glove"], files["meta"], dims=DIMS)
+        assert "\n" not in str(exc.value) and not (tmp_path / "ev").exists()
+
+    bad.write_text("not a checkpoint")
+    refused(r"finest.tar: not a readable torch checkpoint")
+    raw = files["checkpoint"].read_bytes()
+    bad.write_bytes(raw[: len(raw) // 2])
+    refused(r"finest.tar: not a readable torch checkpoint")
+    ckpt = torch.load(files["checkpoint"], weights_only=True)
+    torch.save({k: v for k, v in ckpt.items() if k != "movement_encoder"}, bad)
+    refused(r"finest.tar: no key 'movement_encoder'")
+    wrong = {**ckpt, "text_encoder": {**ckpt["text_encoder"], "pos_emb.weight": torch.zeros(300, 14)}}
+    torch.save(wrong, bad)
+    refused(r"finest.tar: text_encoder.pos_emb.weight has shape \(300, 14\), expected \(300, 15\)")
+    with pytest.raises(EvaluatorError, match=r"movement_encoder.main.0.weight has shape \(16, 259, 4\), expected "
+                                             r"\(512, 259, 4\)"):
+        import_t2m(tmp_path / "ev", files["checkpoint"], files["glove"], files["meta"])   # published sizes
+    with pytest.raises(EvaluatorError, match=r"--checkpoint .*nothing.tar: no such file"):
+        import_t2m(tmp_path / "ev", tmp_path / "nothing.tar", files["glove"], files["meta"], dims=DIMS)
+
+
+def test_missing_glove_and_meta_files_are_named(imported, tmp_path):
+    import shutil
+    from hoibench.evaluator.errors import EvaluatorError
+    _, files, _ = imported
+    glove = tmp_path / "glove"
+    shutil.copytree(files["glove"], glove)
+    (glove / "our_vab_idx.pkl").unlink()
+    with pytest.raises(EvaluatorError, match=r"--glove .*glove: our_vab_idx.pkl is missing"):
+        import_t2m(tmp_path / "ev", files["checkpoint"], glove, files["meta"], dims=DIMS)
+    with pytest.raises(EvaluatorError, match=r"--meta .*glove: mean.npy is missing"):
+        import_t2m(tmp_path / "ev", files["checkpoint"], files["glove"], glove, dims=DIMS)
+    assert not (tmp_path / "ev").exists()
+
+
+class _RunsCode:
+    """Pickles as a call of os.system: loading it with pickle.load would run the command."""
+
+    def __init__(self, marker: Path):
+        self.marker = marker
+
+    def __reduce__(self):
+        return os.system, (f"touch {self.marker}",)
+
+
+def test_a_vocabulary_pickle_that_would_run_code_is_refused_and_runs_nothing(imported, tmp_path):
+    import shutil
+    from hoibench.evaluator.errors import EvaluatorError
+    from hoibench.evaluator.t2m_text import read_plain_pickle
+    _, files, _ = imported
+    glove = tmp_path / "glove"
+    shutil.copytree(files["glove"], glove)
+    marker = tmp_path / "ran"
+    words = pickle.loads((glove / "our_vab_words.pkl").read_bytes())
+    (glove / "our_vab_words.pkl").write_bytes(pickle.dumps(words + [_RunsCode(marker)], protocol=2))
+    with pytest.raises(EvaluatorError, match=r"our_vab_words.pkl: refused: refers to posix.system") as exc:
+        import_t2m(tmp_path / "ev", files["checkpoint"], glove, files["meta"], dims=DIMS)
+    assert "\n" not in str(exc.value) and not marker.exists() and not (tmp_path / "ev").exists()
+    for obj, kind in (({"a", "b"}, "set"), ([1.5], "float"), ({"a": (1, 2)}, "tuple")):
+        (tmp_path / "x.pkl").write_bytes(pickle.dumps(obj, protocol=4))
+        with pytest.raises(EvaluatorError, match=f"x.pkl: holds a {kind}; only lists, dicts, strings and integers"):
+            read_plain_pickle(tmp_path / "x.pkl")
+    (tmp_path / "x.pkl").write_bytes(pickle.dumps({"sos": 0, "unk": [1, "x"]}, protocol=0))
+    assert read_plain_pickle(tmp_path / "x.pkl") == {"sos": 0, "unk": [1, "x"]}
+
+
+# ----------------------------------------------------------------------------- folder
+def test_cli_import_then_load_evaluator_and_store_fit(imported, tmp_path, monkeypatch, capsys):
+    """``hoibench evaluator import t2m`` writes an ordinary folder (no pickle in it) that
+    ``load_evaluator`` recognises by its card; a modified folder is refused; the card
+    accepts legacy hml263 stores only."""
+    from hoibench import cli
+    from hoibench.evaluator import load_evaluator, store_mismatches
+    from hoibench.evaluator import published_t2m
+    from hoibench.evaluator.backends import backend_of
+    from hoibench.evaluator.errors import EvaluatorIntegrityError
+    _, files, eid = imported
+    monkeypatch.setattr(published_t2m, "DEFAULT_DIMS", DIMS)       # the fixture's small sizes
+    out = tmp_path / "ev-t2m"
+    assert cli.main(["evaluator", "import", "t2m", "--checkpoint", str(files["checkpoint"]), "--glove",
+                     str(files["glove"]), "--meta", str(files["meta"]), "--out", str(out)]) == 0
+    assert f"wrote t2m evaluator {eid}" in capsys.readouterr().out        # same files, same id
+    assert sorted(p.name for p in out.iterdir()) == ["card.json", "weights.safetensors"]
+    card = json.loads((out / "card.json").read_text())
+    assert card["backend"] == "t2m" and card["sources"]["checkpoint"]["epoch"] == 270
+    assert backend_of(out).name == "t2m"
+    ev = load_evaluator(out, kind="contrastive")
+    assert type(ev).__name__ == "T2MEvaluator" and ev.id == eid
+    np.testing.assert_allclose(ev.embed_text(CAPTIONS, tokens=TOKENS), np.asarray(REF_TEXT, np.float32), atol=1e-5)
+    legacy = {"dataset": "behave", "representations": {"hml263": "hml263-legacy-hoidiff-1.0"}}
+    assert store_mismatches(ev, legacy) == []
+    clean = {"dataset": "behave", "representations": {"hml263": "hml263-clean-1.0"}}
+    assert "the store has 'hml263-clean-1.0'" in store_mismatches(ev, clean)[0]
+    card["vocabulary"][3] = "an"
+    (out / "card.json").write_text(json.dumps(card))
+    with pytest.raises(EvaluatorIntegrityError, match=r"evaluator id mismatch: .*card.json field\(s\) vocabulary"):
+        load_evaluator(out)

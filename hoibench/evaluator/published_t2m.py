@@ -225,11 +225,17 @@ def read_meta(folder: str | Path, dims: T2MDims = T2MDims()) -> tuple[np.ndarray
     return out[0], out[1]
 
 
-def import_t2m(out: Path, checkpoint: Path, glove: Path, meta: Path, dims: T2MDims = T2MDims()) -> str:
+#: the published evaluator's sizes: what ``hoibench evaluator import t2m`` expects
+DEFAULT_DIMS = T2MDims()
+
+
+def import_t2m(out: Path, checkpoint: Path, glove: Path, meta: Path, dims: T2MDims | None = None) -> str:
     """Write the evaluator folder ``out`` from text-to-motion's files (``finest.tar``, the
     ``glove/`` folder, the ``meta/`` folder with ``mean.npy``/``std.npy``); return its id.
-    Every file is checked before anything is written."""
+    Every file is checked before anything is written. ``dims``: the layer sizes
+    (:data:`DEFAULT_DIMS`, the published ones, when None)."""
     from .card import write_folder
+    dims = DEFAULT_DIMS if dims is None else dims
     tensors, info = read_checkpoint(checkpoint, dims)
     words, vectors = read_glove(glove)
     mean, std = read_meta(meta, dims)
