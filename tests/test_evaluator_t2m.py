@@ -315,3 +315,18 @@ def test_cli_import_then_load_evaluator_and_store_fit(imported, tmp_path, monkey
     (out / "card.json").write_text(json.dumps(card))
     with pytest.raises(EvaluatorIntegrityError, match=r"evaluator id mismatch: .*card.json field\(s\) vocabulary"):
         load_evaluator(out)
+
+
+def test_leaderboard_rows_are_comparable_only_with_the_t2m_backend_its_weights_and_t2m_legacy():
+    from hoibench.publish.leaderboard import comparable, entry_from_result
+    paper = {"source": "reported", "citation": "HOI-Diff Tab. 1",
+             "comparable_with": {"protocol": "t2m-legacy", "evaluator_backend": "t2m", "evaluator_id": "abc"}}
+    result = {"metrics": {}, "evaluator_id": "abc", "protocol": "t2m-legacy", "protocol_version": "1.0",
+              "evaluator_backend": "t2m", "complete": True}
+    ours = entry_from_result(result, method="mine", track="behave")
+    assert comparable(ours, paper)
+    assert not comparable({**ours, "evaluator_id": "other-weights"}, paper)
+    assert not comparable({**ours, "protocol": "behave-legacy"}, paper)
+    assert not comparable({**ours, "evaluator_backend": "contrastive"}, paper)
+    any_weights = {**paper, "comparable_with": {"protocol": "t2m-legacy", "evaluator_backend": "t2m"}}
+    assert comparable({**ours, "evaluator_id": "other-weights"}, any_weights)

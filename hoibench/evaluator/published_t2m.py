@@ -31,7 +31,9 @@ is refused.
 Folder: ``weights.safetensors`` (``movement_encoder.*``, ``motion_encoder.*``,
 ``text_encoder.*``, ``vocab.vectors``, ``meta.mean``, ``meta.std``) and ``card.json``
 (``"backend": "t2m"``, sizes, vocabulary words, sources with sha256, evaluator id):
-written by :func:`import_t2m`, read by :func:`load_t2m`; nothing is unpickled.
+written by :func:`import_t2m`, read by :func:`load_t2m`; nothing is unpickled. The card holds
+nothing version- or machine-dependent, so the same files import to the same evaluator id
+(what a paper row's ``comparable_with.evaluator_id`` names).
 """
 from __future__ import annotations
 
@@ -46,7 +48,6 @@ import torch
 from torch import nn
 from torch.nn.utils.rnn import pack_padded_sequence
 
-from .. import __version__
 from .embed import EMBED_THREADS, as_clip_list, deterministic
 from .errors import CorruptEvaluatorFile, EvaluatorError, EvaluatorIntegrityError
 from .t2m_text import POS_SLOTS, SEQ_LEN, WORD_DIM, Vocabulary, read_glove
@@ -250,7 +251,7 @@ def import_t2m(out: Path, checkpoint: Path, glove: Path, meta: Path, dims: T2MDi
     card = {"backend": BACKEND, "kind": "contrastive", "variant": "human", "embed_dim": dims.output,
             "dims": asdict(dims), "max_frames": MAX_FRAMES, "unit_length": UNIT_LENGTH,
             "description": "Guo et al. 2022 text-motion matching evaluator (text-to-motion networks/modules.py)",
-            "trained_on": TRAINED_ON, "sources": sources, "toolkit_version": __version__,
+            "trained_on": TRAINED_ON, "sources": sources,
             "dataset": {"name": None, "features": "hml263", "representations": list(LEGACY_REPRESENTATIONS)},
             "vocabulary": words}
     return write_folder(out, tensors, card)
