@@ -276,7 +276,7 @@ def test_a_vocabulary_pickle_that_would_run_code_is_refused_and_runs_nothing(imp
     with pytest.raises(EvaluatorError, match=r"our_vab_words.pkl: refused: refers to posix.system") as exc:
         import_t2m(tmp_path / "ev", files["checkpoint"], glove, files["meta"], dims=DIMS)
     assert "\n" not in str(exc.value) and not marker.exists() and not (tmp_path / "ev").exists()
-    for obj, kind in (({"a", "b"}, "set"), ([1.5], "float"), ({"a": (1, 2)}, "tuple")):
+    for obj, kind in (({"a", "b"}, "set"), ([1.5], "float"), ({"a": (1, 2)}, "tuple"), (["a", (1, 2)], "tuple")):
         (tmp_path / "x.pkl").write_bytes(pickle.dumps(obj, protocol=4))
         with pytest.raises(EvaluatorError, match=f"x.pkl: holds a {kind}; only lists, dicts, strings and integers"):
             read_plain_pickle(tmp_path / "x.pkl")

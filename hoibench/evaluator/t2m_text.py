@@ -76,13 +76,9 @@ def _check_plain(obj, path: Path, depth: int = 0) -> None:
     if isinstance(obj, bool) or not isinstance(obj, (list, dict, str, int)):
         raise EvaluatorError(f"{path}: holds a {type(obj).__name__}; only lists, dicts, strings and integers "
                              f"are accepted")
-    items = obj.items() if isinstance(obj, dict) else obj if isinstance(obj, list) else ()
+    items = [x for kv in obj.items() for x in kv] if isinstance(obj, dict) else obj if isinstance(obj, list) else ()
     for item in items:
-        if isinstance(item, tuple):
-            for part in item:
-                _check_plain(part, path, depth + 1)
-        else:
-            _check_plain(item, path, depth + 1)
+        _check_plain(item, path, depth + 1)
 
 
 def read_plain_pickle(path: str | Path):
