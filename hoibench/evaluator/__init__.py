@@ -15,6 +15,8 @@ Modules, one job each:
 ``errors``     one-line ``ValueError`` subclasses naming the file and field
 ``train``      training with checkpoints and exact resume
 ``commands``   ``main_train_evaluator`` / ``main_show`` for the CLI
+``published_t2m``  the published ``t2m`` backend (Guo et al.'s evaluator): import, load, embeddings
+``t2m_text``   its GloVe vocabulary (restricted unpickler) and ``word/POS`` inputs
 
 Typical use::
 
