@@ -330,3 +330,11 @@ def test_leaderboard_rows_are_comparable_only_with_the_t2m_backend_its_weights_a
     assert not comparable({**ours, "evaluator_backend": "contrastive"}, paper)
     any_weights = {**paper, "comparable_with": {"protocol": "t2m-legacy", "evaluator_backend": "t2m"}}
     assert comparable({**ours, "evaluator_id": "other-weights"}, any_weights)
+
+
+def test_caption_lines_keep_their_humanml3d_tokens():
+    """What ``hoibench evaluate`` passes to ``embed_text(..., tokens=...)``."""
+    from hoibench.evaluator.text import parse_text_file
+    caps = parse_text_file("a man walks#a/DET man/NOUN walk/VERB#0.0#0.0\njust a caption\n")
+    assert caps[0].tokens == ("a/DET", "man/NOUN", "walk/VERB") and caps[1].tokens == ()
+    assert caps[0].whole_clip and caps[1].text == "just a caption"
