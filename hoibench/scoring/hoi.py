@@ -150,12 +150,15 @@ def _finite_rows(per_rep: list[dict]) -> tuple[list[dict], dict]:
 def _loop_settings(proto) -> dict:
     """The protocol's numbers in a reference loop's own keywords: replications, R-precision
     batch (``r_size`` in ChainHOI's, ``batch_size`` in the others), top-k and diversity pairs
-    (InterAct's loop fixes its own: 300, or 50 under 300 rows)."""
+    (InterAct's loop fixes its own: 300, or 50 under 300 rows); text-to-motion's also the
+    MultiModality texts, samples and pairs."""
     batch = "r_size" if proto.embedding_loop == "chainhoi" else "batch_size"
     out = {"replications": int(proto.replications), batch: int(proto.r_precision_pool_size),
            "top_k": int(proto.r_precision_top_k)}
     if proto.embedding_loop != "interact":
         out["diversity_times"] = int(proto.diversity_pairs)
+    if proto.embedding_loop == "t2m":            # text-to-motion's loop takes MultiModality's sizes too
+        out.update(mm_texts=int(proto.mm_texts), mm_repeats=int(proto.mm_samples), mm_times=int(proto.mm_pairs))
     return out
 
 
