@@ -46,18 +46,8 @@ def main_show(dir, as_json: bool = False) -> int:
     the folder verifies; 1 when its id does not match (modified: the summary is printed with
     the error naming the file and field); 2, with one line and no summary, when it is not an
     evaluator folder or a file cannot be read (corrupt ``card.json`` or ``weights.safetensors``)."""
-    from .backends import backend_of
     from .card import read_card, summary, verify_folder
     from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
-    backend = backend_of(dir)
-    if backend is not None and backend.importer is not None:       # an imported published evaluator
-        try:
-            card = backend.load(dir).card
-        except EvaluatorIntegrityError as exc:
-            print(f"hoibench evaluator: error: {exc}", file=sys.stderr)
-            return 2 if isinstance(exc, CorruptEvaluatorFile) else 1
-        print(json.dumps(card, indent=1, sort_keys=True) if as_json else imported_summary(card, backend))
-        return 0
     try:
         card = read_card(dir)
     except EvaluatorIntegrityError as exc:
@@ -76,17 +66,6 @@ def main_show(dir, as_json: bool = False) -> int:
         print(f"hoibench evaluator: error: {err}", file=sys.stderr)
         return 1
     return 0
-
-
-def imported_summary(card: dict, backend) -> str:
-    """The card of an imported evaluator as ``hoibench evaluator show`` prints it."""
-    lines = [f"evaluator {card.get('evaluator_id', '?')}  (id verified)",
-             f"  backend {backend.name}: {backend.description}",
-             f"  trained on: {card.get('trained_on', '?')}"]
-    for what, files in sorted((card.get("sources") or {}).items()):
-        if isinstance(files, dict):
-            lines.append(f"  {what}: " + ", ".join(f"{k} {str(v)[:12]}" for k, v in sorted(files.items())))
-    return "\n".join(lines)
 
 
 def main_import(kind: str | None, out, files: dict) -> int:

@@ -289,6 +289,24 @@ def verify_t2m_folder(folder: str | Path) -> tuple[dict, bytes]:
     return card, data
 
 
+#: the name ``hoibench evaluator show`` looks up in a backend's loader module
+verify_folder = verify_t2m_folder
+
+
+def summary(card: dict, verified: bool | None = None) -> str:
+    """The card as ``hoibench evaluator show`` prints it: id, backend, what it was trained
+    on, the source files' sha256 (first 12 hex digits)."""
+    state = "" if verified is None else ("  (id verified)" if verified else "  (ID MISMATCH)")
+    lines = [f"evaluator {card.get('evaluator_id', '?')}{state}",
+             f"  backend {card.get('backend')}: {card.get('description', '')}",
+             f"  trained on: {card.get('trained_on', '?')}",
+             f"  sizes: {card.get('dims')}, vocabulary {len(card.get('vocabulary') or [])} words"]
+    for what, files in sorted((card.get("sources") or {}).items()):
+        if isinstance(files, dict):
+            lines.append(f"  {what}: " + ", ".join(f"{k} {str(v)[:12]}" for k, v in sorted(files.items())))
+    return "\n".join(lines)
+
+
 def load_t2m(folder: str | Path, *, threads: int | None = None, device: str = "cpu", **_ignored) -> "T2MEvaluator":
     """A verified :class:`T2MEvaluator` from ``folder``. There is no card gate (the weights
     were not trained here); ``hoibench evaluate`` measures the sanity gate on the store."""
@@ -420,4 +438,4 @@ class T2MEvaluator:
 
 __all__ = ["BACKEND", "T2MDims", "T2MEvaluator", "MovementEncoder", "MotionEncoder", "TextEncoder", "build_parts",
            "expected_shapes", "check_part", "read_checkpoint", "read_meta", "import_t2m", "verify_t2m_folder",
-           "load_t2m", "LEGACY_REPRESENTATIONS", "SEQ_LEN"]
+           "verify_folder", "summary", "load_t2m", "LEGACY_REPRESENTATIONS", "SEQ_LEN"]
