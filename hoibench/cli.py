@@ -706,41 +706,6 @@ def _add_leaderboard_commands(sub) -> None:
     b.set_defaults(func=_cmd_leaderboard_site)
 
 
-def _add_challenge_commands(sub) -> None:
-    """``hoibench challenge bundle|public|check|import-results``."""
-    s = sub.add_parser("challenge", help="host a challenge on Codabench or EvalAI: bundle, public data, results",
-                       epilog="examples:\n  hoibench challenge bundle --data data --evaluator ev --out bundle.zip\n"
-                              "  hoibench challenge public --data data --out public\n"
-                              "  hoibench challenge import-results results.json --bundle bundle.zip --track synthetic",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    csub = s.add_subparsers(dest="action", required=True, metavar="{bundle,public,check,import-results}")
-    b = csub.add_parser("bundle", help="a Codabench competition bundle with the hidden test split")
-    b.add_argument("--data", type=Path, required=True, help="the store (" + H_STORE + ")")
-    b.add_argument("--evaluator", type=Path, required=True, help="the evaluator folder the challenge scores with")
-    b.add_argument("--protocol", default=None, help="protocol id (default: the store's)")
-    b.add_argument("--out", type=Path, required=True, help="the bundle .zip to write (must not exist)")
-    b.add_argument("--title", default=None, help="the competition's title")
-    b.add_argument("--phases", default="dev,test", help="comma-separated phase names (default dev,test)")
-    b.add_argument("--docker-image", default=None, help="the scoring image's name (default hoibench/scorer:VERSION)")
-    b.set_defaults(func=_cmd_challenge)
-    b = csub.add_parser("public", help="what participants may have: the train split and the test prompts")
-    b.add_argument("--data", type=Path, required=True, help="the store (" + H_STORE + ")")
-    b.add_argument("--out", type=Path, required=True, help="the folder to write (new or empty)")
-    b.add_argument("--title", default="hoibench challenge", help="the title in its README.md")
-    b.set_defaults(func=_cmd_challenge)
-    b = csub.add_parser("check", help="check a bundle against Codabench's v2 bundle structure")
-    b.add_argument("bundle", type=Path, help="the bundle .zip")
-    b.set_defaults(func=_cmd_challenge)
-    b = csub.add_parser("import-results", help="an engine's exported leaderboard -> entries of a track")
-    b.add_argument("export", type=Path, help="the exported leaderboard JSON (Codabench results.json)")
-    b.add_argument("--bundle", type=Path, required=True, help="the challenge's bundle .zip (its challenge.json)")
-    b.add_argument("--track", required=True, help="the track folder's name under the root")
-    b.add_argument("--root", type=Path, default=None, help=H_ROOT)
-    b.add_argument("--engine", default="codabench", help="the engine's name recorded with the rows")
-    b.add_argument("--replace", action="store_true", help="replace entries of the same name")
-    b.set_defaults(func=_cmd_challenge)
-
-
 def _add_publish_commands(sub) -> None:
     """Comparing, publishing and looking: compare, leaderboard, challenge, render, demo."""
     s = sub.add_parser("compare", help="results side by side, with which differences are outside the CIs",
@@ -752,7 +717,8 @@ def _add_publish_commands(sub) -> None:
     s.set_defaults(func=_cmd_compare)
 
     _add_leaderboard_commands(sub)
-    _add_challenge_commands(sub)
+    from .challenge.commands import add_challenge_parser
+    add_challenge_parser(sub, _cmd_challenge, H_STORE, H_ROOT)
 
     s = sub.add_parser("demo", help="run the main job on the embedded synthetic data",
                        epilog="example: hoibench demo --out demo-out")

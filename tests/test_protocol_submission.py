@@ -32,8 +32,13 @@ def test_shipped_protocols_fix_the_design_numbers():
     protos = {p.id: p for p in shipped if p.kind == "hoi"}
     assert {"behave-legacy", "behave-clean", "omomo-legacy", "omomo-clean", "rich-cat-clean",
             "synthetic-clean", "synthetic-legacy"} <= set(protos)
+    t2m = protos["t2m-legacy"]        # text-to-motion's loop, for rows scored with the t2m evaluator
+    assert (t2m.replications, t2m.embedding_loop, t2m.diversity_pairs, t2m.track) == (20, "t2m", 300, "behave")
+    assert t2m.physical == protos["behave-legacy"].physical
     for p in protos.values():
-        # legacy protocols run ChainHOI's released loop: one replication, as its src/eval.py
+        if p is t2m:
+            continue
+        # the other legacy protocols run ChainHOI's released loop: one replication, as its src/eval.py
         assert p.replications == (1 if p.mode == "legacy" else 20) and p.mode in ("legacy", "clean")
         assert p.fps == (30 if p.dataset == "interact" else 20)       # InterAct's evaluator reads 30 fps rows
         assert p.embedding_loop == ("chainhoi" if p.mode == "legacy" else "hoibench")

@@ -48,7 +48,6 @@ contacts, no floor shift.
 from __future__ import annotations
 
 import ast
-import json
 from pathlib import Path
 
 import numpy as np
@@ -223,7 +222,8 @@ def _seg_desc(desc, key: str) -> str | None:
 
 def _read_json(path: Path, where: str):
     try:
-        return json.loads(path.read_text())
+        from ..core.io import read_json_file
+        return read_json_file(path, what="OAKINK2 JSON file")
     except (OSError, ValueError) as exc:
         raise SequenceError(f"{where}: {path.name}: unreadable ({type(exc).__name__})") from None
 

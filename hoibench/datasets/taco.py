@@ -211,7 +211,8 @@ def load_sequence(hand_dir: str | Path, root: str | Path, body_models: str | Pat
     for role, path in files.items():
         where = f"{cid}: Object_Poses/{folder}/{seq}/{path.name}"
         try:
-            raw = np.load(path, allow_pickle=False)
+            from ..core.io import load_npy_file
+            raw = load_npy_file(path, what="TACO object pose file")
         except Exception as exc:
             raise SequenceError(f"{where}: unreadable ({type(exc).__name__}: {str(exc)[:120]})") from None
         R, t, corr = rigid_poses(raw, where)

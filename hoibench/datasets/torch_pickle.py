@@ -161,11 +161,12 @@ def loads(data: bytes, source: str = "<bytes>"):
 
 def load(path: str | Path, max_bytes: int = 1 << 32):
     """:func:`loads` of a file (at most ``max_bytes``)."""
+    from ..core.io import read_regular_file
     path = Path(path)
     size = path.stat().st_size
     if size > max_bytes:
         raise TorchPickleError(f"{path}: {size} bytes, more than the {max_bytes} accepted")
-    return loads(path.read_bytes(), path.name)
+    return loads(read_regular_file(path, max_bytes, "torch pickle"), path.name)
 
 
 # --------------------------------------------------------------------------- writing

@@ -19,6 +19,8 @@ Modules, one job each:
 ``published_chainhoi``, ``chainhoi_model``  the ``chainhoi`` backend: ChainHOI's published
                MotionCLIP evaluator (import, checks, folder, loader; network, embedding API)
 ``safe_checkpoint``  reading published torch checkpoints with ``weights_only``
+``published_t2m``  the published ``t2m`` backend (Guo et al.'s evaluator): import, load, embeddings
+``t2m_text``   its GloVe vocabulary (restricted unpickler) and ``word/POS`` inputs
 
 Typical use::
 

@@ -88,6 +88,13 @@ register_backend(Backend(
                   ImportFile("mean", "InterAct: mean_train_markersbps.npy (615,)"),
                   ImportFile("std", "InterAct: std_train_markersbps.npy (615,)"),
                   ImportFile("bps_basis", "InterAct: bps_basis_set_128_1.npy (128, 3)"))))
+register_backend(Backend("t2m", "contrastive", "card.json", ".published_t2m:load_t2m",
+                         "Guo et al.'s text-motion matching evaluator (text-to-motion's finest.tar, GloVe, meta)",
+                         importer=".published_t2m:import_t2m",
+                         import_files=(ImportFile("checkpoint", "text-to-motion's finest.tar"),
+                                       ImportFile("glove", "the glove/ folder (our_vab_data.npy, our_vab_words.pkl, "
+                                                           "our_vab_idx.pkl)"),
+                                       ImportFile("meta", "the evaluator's meta/ folder (mean.npy, std.npy)"))))
 
 
 def list_backends() -> list[Backend]:

@@ -378,7 +378,8 @@ def store_mismatches(evaluator, store_manifest: dict) -> list[str]:
     store with ``store_manifest``; empty when it fits.
 
     Compared with the evaluator's card: dataset name; representation version of the
-    evaluator's features; normalisation statistics sha256 (the store's train-split
+    evaluator's features (or, for a published evaluator, the versions it accepts:
+    ``dataset.representations``); normalisation statistics sha256 (the store's train-split
     ``stats/hml263``); and, for cards that record them, fps, mode and the train split's clip
     ids (another train split may contain the clips being scored). The manifest hash itself
     is not compared: the same data prepared into another folder differs only in paths.
@@ -397,6 +398,11 @@ def store_mismatches(evaluator, store_manifest: dict) -> list[str]:
     differ("dataset", ds.get("name"), store_manifest.get("dataset"))
     feats = ds.get("features", "hml263")
     differ(f"{feats} representation", ds.get("representation"), store_manifest.get("representations", {}).get(feats))
+    accepted = ds.get("representations")
+    theirs = store_manifest.get("representations", {}).get(feats)
+    if isinstance(accepted, list) and theirs not in accepted:
+        out.append(f"evaluator {eid} reads {feats} rows computed as {', '.join(map(str, accepted))}, the store has "
+                   f"{theirs!r}")
     norm = (card.get("normalization") or {}).get("sha256")
     differ("normalisation statistics (train-split stats/hml263) sha256", norm,
            store_manifest.get("stats", {}).get("hml263", {}).get("sha256"))

@@ -1,7 +1,7 @@
 """The embedding API of a trained (or freshly built) evaluator.
 
 ``Evaluator.embed_motion(features, lengths) -> (N, 512)`` and
-``Evaluator.embed_text(texts) -> (N, 512)``: float32 numpy arrays, rows L2-normalised.
+``Evaluator.embed_text(texts, tokens=None) -> (N, 512)``: float32 numpy arrays, rows L2-normalised.
 Both run batched, in eval mode, under ``torch.inference_mode`` and
 ``torch.use_deterministic_algorithms(True, warn_only=True)``, with torch's CPU thread
 count set to ``threads`` for the duration of a call (default :data:`EMBED_THREADS` = 1).
@@ -171,8 +171,10 @@ class Evaluator:
                            max_length=self.config.model.text_max_tokens, return_tensors="pt")
         return {k: v.to(self.device) for k, v in b.items() if k in ("input_ids", "attention_mask", "token_type_ids")}
 
-    def embed_text(self, texts: Sequence[str], batch_size: int = 128) -> np.ndarray:
-        """(N, 512) float32 embeddings of captions."""
+    def embed_text(self, texts: Sequence[str], tokens=None, batch_size: int = 128) -> np.ndarray:
+        """(N, 512) float32 embeddings of captions. ``tokens`` (HumanML3D ``word/POS`` lists,
+        read by the published ``t2m`` evaluator) is accepted for a uniform call and ignored:
+        this evaluator reads the caption text."""
         if isinstance(texts, str):
             raise ValueError("texts: expected a list of strings, got one string")
         texts = list(texts)

@@ -22,7 +22,7 @@ import hashlib
 import importlib.util
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..core.io import sha256_regular_file
@@ -37,6 +37,8 @@ class Caption:
     text: str
     start_s: float = 0.0
     end_s: float = 0.0
+    #: the line's HumanML3D ``word/POS`` tokens (empty when the line has none)
+    tokens: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def whole_clip(self) -> bool:
@@ -57,7 +59,8 @@ def parse_text_file(text: str) -> list[Caption]:
             continue
         start = _float(parts[2]) if len(parts) > 2 else 0.0
         end = _float(parts[3]) if len(parts) > 3 else 0.0
-        out.append(Caption(caption, start, end))
+        toks = tuple(parts[1].split()) if len(parts) > 1 else ()
+        out.append(Caption(caption, start, end, toks))
     return out
 
 

@@ -133,9 +133,10 @@ def read_entry(path: str | Path) -> dict:
         raise LeaderboardError(f"{path}: field citation: a reported row needs the paper it is copied from")
     want = e.get("comparable_with")
     if want is not None and not (isinstance(want, dict) and all(isinstance(want.get(k), str) and want.get(k)
-                                                                for k in ("protocol", "evaluator_backend"))):
+                                                                for k in ("protocol", "evaluator_backend"))
+                                 and isinstance(want.get("evaluator_id", ""), str)):
         raise LeaderboardError(f"{path}: field comparable_with: expected {{\"protocol\": id, "
-                               f"\"evaluator_backend\": name}}")
+                               f"\"evaluator_backend\": name}} (and optionally \"evaluator_id\": id)")
     e["role"] = role_of(e)
     e["_file"] = path.name
     return e
@@ -153,12 +154,16 @@ def comparable(entry: dict, reported: dict) -> bool:
     """Whether ``entry`` (scored by hoibench) can stand beside the paper row ``reported``: the
     paper row names the protocol and evaluator backend that reproduce its paper's evaluation
     (``comparable_with: {protocol, evaluator_backend}``: the paper's legacy protocol and its
-    published evaluator), and ``entry`` was scored under exactly those. A paper row without
+    published evaluator), and ``entry`` was scored under exactly those. When one backend loads
+    several published weight sets (``t2m``: HumanML3D's evaluator, or one retrained in the
+    same layout for another dataset), the paper row also names the ``evaluator_id`` its
+    weights import to, and ``entry`` must have that id. A paper row without
     ``comparable_with`` is comparable with nothing."""
     want = reported.get("comparable_with")
     return (isinstance(want, dict) and reported.get("source") == "reported" and entry.get("source") != "reported"
             and bool(want.get("protocol")) and entry.get("protocol") == want.get("protocol")
-            and entry.get("evaluator_backend") == want.get("evaluator_backend"))
+            and entry.get("evaluator_backend") == want.get("evaluator_backend")
+            and (not want.get("evaluator_id") or entry.get("evaluator_id") == want.get("evaluator_id")))
 
 
 def comparable_citations(entry: dict, entries: list[dict]) -> list[str]:

@@ -54,9 +54,10 @@ class EvaluationRefused(ValueError):
     nothing valid to score); the message says which override exists."""
 
 
-def _captions(data: Path, clip_id: str) -> list[str]:
-    """Whole-clip captions of a test clip (lines with start = end = 0; timed captions describe
-    a segment, not the clip), all captions when there is no whole-clip one."""
+def _caption_lines(data: Path, clip_id: str) -> list:
+    """Whole-clip caption lines of a test clip (start = end = 0; timed captions describe a
+    segment, not the clip), all lines when there is no whole-clip one: their
+    :class:`~hoibench.evaluator.text.Caption` (text and HumanML3D tokens)."""
     from ..evaluator.text import parse_text_file
     from ..core.ids import check_id
     from ..core.io import read_regular_file
@@ -64,8 +65,8 @@ def _captions(data: Path, clip_id: str) -> list[str]:
     if not path.exists():
         return []
     caps = parse_text_file(read_regular_file(path, 1024 ** 2, "caption file").decode("utf-8", "replace"))
-    whole = [c.text for c in caps if c.whole_clip]
-    return whole or [c.text for c in caps]
+    whole = [c for c in caps if c.whole_clip]
+    return whole or caps
 
 
 def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_evaluator_mismatch: bool) -> list[dict]:
@@ -172,12 +173,15 @@ def _finite_rows(per_rep: list[dict]) -> tuple[list[dict], dict]:
 def _loop_settings(proto) -> dict:
     """The protocol's numbers in a reference loop's own keywords: replications, R-precision
     batch (``r_size`` in ChainHOI's, ``batch_size`` in the others), top-k and diversity pairs
-    (InterAct's loop fixes its own: 300, or 50 under 300 rows)."""
+    (InterAct's loop fixes its own: 300, or 50 under 300 rows); text-to-motion's also the
+    MultiModality texts, samples and pairs."""
     batch = "r_size" if proto.embedding_loop == "chainhoi" else "batch_size"
     out = {"replications": int(proto.replications), batch: int(proto.r_precision_pool_size),
            "top_k": int(proto.r_precision_top_k)}
     if proto.embedding_loop != "interact":
         out["diversity_times"] = int(proto.diversity_pairs)
+    if proto.embedding_loop == "t2m":            # text-to-motion's loop takes MultiModality's sizes too
+        out.update(mm_texts=int(proto.mm_texts), mm_repeats=int(proto.mm_samples), mm_times=int(proto.mm_pairs))
     return out
 
 
@@ -208,14 +212,21 @@ class HOIScorer(Scorer):
         t1 = time.perf_counter()
         data = store.root
         self.test_ids = test_ids = store.clip_ids("test")
-        captions = {cid: _captions(data, cid) for cid in test_ids}
+        lines = {cid: _caption_lines(data, cid) for cid in test_ids}
+        captions = {cid: [c.text for c in caps] for cid, caps in lines.items()}
         no_text = [cid for cid, c in captions.items() if not c]
         if no_text:
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
         self.real_all = ev.embed_motion([_real_features(store, cid, ev) for cid in test_ids])
         all_caps = sorted({c for caps in captions.values() for c in caps})
-        cap_emb = dict(zip(all_caps, ev.embed_text(all_caps)))
+        # the store's HumanML3D tokens of each caption (first line wins), for evaluators that read them
+        toks: dict[str, tuple] = {}
+        for caps in lines.values():
+            for c in caps:
+                if c.tokens:
+                    toks.setdefault(c.text, c.tokens)
+        cap_emb = dict(zip(all_caps, ev.embed_text(all_caps, tokens=[toks.get(c) for c in all_caps])))
         self.sets_all = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in test_ids]
         self.gate = gate = gate_from_embeddings(self.real_all, self.sets_all, test_ids, proto)   # from the weights
         if not gate["passed"]:

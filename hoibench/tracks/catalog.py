@@ -25,7 +25,7 @@ def _hoi(name: str, datasets: tuple[str, ...], protocols: tuple[str, ...], descr
 register_track(_hoi("synthetic", ("synthetic",), ("synthetic-clean", "synthetic-legacy"),
                     "hoibench's generated HOI data in BEHAVE's layout (the README walk-through and `make demo`).",
                     generic_for="hoi"))
-register_track(_hoi("behave", ("behave",), ("behave-clean", "behave-legacy"),
+register_track(_hoi("behave", ("behave",), ("behave-clean", "behave-legacy", "t2m-legacy"),
                     "BEHAVE (HOI-Diff's clip split): one person, one object, 20 fps."))
 register_track(_hoi("omomo", ("omomo",), ("omomo-clean", "omomo-legacy"),
                     "OMOMO: one person moving one large object, 20 fps."))
