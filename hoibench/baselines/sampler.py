@@ -181,6 +181,11 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     if not (isinstance(samples, int) and 1 <= samples <= 1000):
         raise ValueError(f"--samples: expected an integer in 1..1000, got {samples!r}")
     loaded = load_run(run, device, baseline)
+    if hasattr(loaded, "write_store_submission"):        # SyncDiff: a multi-body submission
+        if guidance is not None or temperature is not None:
+            raise ValueError(f"--guidance/--temperature: {loaded.spec.title} samples without guidance or temperature")
+        return loaded.write_store_submission(data, out, samples=samples, seed=seed, split=split, steps=steps,
+                                             as_zip=as_zip, limit=limit, log=log)
     store = Store(data)
     loaded.check_store(store)
     from ..tracks.protocol import default_protocol_id

@@ -200,6 +200,43 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Probl
     return probs + value_probs, K, up
 
 
+def _check_multibody_clip(sub: Submission, st, sid: str, cap: int) -> tuple[list[Problem], int | None]:
+    """Problems of one multi-body sample file (one array per body of the store's clip:
+    :mod:`hoibench.scoring.multibody`) and its K: every array present with the clip's frame
+    count, finite, objects' rotations proper; arrays naming no body are warned about."""
+    from ..bodies.multibody import MultiBodyClip
+    from .multibody import clip_from_sample
+    try:
+        headers = sub.headers(sid)
+    except SubmissionError as e:
+        return [Problem(sid, "file", str(e))], None
+    gt = MultiBodyClip.from_arrays(st.load(sid), st.object_template)
+    wanted = {f"{b.name}__{k}" for b in gt.bodies for k in (("rot", "trans") if b.is_rigid else ("joints",))}
+    probs = [Problem(sid, k, f"unexpected array {k!r} (ignored); this clip's bodies give {', '.join(sorted(wanted))}",
+                     "warning") for k in sorted(set(headers) - wanted)]
+    missing = sorted(wanted - set(headers))
+    if missing:
+        return probs + [Problem(sid, k, "missing: one array per body of the clip") for k in missing], None
+    ks = {headers[k].shape[0] for k in wanted}
+    if len(ks) > 1:
+        return probs + [Problem(sid, SAMPLES_DIR, f"arrays hold different sample counts {sorted(ks)}")], None
+    K = ks.pop()
+    if K > cap:
+        return probs + [Problem(sid, SAMPLES_DIR, f"K = {K} samples per prompt, over the cap of {cap}: not loaded")], K
+    try:
+        arrays = sub.load(sid, sorted(wanted))
+    except SubmissionError as e:
+        return probs + [Problem(sid, "file", str(e))], K
+    for k in range(K):
+        try:
+            clip_from_sample(gt, arrays, k, sid)
+        except ValueError as e:
+            parts = str(e).split(": ", 2)          # "<id>: <array>: <what>"
+            field, what = (parts[1], parts[2]) if len(parts) == 3 else (SAMPLES_DIR, parts[-1])
+            return probs + [Problem(sid, field, what)], K
+    return probs, K
+
+
 def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, int, str]:
     """(test rows by id, store fps, K cap, hoi269 mode) for a store and an optional protocol."""
     rows = {c["id"]: c for c in st.manifest["clips"] if c["split"] == split}
@@ -207,7 +244,8 @@ def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, 
     if protocol is None:        # the store's default protocol fixes the K cap when it exists
         from ..tracks.protocol import default_protocol
         protocol = default_protocol(st.manifest)
-    cap = protocol.max_samples_per_prompt if protocol is not None else DEFAULT_MAX_SAMPLES_PER_PROMPT
+    cap = protocol.max_samples_per_prompt if protocol is not None and protocol.kind == "hoi" \
+        else DEFAULT_MAX_SAMPLES_PER_PROMPT           # a multi-body protocol reads every sample
     mode = "legacy" if str(st.manifest["config"].get("mode", "clean")).startswith("legacy") else "clean"
     return rows, fps, int(cap), mode
 
@@ -263,13 +301,17 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                 f"not in the {split!r} split of dataset {st.manifest.get('dataset', '?')!r}"
             problems.append(Problem(sid, SAMPLES_DIR, f"extra file: {why} (not read)"))
         refused = {p.id for p in problems if p.severity == "error" and p.id != "*"}
+        multibody = st.is_multibody
         valid, ks, ups = [], {}, {}
         for sid in test_ids:
             if sid not in found or sid in refused:
                 continue
-            ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
-                              bool(flags.get("uses_gt_length", False)) is True, cap, mode)
-            probs, K, up = _check_clip(s, sid, ctx)
+            if multibody:
+                (probs, K), up = _check_multibody_clip(s, st, sid, cap), None
+            else:
+                ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
+                                  bool(flags.get("uses_gt_length", False)) is True, cap, mode)
+                probs, K, up = _check_clip(s, sid, ctx)
             problems += probs
             if K is not None:
                 ks[sid] = K
@@ -291,7 +333,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                                                        f"are the lowest joints along {axis}, not y): hoibench is y-up; "
                                                        "rotate the motions (and objects) into y-up first"
                                                        + UP_FIX.get(axis, "")))
-        if protocol is not None and kvals and kvals[0] <= protocol.mm_pairs:
+        if protocol is not None and protocol.kind == "hoi" and kvals and kvals[0] <= protocol.mm_pairs:
             problems.append(Problem("*", SAMPLES_DIR, f"K = {kvals[0]} sample(s) per prompt: MultiModality needs "
                                                       f"{protocol.mm_samples} and will not be computed", "warning"))
         problems.sort(key=lambda p: (p.id != "*", p.id, p.field, p.message))
