@@ -2,6 +2,7 @@
 cases), padding invariance, seeded sampling and exact resume on a tiny multi-body store."""
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -155,7 +156,7 @@ def store(tmp_path_factory):
     from hoibench.datasets import synthetic_multibody as syn
     from hoibench.datasets.store import PrepareConfig, prepare
     base = tmp_path_factory.mktemp("syncdiff")
-    mbl.write_synthetic_layout(base / "raw", 12, seed=0)
+    mbl.write_synthetic_layout(base / "raw", 8, seed=0)      # 2 test clips
     cfg = PrepareConfig("multibody-synthetic", fps=syn.FPS)
     prepare(mbl.prepare_jobs(base / "raw", None, base / "data", cfg), base / "data", cfg)
     return base
@@ -171,11 +172,19 @@ def test_resume_gives_the_same_checkpoint_and_seeded_sampling_is_byte_identical(
     assert part.checkpoint_id == "" and (store / "run_part" / "checkpoint" / "last.pt").exists()
     done = train("syncdiff", store / "data", store / "run_part", cfg, log=None)
     assert done.resumed_from == 3 and done.checkpoint_id == full.checkpoint_id
-    subs = [sample(store / "run_full", store / "data", store / f"sub{i}", samples=2, seed=7, limit=3, log=None)
+    subs = [sample(store / "run_full", store / "data", store / f"sub{i}", samples=2, seed=7, limit=2, log=None)
             for i in range(2)]
     for name in sorted(p.name for p in (subs[0] / "samples").iterdir()):
         assert (subs[0] / "samples" / name).read_bytes() == (subs[1] / "samples" / name).read_bytes()
-    other = sample(store / "run_full", store / "data", store / "sub_other", samples=2, seed=8, limit=3, log=None)
+    other = sample(store / "run_full", store / "data", store / "sub_other", samples=2, seed=8, limit=2, log=None)
     name = sorted((other / "samples").iterdir())[0].name
     assert (other / "samples" / name).read_bytes() != (subs[0] / "samples" / name).read_bytes()
-    assert validate(subs[0], store / "data") == []            # the store's 3 test clips, K = 2
+    assert validate(subs[0], store / "data") == []            # the store's 2 test clips, K = 2
+    # explicit synchronization acts at sampling only: switched off there, the samples change
+    nosync = sample(store / "run_full", store / "data", store / "sub_nosync", samples=2, seed=7, limit=1, log=None,
+                    inference={"syncdiff.explicit_sync": False})
+    assert (nosync / "samples" / name).read_bytes() != (subs[0] / "samples" / name).read_bytes()
+    assert json.loads((nosync / "submission.json").read_text())["source"]["explicit_sync"] is False
+    with pytest.raises(ValueError, match="not an inference-time setting"):
+        sample(store / "run_full", store / "data", store / "sub_x", limit=1, log=None,
+               inference={"syncdiff.decompose": False})

@@ -24,18 +24,22 @@ runs give identical numbers):
 * RA and FID from the recognizer (:mod:`hoibench.evaluator.recognizer`): accuracy of its
   predicted action on the generated clips, Frechet distance between its features of the
   ground-truth and generated clips.
+
+``ci95`` gives the half-width of a 95% normal interval ``1.96 std / sqrt(n)`` for the metrics
+that are means of per-clip or per-sample values (CSR, CRR, CSIoU per clip and sample; IV, ID
+per sample; RA per sample's correctness); SD, OD and FID are set-level and get none.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from .. import __version__
-from ..bodies.multibody import Body, MultiBodyClip
+from ..bodies.multibody import MultiBodyClip
 from ..bodies.capsules import object_fields, pair_contact_frames, pair_penetration
+from .multibody_sample import clip_from_sample, sample_arrays  # noqa: F401  (re-exported)
 from .pipeline import Scorer
 
 __all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "MultiBodyScorer",
@@ -50,55 +54,6 @@ def is_multibody_store(store) -> bool:
 
 
 # --------------------------------------------------------------------------- submissions
-def sample_arrays(clips: list[MultiBodyClip]) -> dict[str, np.ndarray]:
-    """The ``samples/<id>.npz`` arrays of K generated versions of one clip."""
-    out: dict[str, np.ndarray] = {}
-    for i, b in enumerate(clips[0].bodies):
-        group = [c.bodies[i] for c in clips]
-        if b.is_rigid:
-            out[f"{b.name}__rot"] = np.stack([g.rot for g in group]).astype(np.float32)
-            out[f"{b.name}__trans"] = np.stack([g.trans for g in group]).astype(np.float32)
-        else:
-            out[f"{b.name}__joints"] = np.stack([g.joints for g in group]).astype(np.float32)
-    return out
-
-
-def clip_from_sample(gt: MultiBodyClip, arrays: Mapping[str, np.ndarray], k: int, sid: str) -> MultiBodyClip:
-    """Sample ``k`` of a submission file as a clip shaped like ``gt``; ValueError naming the
-    id and field for a missing, misshapen or non-finite array."""
-    T = gt.num_frames
-    bodies = []
-    for b in gt.bodies:
-        if b.is_rigid:
-            R = _field(arrays, sid, f"{b.name}__rot", (T, 3, 3), k)
-            t = _field(arrays, sid, f"{b.name}__trans", (T, 3), k)
-            det = np.linalg.det(R)
-            ortho = np.abs(R @ R.swapaxes(-1, -2) - np.eye(3)).max((-2, -1))
-            bad = np.flatnonzero((ortho > 1e-3) | (det < 0))
-            if len(bad):
-                raise ValueError(f"{sid}: {b.name}__rot: not a rotation matrix at sample {k}, frame {int(bad[0])}")
-            bodies.append(Body(b.name, b.kind, t, R, None, b.template, b.side, b.owner))
-        else:
-            J = _field(arrays, sid, f"{b.name}__joints", (T, b.joints.shape[1], 3), k)
-            bodies.append(Body(b.name, b.kind, J[:, 0].copy(), None, J, None, b.side, b.owner))
-    return replace(gt, bodies=bodies, contacts={})
-
-
-def _field(arrays, sid: str, key: str, tail: tuple, k: int) -> np.ndarray:
-    if key not in arrays:
-        raise ValueError(f"{sid}: missing array {key!r} (one per body of the clip: <body>__joints, or "
-                         f"<body>__rot and <body>__trans for objects)")
-    a = np.asarray(arrays[key])
-    if a.ndim != len(tail) + 1 or a.shape[1:] != tail:
-        raise ValueError(f"{sid}: {key}: expected shape (K, {', '.join(map(str, tail))}), got {a.shape}")
-    if k >= len(a):
-        raise ValueError(f"{sid}: {key}: {len(a)} sample(s), sample {k} asked for")
-    x = a[k].astype(np.float64)
-    if not np.isfinite(x).all():
-        raise ValueError(f"{sid}: {key}: non-finite values in sample {k}")
-    return x
-
-
 def write_multibody_submission(data, out, kind: str = "gt", samples: int = 1, method: str | None = None,
                                as_zip: bool = False, sigma: float = 0.01, seed: int = 0) -> Path:
     """A reference submission from a multi-body store's test split: ``gt`` (the ground
@@ -262,7 +217,8 @@ class MultiBodyScorer(Scorer):
         return [metrics]
 
     def summary(self, rows: list[dict]) -> dict:
-        metrics = rows[0]
+        metrics = dict(rows[0])
+        ci = metrics.pop("ci95", {})
         proto, store, rec, meta = self.proto, self.store, self.ev, self.meta
         undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
                          "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
@@ -276,6 +232,7 @@ class MultiBodyScorer(Scorer):
             "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version")},
             "counts": {"clips": len(self.ids), "samples": self.counts}, "complete": True,
             "metrics": {k: v for k, v in metrics.items() if v is not None},
+            "ci95": ci,
             "ground_truth": self.reference, "undefined_metrics": undefined, "notes": self.notes,
         }
 
@@ -356,7 +313,24 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
                "fid": float(fid_of(gt_feats, gen_feats)) if len(gts) > 1 else None}
     reference = {"csr": computed(gt_csr), "crr": computed(gt_crr), "csiou": 1.0, "iv_cm3": float(np.mean(gt_iv)),
                  "id_mm": float(np.mean(gt_id)), "od": grouped(gt_od), "ra": gt_ra, "fid": 0.0}
+    correct = [float(p == g.action) for p, (g, _) in zip(pred, gens)]
+    per = {"csr": _values(csr), "crr": _values(crr), "csiou": _values(csiou), "iv_cm3": iv, "id_mm": idm,
+           "ra": correct}
+    metrics["ci95"] = {k: _half_width(v) for k, v in per.items() if _half_width(v) is not None}
     return metrics, reference, len(gens)
+
+
+def _values(metric) -> list[float]:
+    v = [x for x in metric.per_clip().values() if not np.isnan(x)] if metric.clips else []
+    return [float(x) for x in v]
+
+
+def _half_width(values) -> float | None:
+    """Half-width of the 95% normal confidence interval of a mean over per-sample (or
+    per-clip) values, ``1.96 * std / sqrt(n)`` (population std, as the hoi tracks' CIs over
+    replications); None for fewer than 2 values."""
+    v = np.asarray(values, np.float64)
+    return float(1.96 * v.std() / np.sqrt(len(v))) if len(v) >= 2 else None
 
 
 def evaluate(submission, data, recognizer, protocol=None, executor: str = "serial") -> dict:

@@ -205,7 +205,7 @@ def _check_multibody_clip(sub: Submission, st, sid: str, cap: int) -> tuple[list
     :mod:`hoibench.scoring.multibody`) and its K: every array present with the clip's frame
     count, finite, objects' rotations proper; arrays naming no body are warned about."""
     from ..bodies.multibody import MultiBodyClip
-    from .multibody import clip_from_sample
+    from .multibody_sample import clip_from_sample
     try:
         headers = sub.headers(sid)
     except SubmissionError as e:

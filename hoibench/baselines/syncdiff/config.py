@@ -22,7 +22,7 @@ syncdiff.lambda_align 1.0    1.0     weight of L_align (*chosen*)
 syncdiff.lambda_norm 0.1     0.1     weight of the quaternion-norm loss (*chosen*)
 ==================  =======  ======  =========================================================
 
-Training: paper Adam, batch 32, lr 1e-4 (*chosen*), 100k steps; tiny batch 16, lr 1e-3, 1,500
+Training: paper Adam, batch 32, lr 1e-4 (*chosen*), 100k steps; tiny batch 16, lr 1e-3, 1,000
 steps, EMA 0.99. Diffusion: T = 1000 linear betas, x0-prediction (the paper's A.2 choice),
 50 ancestral (DDPM) sampling steps, no classifier-free guidance (the paper names none).
 """
@@ -149,7 +149,7 @@ def preset(name: str = "tiny") -> SyncRunConfig:
             model=ModelConfig(latent=64, layers=2, heads=4, cond_width=32, time_width=64, dropout=0.0,
                               text_encoder="tokens", bps_points=128, surface_points=512),
             syncdiff=SyncConfig(),
-            train=TrainConfig(steps=1500, batch_size=16, lr=1e-3, weight_decay=0.0, max_frames=120, min_frames=8,
+            train=TrainConfig(steps=1000, batch_size=16, lr=1e-3, weight_decay=0.0, max_frames=120, min_frames=8,
                               ema_decay=0.99, lambda_contact=0.0, checkpoint_every=250, log_every=50),
             diffusion=diffusion)
     raise ValueError(f"unknown SyncDiff config {name!r}; choose 'paper' or 'tiny'")

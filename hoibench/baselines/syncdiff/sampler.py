@@ -35,6 +35,10 @@ from .sync import explicit_sync
 from .trainer import build_model, condition_inputs, pad_batch
 
 
+#: the settings that act at sampling only (``hoibench baseline sample syncdiff --set``)
+INFERENCE_FIELDS = ("syncdiff.explicit_sync", "syncdiff.sync_every", "syncdiff.sync_weight")
+
+
 def posterior(abar_t: float, abar_s: float) -> tuple[float, float, float]:
     """(c0, ct, sigma) of ``q(x_s | x_t, x0) = N(c0 x0 + ct x_t, sigma^2)`` for ``s < t``."""
     beta = 1.0 - abar_t / abar_s
@@ -138,11 +142,19 @@ class LoadedSyncDiff:
 
     def write_store_submission(self, data, out, *, samples: int = 1, seed: int = 0, split: str = "test",
                                steps: int | None = None, as_zip: bool = False, limit: int | None = None,
-                               log: Callable[[str], None] | None = print) -> Path:
-        """A multi-body submission of ``samples`` samples per clip of ``split``."""
+                               log: Callable[[str], None] | None = print, inference: dict | None = None) -> Path:
+        """A multi-body submission of ``samples`` samples per clip of ``split``; ``inference``
+        overrides the inference-time fields :data:`INFERENCE_FIELDS` (e.g. the "w/o exp sync"
+        ablation of a run trained with it: explicit synchronization acts at sampling only)."""
         from ...scoring.multibody import sample_arrays
         from ...scoring.submission import write_submission
         log = log or (lambda s: None)
+        if inference:
+            bad = sorted(set(inference) - set(INFERENCE_FIELDS))
+            if bad:
+                raise ValueError(f"--set {bad[0]}: not an inference-time setting (those are "
+                                 f"{', '.join(INFERENCE_FIELDS)})")
+            self.config = self.config.replace(**inference)
         store = Store(data)
         self.check_store(store)
         ids = store.clip_ids(split)[:limit]
@@ -155,7 +167,8 @@ class LoadedSyncDiff:
                 "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"},
                 "source": {"baseline": "syncdiff", "checkpoint_id": self.id, "config": self.config.name, "seed": seed,
                            **opts, "decompose": sd.decompose, "align_loss": sd.align_loss,
-                           "explicit_sync": sd.explicit_sync, "condition": "action label, object labels, BPS, shapes",
+                           "explicit_sync": sd.explicit_sync, "sync_every": sd.sync_every,
+                           "sync_weight": sd.sync_weight, "inference_overrides": dict(inference or {}), "condition": "action label, object labels, BPS, shapes",
                            "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__}}
         t0 = time.perf_counter()
 

@@ -65,7 +65,7 @@ def pad_batch(xs: list[np.ndarray], lids: list[int], width: int, device) -> dict
     for b, x in enumerate(xs):
         x0[b, :len(x), :x.shape[1]], frames[b, :len(x)], cols[b, :x.shape[1]] = x, True, 1.0
     f = lambda a: torch.from_numpy(a).to(device)   # noqa: E731
-    return {"x0": f(x0), "frames": f(frames), "cols": f(cols), "layout": torch.tensor(lids)}
+    return {"x0": f(x0), "frames": f(frames), "cols": f(cols), "layout": torch.tensor(lids, device=device)}
 
 
 def make_batch(ts: SD.TrainingSet, cfg: SyncRunConfig, step: int, text: TextConditioner, device) -> dict:
