@@ -76,10 +76,17 @@ def _context(entries: list[dict]) -> str:
     return f"protocol {', '.join(pr) or '-'}; evaluator {', '.join(ev) or '-'}; hoibench {', '.join(tv) or '-'}"
 
 
+def _multibody(entries: list[dict]) -> bool:
+    """Whether the rows are a multi-body track's (SyncDiff's metrics, one replication)."""
+    return any("csiou" in e["metrics"] for e in entries)
+
+
 def markdown(track: str, entries: list[dict], about: str = "") -> str:
     cols = _columns(entries)
-    lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [_context(entries) + ". Cells: mean ± 95% CI over the protocol's "
-             "replications. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.", "",
+    cells = ("value ± 95% half-width of the mean over clips or samples (none for the set-level SD, OD, FID)"
+             if _multibody(entries) else "mean ± 95% CI over the protocol's replications")
+    lines = [f"# {track} leaderboard", ""] + ([about.strip(), ""] if about.strip() else []) + [_context(entries) + f". Cells: {cells}. "
+             "↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.", "",
              "| # | method | " + " | ".join(_header(c) for c in cols) + " | flags |",
              "|---:|---|" + "|".join("---:" for _ in cols) + "|---|"]
     for i, e in enumerate(entries, 1):
@@ -89,7 +96,9 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
         lines.append(f"| {i} | {name} | " + " | ".join(fmt(e["metrics"].get(c)) for c in cols)
                      + f" | {', '.join(_flags(e, entries))} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
-    lines += ["", f"Units: {units}.", "", "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
+    lines += ["", f"Units: {units}.", "", "![metrics](metrics.png)", ""]
+    if not _multibody(entries):
+        lines += ["![FID vs R@1](fid_vs_r1.png)", ""]
     return "\n".join(lines)
 
 
@@ -116,7 +125,8 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    cols = [c for c in ("fid", "r_precision_top1", "cd", "fsr") if any(c in e["metrics"] for e in entries)]
+    shown = ("csiou", "iv_cm3", "ra", "fid") if _multibody(entries) else ("fid", "r_precision_top1", "cd", "fsr")
+    cols = [c for c in shown if any(c in e["metrics"] for e in entries)]
     out = {}
     fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 1.6),
                              squeeze=False)
@@ -137,6 +147,8 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     fig.suptitle(f"{track}: mean ± 95% CI", fontsize=10)
     fig.tight_layout()
     out["metrics.png"] = _png(fig)
+    if _multibody(entries):
+        return out
     fig, ax = plt.subplots(figsize=(5.5, 4.2))
     for e, col in zip(entries, colors):
         f, r = e["metrics"].get("fid"), e["metrics"].get("r_precision_top1")
