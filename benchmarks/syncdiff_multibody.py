@@ -18,6 +18,8 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
 from hoibench.baselines.sampler import sample
 from hoibench.baselines.syncdiff.config import preset
 from hoibench.baselines.trainer import train
@@ -65,6 +67,52 @@ def family_scores(sub: Path, data: Path, rec_dir: Path, family: str = "hands") -
     gen_feats, pred = rec.run(gens)
     gt_feats, _ = rec.run(gts)
     return float(sum(p == g.action for p, g in zip(pred, gens)) / len(gens)), float(fid(gt_feats, gen_feats))
+
+
+def contact_and_recognizer_scores(sub: Path, data: Path, rec_dir: Path) -> dict:
+    """CSIoU, RA and FID of a submission computed as the scorer does, without IV and ID: for a
+    submission whose bodies are so far-flung that IV's 5 mm voxels over their overlapping
+    boxes (about 10^8 per frame and pair for 2.5 m skeletons) cannot be counted in reasonable
+    time -- the untrained model's."""
+    from hoibench.bodies.capsules import object_fields, pair_contact_frames
+    from hoibench.bodies.multibody import MultiBodyClip
+    from hoibench.datasets.store import Store
+    from hoibench.evaluator.recognizer import load_recognizer
+    from hoibench.metrics import multibody as mbm
+    from hoibench.metrics.embedding import fid
+    from hoibench.scoring.multibody import clip_from_sample
+    from hoibench.scoring.submission import Submission
+    from hoibench.tracks.protocol import get_protocol
+    proto = get_protocol("multibody-synthetic")
+    store, rec = Store(data), load_recognizer(rec_dir)
+    csiou = mbm.CSIoU(threshold_m=proto.csr_threshold_m, empty_union=proto.csiou_empty_union)
+
+    def contacts(clip, fields):
+        out = {}
+        for (skel, _), f in pair_contact_frames(clip, fields, proto.csr_threshold_m, proto.crr_threshold_m).items():
+            out[skel] = out[skel] | f if skel in out else f
+        return out
+    gts, gens = [], []
+    with Submission(sub) as s:
+        for cid in store.clip_ids("test"):
+            gt = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
+            fields = object_fields(gt)
+            g = contacts(gt, fields)
+            arrays = s.load(cid, keys=None)
+            gts.append(gt)
+            for k in range(len(next(iter(arrays.values())))):
+                clip = clip_from_sample(gt, arrays, k, cid)
+                gens.append(clip)
+                c = contacts(clip, fields)
+                skel = [b.name for b in gt.bodies if b.kind in ("hand", "human")]
+                csiou.update_frames(f"{cid}#{k}", [c[n] for n in skel], [g[n] for n in skel])
+    gen_feats, pred = rec.run(gens)
+    gt_feats, _ = rec.run(gts)
+    correct = [float(p == g.action) for p, g in zip(pred, gens)]
+    v = list(csiou.per_clip().values())
+    return {"csiou": (csiou.compute(), 1.96 * np.std(v) / np.sqrt(len(v))),
+            "ra": (float(np.mean(correct)), 1.96 * np.std(correct) / np.sqrt(len(correct))),
+            "fid": (float(fid(gt_feats, gen_feats)), None)}
 
 
 def main() -> None:
