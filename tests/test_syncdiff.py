@@ -122,8 +122,8 @@ def _tiny_cfg():
     from hoibench.baselines.syncdiff.config import preset
     return preset("tiny").replace(**{"model.latent": 16, "model.layers": 1, "model.heads": 2, "model.cond_width": 8,
                                      "model.time_width": 16, "model.bps_points": 16, "model.surface_points": 64,
-                                     "train.batch_size": 4, "train.steps": 4, "train.log_every": 2,
-                                     "train.checkpoint_every": 2, "diffusion.ddim_steps": 5, "syncdiff.sync_every": 2})
+                                     "train.batch_size": 4, "train.steps": 3, "train.log_every": 1,
+                                     "train.checkpoint_every": 2, "diffusion.ddim_steps": 4, "syncdiff.sync_every": 2})
 
 
 def test_padded_batch_gives_each_clip_what_it_gets_alone():
@@ -168,10 +168,10 @@ def test_resume_gives_the_same_checkpoint_and_seeded_sampling_is_byte_identical(
     from hoibench.scoring.validate import validate
     cfg = _tiny_cfg()
     full = train("syncdiff", store / "data", store / "run_full", cfg, log=None)
-    part = train("syncdiff", store / "data", store / "run_part", cfg, stop_after=3, log=None)
+    part = train("syncdiff", store / "data", store / "run_part", cfg, stop_after=1, log=None)
     assert part.checkpoint_id == "" and (store / "run_part" / "checkpoint" / "last.pt").exists()
     done = train("syncdiff", store / "data", store / "run_part", cfg, log=None)
-    assert done.resumed_from == 3 and done.checkpoint_id == full.checkpoint_id
+    assert done.resumed_from == 1 and done.checkpoint_id == full.checkpoint_id
     subs = [sample(store / "run_full", store / "data", store / f"sub{i}", samples=2, seed=7, limit=2, log=None)
             for i in range(2)]
     for name in sorted(p.name for p in (subs[0] / "samples").iterdir()):
