@@ -270,7 +270,8 @@ def _cmd_baseline(args) -> int:
     if args.action == "sample":
         return commands.main_sample(args.name, args.run, args.data, args.out, samples=args.samples, seed=args.seed,
                                     device=args.device, guidance=args.guidance, ddim_steps=args.ddim_steps,
-                                    temperature=args.temperature, as_zip=args.zip, threads=args.threads)
+                                    temperature=args.temperature, as_zip=args.zip, threads=args.threads,
+                                    overrides=args.set)
     return commands.main_show(args.run)
 
 
@@ -610,7 +611,7 @@ def _add_baseline_sample(bsub, names: list[str]) -> None:
     b = bsub.add_parser("sample", help="sample a baseline into a standard submission for the test split")
     b.add_argument("name", choices=names + ["mean-pose"], help="the baseline (mean-pose needs no run)")
     b.add_argument("run", type=Path, nargs="?", default=None,
-                   help="run folder (chainhoi, ejim, catmo; none for mean-pose)")
+                   help="run folder (chainhoi, ejim, catmo, syncdiff; none for mean-pose)")
     b.add_argument("--data", type=Path, required=True, help="the store to sample its test split for")
     b.add_argument("--out", type=Path, required=True, help="the submission folder (or .zip with --zip) to write")
     b.add_argument("--samples", "-k", type=int, default=1,
@@ -619,6 +620,9 @@ def _add_baseline_sample(bsub, names: list[str]) -> None:
     b.add_argument("--guidance", type=float, default=None, help="classifier-free guidance scale (default: config, 2)")
     b.add_argument("--ddim-steps", type=int, default=None, help="DDIM steps (default: config, 50)")
     b.add_argument("--temperature", type=float, default=None, help="catmo: sampling temperature (default: config, 1)")
+    b.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                   help="syncdiff: inference-time settings (syncdiff.explicit_sync, syncdiff.sync_every, "
+                        "syncdiff.sync_weight), recorded in the submission")
     b.add_argument("--device", default="cpu", help="cpu (default) or cuda")
     b.add_argument("--threads", type=int, default=None, help=H_THREADS)
     b.add_argument("--zip", action="store_true", help=H_ZIP)

@@ -111,3 +111,18 @@ def test_scoring_notes_a_generator_conditioned_on_the_evaluators_text_encoder():
     other = SimpleNamespace(card={"text_encoder": {"name": "roberta", "weights_sha256": "r" * 64}})
     assert _shares_text_encoder(meta, other) == "" and _text_encoder(SimpleNamespace(card=None)) == {}
 
+def test_the_multibody_track_renders_its_own_columns():
+    """The checked-in multi-body track: SyncDiff's metrics as columns, with arrows, and
+    value ± half-width cells; no FID-vs-R@1 plot."""
+    from pathlib import Path
+    from hoibench.publish.leaderboard import load_track, order
+    from hoibench.publish.pages import markdown
+    entries = order(load_track(Path(__file__).resolve().parent.parent / "leaderboards" / "multibody-synthetic"))
+    assert entries[0]["role"] == "ground-truth" and entries[0]["evaluator_id"] == entries[-1]["evaluator_id"]
+    text = markdown("multibody-synthetic", entries)
+    header = next(line for line in text.splitlines() if line.startswith("| # |"))
+    assert [c.strip() for c in header.split("|")[4:-2]] == ["CSR ≈GT", "CRR ≈GT", "CSIoU ↑", "IV ↓", "ID ↓", "OD ≈GT",
+                                                            "RA ↑", "FID ↓"]
+    assert "half-width" in text and "fid_vs_r1" not in text
+    sync = next(e for e in entries if e["method"] == "SyncDiff tiny (300 steps)")
+    assert 0 < sync["metrics"]["csiou"]["ci95"] < 0.2 and sync["metrics"]["iv_cm3"]["mean"] > 0

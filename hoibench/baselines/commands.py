@@ -6,6 +6,7 @@ name       train                                  sample
 chainhoi   ``train chainhoi DATA --out RUN``      ``sample chainhoi RUN --data DATA --out SUB``
 ejim       ``train ejim DATA --out RUN``          ``sample ejim RUN --data DATA --out SUB``
 catmo      ``train catmo DATA --out RUN``         ``sample catmo RUN --data DATA --out SUB``
+syncdiff   ``train syncdiff DATA --out RUN``      ``sample syncdiff RUN --data DATA --out SUB`` (multi-body)
 mean-pose  (nothing to train: train statistics)   ``sample mean-pose --data DATA --out SUB``
 =========  =====================================  ==========================================
 """
@@ -88,7 +89,8 @@ def main_train(name: str, data: str | Path, out: str | Path, config: str = "tiny
 
 def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | Path, samples: int = 1,
                 seed: int = 0, device: str = "cpu", guidance: float | None = None, ddim_steps: int | None = None,
-                as_zip: bool = False, threads: int | None = None, temperature: float | None = None) -> int:
+                as_zip: bool = False, threads: int | None = None, temperature: float | None = None,
+                overrides: list[str] | None = None) -> int:
     _check_threads(threads)
     _check_seed(seed)
     if name == "mean-pose":
@@ -112,8 +114,12 @@ def main_sample(name: str, run: str | Path | None, data: str | Path, out: str | 
         import torch
         torch.set_num_threads(threads)
     from .sampler import sample
+    over = parse_overrides(overrides)
+    if over and name != "syncdiff":
+        raise ValueError(f"--set: {name} has no inference-time settings (syncdiff's: syncdiff.explicit_sync, "
+                         f"syncdiff.sync_every, syncdiff.sync_weight)")
     sample(run, data, out, samples=samples, seed=seed, device=device, guidance=guidance, steps=ddim_steps,
-           temperature=temperature, as_zip=as_zip, baseline=name)
+           temperature=temperature, as_zip=as_zip, baseline=name, **({"inference": over} if over else {}))
     return 0
 
 

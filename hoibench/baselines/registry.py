@@ -3,7 +3,9 @@
 The joint-level diffusion baselines (ChainHOI, EJIM; ``kind = "diffusion"``) share the trainer
 (:func:`.trainer.train_joint`) and the run loader (:class:`.sampler.LoadedRun`); CATMO
 (``kind = "tokens"``) trains in stages (:mod:`.catmo.trainer`) and loads its own run
-(:class:`.catmo.sampler.LoadedCatmo`), sharing the run folder and the sampler's submission path.
+(:class:`.catmo.sampler.LoadedCatmo`), sharing the run folder and the sampler's submission path;
+SyncDiff (``kind = "multibody"``) trains on multi-body stores (:mod:`.syncdiff.trainer`) and
+writes multi-body submissions (:class:`.syncdiff.sampler.LoadedSyncDiff`).
 A spec names both entry points (``train``, ``sample``: ``"<module>:<name>"`` under
 ``hoibench.baselines``), so :func:`.trainer.train` and :func:`.sampler.load_run` dispatch through
 this registry and import no model package:
@@ -71,6 +73,8 @@ SPECS: dict[str, Spec] = {
     "ejim": Spec("ejim", "EJIM", "ejim.spec"),
     "catmo": Spec("catmo", "CATMO", "catmo.config", kind="tokens", train="catmo.trainer:train_baseline",
                   sample="catmo.sampler:LoadedCatmo"),
+    "syncdiff": Spec("syncdiff", "SyncDiff", "syncdiff.config", kind="multibody",
+                     train="syncdiff.trainer:train_syncdiff", sample="syncdiff.sampler:LoadedSyncDiff"),
 }
 
 

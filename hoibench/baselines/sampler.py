@@ -179,13 +179,22 @@ def rows_to_sample(rows: np.ndarray) -> dict[str, np.ndarray]:
 def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int = 1, seed: int = 0,
            split: str = "test", device: str = "cpu", guidance: float | None = None, steps: int | None = None,
            temperature: float | None = None, as_zip: bool = False, limit: int | None = None,
-           baseline: str | None = None, log: Callable[[str], None] | None = print) -> Path:
+           baseline: str | None = None, log: Callable[[str], None] | None = print,
+           inference: dict | None = None) -> Path:
     """Write a submission of ``samples`` (K) samples per clip of ``split`` to ``out``
-    (``baseline``: refuse a run of another baseline)."""
+    (``baseline``: refuse a run of another baseline; ``inference``: SyncDiff's inference-time
+    settings, ``{"syncdiff.explicit_sync": False}``)."""
     log = log or (lambda s: None)
     if not (isinstance(samples, int) and 1 <= samples <= 1000):
         raise ValueError(f"--samples: expected an integer in 1..1000, got {samples!r}")
     loaded = load_run(run, device, baseline)
+    if hasattr(loaded, "write_store_submission"):        # SyncDiff: a multi-body submission
+        if guidance is not None or temperature is not None:
+            raise ValueError(f"--guidance/--temperature: {loaded.spec.title} samples without guidance or temperature")
+        return loaded.write_store_submission(data, out, samples=samples, seed=seed, split=split, steps=steps,
+                                             as_zip=as_zip, limit=limit, log=log, inference=inference)
+    if inference:
+        raise ValueError(f"inference settings {sorted(inference)}: {loaded.spec.title} has none")
     store = Store(data)
     loaded.check_store(store)
     from ..tracks.protocol import default_protocol_id

@@ -283,18 +283,44 @@ def pair_penetration(clip: MultiBodyClip, i: int, j: int, fields: dict[str, Obje
         hi = np.minimum(boxes[0][1], boxes[1][1])
         if np.any(hi <= lo):
             continue
-        grid = _grid(lo, hi, voxel_m)
-        mask = np.ones(len(grid), bool)
-        order = sorted((("A", A), ("B", B)), key=lambda kb: geo[kb[0]][0] == "object")   # capsules first
-        for key, body in order:
-            if not mask.any():
-                break
-            kind, g, extra = geo[key]
-            if kind == "object":
-                sel = np.flatnonzero(mask)
-                mask[sel] = extra.inside(grid[sel][None], body.rot[t:t + 1], body.trans[t:t + 1])[0]
-            else:
-                a, b, r = g
-                mask &= capsule_grid_mask(lo, hi, voxel_m, a[t], b[t], r)
-        vol[n] = mask.sum() * voxel_m ** 3
+        order = sorted((("A", geo["A"], A), ("B", geo["B"], B)), key=lambda kb: kb[1][0] == "object")  # capsules first
+        vol[n] = sum(_inside_both(slo, shi, voxel_m, order, t) for slo, shi in _slabs(lo, hi, voxel_m)) * voxel_m ** 3
     return vol, dep
+
+
+#: voxels of one block of the overlap grid (larger overlaps -- far-flung generated bodies --
+#: are counted slab by slab, so memory stays bounded)
+GRID_BLOCK_VOXELS = 2_000_000
+
+
+def _slabs(lo: np.ndarray, hi: np.ndarray, voxel: float):
+    """``(lo, hi)`` blocks along x whose :func:`_grid` voxels partition those of ``(lo, hi)``;
+    one block (the box itself) when it holds at most :data:`GRID_BLOCK_VOXELS`."""
+    n = [len(np.arange(lo[k] + voxel / 2, hi[k], voxel)) for k in range(3)]
+    if n[0] * n[1] * n[2] <= GRID_BLOCK_VOXELS:
+        yield lo, hi
+        return
+    rows = max(1, GRID_BLOCK_VOXELS // max(1, n[1] * n[2]))
+    for i0 in range(0, n[0], rows):
+        i1 = min(n[0], i0 + rows)
+        slo, shi = lo.copy(), hi.copy()
+        slo[0] = lo[0] + i0 * voxel
+        shi[0] = hi[0] if i1 == n[0] else lo[0] + i1 * voxel
+        yield slo, shi
+
+
+def _inside_both(lo: np.ndarray, hi: np.ndarray, voxel: float, order, t: int) -> int:
+    """Voxel centres of the ``(lo, hi)`` grid inside both bodies at frame ``t`` (``order``:
+    ``(key, (kind, geometry, extra), body)`` with capsules first)."""
+    grid = _grid(lo, hi, voxel)
+    mask = np.ones(len(grid), bool)
+    for _, (kind, g, extra), body in order:
+        if not mask.any():
+            break
+        if kind == "object":
+            sel = np.flatnonzero(mask)
+            mask[sel] = extra.inside(grid[sel][None], body.rot[t:t + 1], body.trans[t:t + 1])[0]
+        else:
+            a, b, r = g
+            mask &= capsule_grid_mask(lo, hi, voxel, a[t], b[t], r)
+    return int(mask.sum())

@@ -37,7 +37,7 @@ class MetricInfo:
     motion's value. ``impl``: ``"module:attr"`` of the functional core."""
 
     name: str
-    kind: str                     # "embedding" | "physical"
+    kind: str                     # "embedding" | "physical" | "multibody"
     higher_is_better: bool | None
     units: str
     paper_column: str | None
@@ -125,6 +125,25 @@ register(MetricInfo("object_floating_ratio", "physical", False, "fraction", None
                     "frames where the object is off the floor and untouched", f"{_C}:floating_frames"))
 register(MetricInfo("jitter_mps3", "physical", False, "m/s^3", None, "third finite difference x fps^3",
                     "mean jerk magnitude of the joints", f"{_M}:jitter_sums"))
+# multi-body track (SyncDiff, paper 004 section 4.2; docs/multibody_metrics.md)
+_MB = "hoibench.metrics.multibody"
+register(MetricInfo("csr", "multibody", None, "fraction", "CSR (SyncDiff)", "hand surface within 5 mm of an object",
+                    "frames where a hand touches an object, mean over hands then clips", f"{_MB}:CSR"))
+register(MetricInfo("crr", "multibody", None, "fraction", "CRR (SyncDiff)", "both hand roots within 5 cm of one object",
+                    "frames where a human holds an object with both hands", f"{_MB}:CRR"))
+register(MetricInfo("csiou", "multibody", True, "fraction", "CSIoU (SyncDiff)", "contact frames by the CSR/CRR rules",
+                    "IoU of generated vs ground-truth contact frames", f"{_MB}:CSIoU"))
+register(MetricInfo("iv_cm3", "multibody", False, "cm^3", "IV (SyncDiff)", "5 mm voxels inside both bodies",
+                    "interpenetration volume per frame, summed over body pairs", f"{_MB}:interpenetration_volume"))
+register(MetricInfo("id_mm", "multibody", False, "mm", "ID (SyncDiff)", "deepest probe inside the other body",
+                    "interpenetration depth per frame, summed over body pairs", f"{_MB}:interpenetration_depth"))
+register(MetricInfo("sd", "multibody", True, "m", "SD (SyncDiff)", "wrists at 15 frames (DiffH2O)",
+                    "wrist-trajectory diversity between the samples of a prompt", f"{_MB}:SampleDiversity"))
+register(MetricInfo("od", "multibody", None, "m", "OD (SyncDiff)", "wrists at 15 frames (DiffH2O)",
+                    "wrist-trajectory diversity across the split", f"{_MB}:OverallDiversity"))
+register(MetricInfo("ra", "multibody", True, "fraction", "RA (SyncDiff)", "the track's action recognizer",
+                    "recognition accuracy of the generated clips' actions",
+                    "hoibench.evaluator.recognizer:Recognizer"))
 del _k
 
 __all__ = [

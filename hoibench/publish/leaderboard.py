@@ -52,12 +52,19 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
     if source not in SOURCES:
         raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
     counts = result.get("counts", {})
-    metrics = {k: {"mean": v["mean"], "ci95": v["ci95"], "n": v.get("n")}
-               for k, v in sorted(result.get("metrics", {}).items())}
+    if result.get("kind") == "multibody":          # plain values, half-widths in ``ci95``
+        ci = result.get("ci95", {})
+        metrics = {k: {"mean": v, "ci95": ci.get(k), "n": counts.get("samples")}
+                   for k, v in sorted(result.get("metrics", {}).items())}
+        counts = {"samples_per_prompt": result.get("protocol_settings", {}).get("samples_per_prompt"),
+                  "scored_ids": counts.get("clips"), "test_ids": counts.get("clips")}
+    else:
+        metrics = {k: {"mean": v["mean"], "ci95": v["ci95"], "n": v.get("n")}
+                   for k, v in sorted(result.get("metrics", {}).items())}
     return {
         "format": ENTRY_FORMAT, "track": track, "method": method, "source": source,
         "metrics": metrics, "undefined_metrics": result.get("undefined_metrics", {}),
-        "evaluator_id": result.get("evaluator_id"),
+        "evaluator_id": _evaluator_id(result),
         "evaluator_text_encoder": result.get("evaluator_text_encoder") or {},
         "evaluator_backend": result.get("evaluator_backend", "contrastive" if result.get("evaluator_id") else None),
         "protocol": result.get("protocol"),
@@ -69,6 +76,11 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
         "overrides": result.get("overrides", []),
         "submission_source": (submission_meta or {}).get("source", {}), "notes": notes,
     }
+
+
+def _evaluator_id(result: dict) -> str | None:
+    """The id of the evaluator that scored ``result`` (a multi-body result's recognizer)."""
+    return result.get("evaluator_id") or result.get("recognizer_id")
 
 
 def write_entry(entry: dict, entries_dir: str | Path) -> Path:
@@ -94,7 +106,8 @@ def table_columns(track: str) -> tuple[str, ...]:
 
 SHORT = {"r_precision_top1": "R@1", "r_precision_top2": "R@2", "r_precision_top3": "R@3", "fid": "FID",
          "mm_dist": "MM-Dist", "diversity": "Diversity", "multimodality": "MModality", "cd": "CD", "ocd": "OCD",
-         "ps": "PS", "fsr": "FSR"}
+         "ps": "PS", "fsr": "FSR", "csr": "CSR", "crr": "CRR", "csiou": "CSIoU", "iv_cm3": "IV", "id_mm": "ID",
+         "sd": "SD", "od": "OD", "ra": "RA"}
 _REQUIRED = (("format", str), ("track", str), ("method", str), ("source", str), ("metrics", dict))
 
 
@@ -298,13 +311,13 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         raise LeaderboardError(f"--role: expected one of {ROLES}, got {role!r}")
     result_path, track_dir = Path(result_path), Path(track_dir)
     result = read_result(result_path)
-    if "evaluator_id" not in result:
+    if _evaluator_id(result) is None:
         raise LeaderboardError(f"{result_path}: field evaluator_id: missing: not a result of `hoibench evaluate`")
     track = track_dir.name
     existing = load_track(track_dir) if (track_dir / "entries").is_dir() else []
     ours = [e for e in existing if e["source"] == "reproduced"]
     ids = sorted({str(e.get("evaluator_id")) for e in ours})
-    if ids and str(result["evaluator_id"]) not in ids:
+    if ids and str(_evaluator_id(result)) not in ids:
         shipped = track_dir / TRACK_EVALUATOR
         how = (f"rescore with the track's evaluator (hoibench evaluate SUB --data DATA --evaluator {shipped})"
                if (shipped / "card.json").is_file() else "rescore with that evaluator")

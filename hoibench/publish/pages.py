@@ -183,12 +183,19 @@ def md_about(text: str) -> str:
     return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
 
 
+def _multibody(entries: list[dict]) -> bool:
+    """Whether the rows are a multi-body track's (SyncDiff's metrics, one replication)."""
+    return any("csiou" in e["metrics"] for e in entries)
+
+
 def markdown(track: str, entries: list[dict], about: str = "") -> str:
     """README.md: one table, its rows in bands (:func:`_bands`); only methods and baselines
     carry a rank."""
     cols = _columns(entries)
+    cells = ("value ± 95% half-width of the mean over clips or samples (none for the set-level SD, OD, FID)"
+             if _multibody(entries) else "mean ± 95% CI over the protocol's replications")
     lines = [f"# {track} leaderboard", ""] + ([md_about(about.strip()), ""] if about.strip() else []) + [
-        _context(entries) + ". Cells: mean ± 95% CI over the protocol's replications. ↑ higher is better, "
+        _context(entries) + f". Cells: {cells}. ↑ higher is better, "
         "↓ lower is better, ≈GT closest to the ground truth.", "",
         "Rows: " + "; ".join(f"{BAND_LEGEND[b]}" for b, _, _ in _bands(entries)) + ".", "",
         "| # | method | flags | " + " | ".join(_header(c) for c in cols) + " | training |",
@@ -207,7 +214,7 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
     lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else [])
     lines += ["", "Bar and point colours: " + ", ".join(f"{_COLOR_NAMES[b]} {b.replace('-', ' ')}"
                                                        for b, _, _ in _bands(entries)) + ".", "",
-              "![metrics](metrics.png)", "", "![FID vs R@1](fid_vs_r1.png)", ""]
+              "![metrics](metrics.png)", ""] + ([] if _multibody(entries) else ["![FID vs R@1](fid_vs_r1.png)", ""])
     return "\n".join(lines)
 
 
@@ -253,7 +260,8 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    cols = [c for c in ("fid", "r_precision_top1", "cd", "fsr") if any(c in e["metrics"] for e in entries)]
+    shown = ("csiou", "iv_cm3", "ra", "fid") if _multibody(entries) else ("fid", "r_precision_top1", "cd", "fsr")
+    cols = [c for c in shown if any(c in e["metrics"] for e in entries)]
     out = {}
     rk = ranks(entries)
     fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 2.0),
@@ -278,6 +286,8 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     fig.legend(handles=_band_handles(entries), loc="lower center", ncol=4, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     out["metrics.png"] = _png(fig)
+    if _multibody(entries):
+        return out
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     pts, names, pcol, errs = [], [], [], []
     for r, e, col in zip(rk, entries, colors):

@@ -24,12 +24,15 @@ runs give identical numbers):
 * RA and FID from the recognizer (:mod:`hoibench.evaluator.recognizer`): accuracy of its
   predicted action on the generated clips, Frechet distance between its features of the
   ground-truth and generated clips.
+
+``ci95`` gives the half-width of a 95% normal interval ``1.96 std / sqrt(n)`` for the metrics
+that are means of per-clip or per-sample values (CSR, CRR, CSIoU per clip and sample; IV, ID
+per sample; RA per sample's correctness); SD, OD and FID are set-level and get none.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -221,7 +224,8 @@ class MultiBodyScorer(Scorer):
         return [metrics]
 
     def summary(self, rows: list[dict]) -> dict:
-        metrics = rows[0]
+        metrics = dict(rows[0])
+        ci = metrics.pop("ci95", {})
         proto, store, rec, meta = self.proto, self.store, self.ev, self.meta
         undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
                          "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
@@ -235,6 +239,7 @@ class MultiBodyScorer(Scorer):
             "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version")},
             "counts": {"clips": len(self.ids), "samples": self.counts}, "complete": True,
             "metrics": {k: v for k, v in metrics.items() if v is not None},
+            "ci95": ci,
             "ground_truth": self.reference, "undefined_metrics": undefined, "notes": self.notes,
         }
 
@@ -315,7 +320,24 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
                "fid": float(fid_of(gt_feats, gen_feats)) if len(gts) > 1 else None}
     reference = {"csr": computed(gt_csr), "crr": computed(gt_crr), "csiou": 1.0, "iv_cm3": float(np.mean(gt_iv)),
                  "id_mm": float(np.mean(gt_id)), "od": grouped(gt_od), "ra": gt_ra, "fid": 0.0}
+    correct = [float(p == g.action) for p, (g, _) in zip(pred, gens)]
+    per = {"csr": _values(csr), "crr": _values(crr), "csiou": _values(csiou), "iv_cm3": iv, "id_mm": idm,
+           "ra": correct}
+    metrics["ci95"] = {k: _half_width(v) for k, v in per.items() if _half_width(v) is not None}
     return metrics, reference, len(gens)
+
+
+def _values(metric) -> list[float]:
+    v = [x for x in metric.per_clip().values() if not np.isnan(x)] if metric.clips else []
+    return [float(x) for x in v]
+
+
+def _half_width(values) -> float | None:
+    """Half-width of the 95% normal confidence interval of a mean over per-sample (or
+    per-clip) values, ``1.96 * std / sqrt(n)`` (population std, as the hoi tracks' CIs over
+    replications); None for fewer than 2 values."""
+    v = np.asarray(values, np.float64)
+    return float(1.96 * v.std() / np.sqrt(len(v))) if len(v) >= 2 else None
 
 
 def evaluate(submission, data, recognizer, protocol=None, executor: str = "serial") -> dict:

@@ -233,7 +233,8 @@ def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, 
     if protocol is None:        # the store's default protocol fixes the K cap when it exists
         from ..tracks.protocol import default_protocol
         protocol = default_protocol(st.manifest)
-    cap = protocol.max_samples_per_prompt if protocol is not None else DEFAULT_MAX_SAMPLES_PER_PROMPT
+    cap = protocol.max_samples_per_prompt if protocol is not None and protocol.kind == "hoi" \
+        else DEFAULT_MAX_SAMPLES_PER_PROMPT           # a multi-body protocol reads every sample
     mode = "legacy" if str(st.manifest["config"].get("mode", "clean")).startswith("legacy") else "clean"
     return rows, fps, int(cap), mode
 
@@ -305,6 +306,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                 f"not in the {split!r} split of dataset {st.manifest.get('dataset', '?')!r}"
             problems.append(Problem(sid, SAMPLES_DIR, f"extra file: {why} (not read)"))
         refused = {p.id for p in problems if p.severity == "error" and p.id != "*"}
+        multibody = st.is_multibody
         valid, ks, ups = [], {}, {}
         for sid in test_ids:
             if sid not in found or sid in refused:
@@ -334,7 +336,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                                                        f"are the lowest joints along {axis}, not y): hoibench is y-up; "
                                                        "rotate the motions (and objects) into y-up first"
                                                        + UP_FIX.get(axis, "")))
-        if protocol is not None and kvals and kvals[0] <= protocol.mm_pairs:
+        if protocol is not None and protocol.kind == "hoi" and kvals and kvals[0] <= protocol.mm_pairs:
             problems.append(Problem("*", SAMPLES_DIR, f"K = {kvals[0]} sample(s) per prompt: MultiModality needs "
                                                       f"{protocol.mm_samples} and will not be computed", "warning"))
         problems.sort(key=lambda p: (p.id != "*", p.id, p.field, p.message))

@@ -1,0 +1,155 @@
+"""SyncDiff configurations: ``paper`` and ``tiny``, and the ``syncdiff`` section (its three
+mechanisms and their ablation switches).
+
+The numbers of the paper's tables D.2/D.3 (Tables 13-17) and of sections 3.3/3.6 do not
+survive the text copy hoibench works from; every value marked *chosen* is hoibench's choice
+(docs/baselines.md, "SyncDiff", lists them).
+
+==================  =======  ======  =========================================================
+field               paper    tiny    meaning
+==================  =======  ======  =========================================================
+model.latent        512      64      transformer width (*chosen*)
+model.layers        8        2       transformer encoder layers (*chosen*)
+model.heads         8        4       attention heads (*chosen*)
+model.cond_width    256      32      label / geometry MLP outputs (*chosen*)
+model.text_encoder  minilm   tokens  offline sentence encoder (stands in for CLIP ViT-B/32)
+model.bps_points    1024     128     BPS basis points (*chosen*), radius 1 m (*chosen*)
+syncdiff.cutoff     16       16      highest kept frequency index L (*chosen* from Table 6's rows)
+syncdiff.low        3        3       highest low-part index l (*chosen*)
+syncdiff.sync_every 5        5       explicit sync every k of the sampling steps (*chosen*)
+syncdiff.sync_weight 1.0     1.0     w = sigma_t^2 / sigma_s^2 per edge (*chosen*)
+syncdiff.lambda_align 1.0    1.0     weight of L_align (*chosen*)
+syncdiff.lambda_norm 0.1     0.1     weight of the quaternion-norm loss (*chosen*)
+==================  =======  ======  =========================================================
+
+Training: paper Adam, batch 32, lr 1e-4 (*chosen*), 100k steps; tiny batch 16, lr 1e-3, 1,000
+steps, EMA 0.99. Diffusion: T = 1000 linear betas, x0-prediction (the paper's A.2 choice),
+50 ancestral (DDPM) sampling steps, no classifier-free guidance (the paper names none).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+
+from ..config import TEXT_ENCODERS, TrainConfig, check_ints, dotted_replace, section_from_dict
+from ..diffusion import DiffusionConfig
+
+SECTIONS = ("model", "syncdiff", "train", "diffusion")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    latent: int = 512
+    layers: int = 8
+    heads: int = 8
+    ff_mult: int = 2
+    cond_width: int = 256
+    time_width: int = 256
+    dropout: float = 0.1
+    text_encoder: str = "minilm"
+    text_max_tokens: int = 16
+    bps_points: int = 1024
+    bps_radius: float = 1.0
+    bps_seed: int = 0
+    surface_points: int = 2048
+
+    def __post_init__(self) -> None:
+        check_ints(self, ("latent", "layers", "heads", "ff_mult", "cond_width", "time_width", "text_max_tokens",
+                          "bps_points", "surface_points"), "model", hi=100_000)
+        check_ints(self, ("bps_seed",), "model", lo=0)
+        if self.latent % self.heads:
+            raise ValueError(f"model.latent ({self.latent}) must be divisible by model.heads ({self.heads})")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"model.dropout: expected [0, 1), got {self.dropout!r}")
+        if self.text_encoder not in TEXT_ENCODERS:
+            raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {self.text_encoder!r}")
+        if not 0 < self.bps_radius < 100:
+            raise ValueError(f"model.bps_radius: expected (0, 100) metres, got {self.bps_radius!r}")
+
+
+@dataclass(frozen=True)
+class SyncConfig:
+    decompose: bool = True
+    align_loss: bool = True
+    explicit_sync: bool = True
+    cutoff: int = 16
+    low: int = 3
+    sync_every: int = 5
+    sync_weight: float = 1.0
+    lambda_align: float = 1.0
+    lambda_norm: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("decompose", "align_loss", "explicit_sync"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"syncdiff.{name}: expected true or false, got {getattr(self, name)!r}")
+        check_ints(self, ("cutoff", "sync_every"), "syncdiff", hi=10_000)
+        check_ints(self, ("low",), "syncdiff", lo=0, hi=10_000)
+        if self.low >= self.cutoff:
+            raise ValueError(f"syncdiff.low ({self.low}) must be below syncdiff.cutoff ({self.cutoff})")
+        for name in ("sync_weight", "lambda_align", "lambda_norm"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v < 1e6):
+                raise ValueError(f"syncdiff.{name}: expected a number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True)
+class SyncRunConfig:
+    name: str
+    model: ModelConfig = field(default_factory=ModelConfig)
+    syncdiff: SyncConfig = field(default_factory=SyncConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "model": asdict(self.model), "syncdiff": asdict(self.syncdiff),
+                "train": asdict(self.train), "diffusion": asdict(self.diffusion)}
+
+    @classmethod
+    def from_dict(cls, d: dict, model_cls: type = ModelConfig, where: str = "config") -> "SyncRunConfig":
+        if not isinstance(d, dict):
+            raise ValueError(f"{where}: expected an object")
+        unknown = sorted(set(d) - {"name", *SECTIONS})
+        if unknown:
+            raise ValueError(f"{where}: unknown section(s) {', '.join(unknown)}")
+        parts = {key: section_from_dict(sub, d.get(key, {}), f"{where}.{key}", where)
+                 for key, sub in (("model", model_cls), ("syncdiff", SyncConfig), ("train", TrainConfig),
+                                  ("diffusion", DiffusionConfig))}
+        return cls(name=str(d.get("name", "custom")), **parts)
+
+    def replace(self, **changes) -> "SyncRunConfig":
+        """A copy with dotted overrides, e.g. ``replace(**{"syncdiff.decompose": False})``."""
+        return SyncRunConfig.from_dict(dotted_replace(self.to_dict(), SECTIONS, changes))
+
+    def sha(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+
+#: the paper's ablation rows (C.4) as ``--set`` overrides
+ABLATIONS = {
+    "w/o decompose": {"syncdiff.decompose": False},
+    "w/o L_align": {"syncdiff.align_loss": False},
+    "w/o exp sync": {"syncdiff.explicit_sync": False},
+    "w/o L_align, exp sync": {"syncdiff.align_loss": False, "syncdiff.explicit_sync": False},
+}
+
+
+def preset(name: str = "tiny") -> SyncRunConfig:
+    """``paper`` or ``tiny`` (trains on the synthetic multi-body store on 2 CPU cores)."""
+    diffusion = DiffusionConfig(steps=1000, ddim_steps=50, guidance=1.0, cond_drop=0.0)
+    if name == "paper":
+        return SyncRunConfig(name="paper", model=ModelConfig(), syncdiff=SyncConfig(),
+                             train=TrainConfig(steps=100_000, batch_size=32, lr=1e-4, weight_decay=0.0,
+                                               max_frames=196, min_frames=8, lambda_contact=0.0,
+                                               checkpoint_every=1000, log_every=100),
+                             diffusion=diffusion)
+    if name == "tiny":
+        return SyncRunConfig(
+            name="tiny",
+            model=ModelConfig(latent=64, layers=2, heads=4, cond_width=32, time_width=64, dropout=0.0,
+                              text_encoder="tokens", bps_points=128, surface_points=512),
+            syncdiff=SyncConfig(),
+            train=TrainConfig(steps=1000, batch_size=16, lr=1e-3, weight_decay=0.0, max_frames=120, min_frames=8,
+                              ema_decay=0.99, lambda_contact=0.0, checkpoint_every=250, log_every=50),
+            diffusion=diffusion)
+    raise ValueError(f"unknown SyncDiff config {name!r}; choose 'paper' or 'tiny'")

@@ -1,0 +1,199 @@
+"""Training SyncDiff on a multi-body store (``hoibench baseline train syncdiff``): its
+registry train entry point, on the shared run folder, card, EMA, checkpoint and resume
+machinery of :mod:`hoibench.baselines.trainer`.
+
+Every step draws its batch, windows, timesteps and noise from generators seeded by
+``(seed, step)`` and reseeds dropout, so a resumed run equals an uninterrupted one (same
+checkpoint id).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+
+from ... import __version__
+from ...core.interrupts import check_interrupted
+from ...core.io import atomic_write_json
+from ...representations import multibody as R
+from .. import checkpoint as ckpt
+from ..diffusion import EMA, GaussianDiffusion
+from ..text import TextConditioner
+from ..trainer import (TrainResult, TrainingDiverged, _plot_curve, _save_checkpoint, _seed, drop_checkpoint,
+                       finished_run, read_checkpoint, start_run)
+from . import data as SD
+from . import losses as L
+from .config import SyncRunConfig, preset
+from .data import SHAPE_WIDTH
+from .model import SyncDiffNet
+
+
+def build_model(cfg: SyncRunConfig, width: int, vocab: int, text_width: int, max_objects: int,
+                max_skeletons: int, seed: int) -> SyncDiffNet:
+    torch.manual_seed(_seed(seed, "init"))
+    return SyncDiffNet(cfg.model, cfg.syncdiff, width, vocab, text_width, max_objects, max_skeletons,
+                       SHAPE_WIDTH + 1)
+
+
+def dataset_block(ts: SD.TrainingSet) -> dict:
+    m = ts.store.manifest
+    return {"name": m.get("dataset", ""), "manifest_sha256": ts.store.manifest_sha256(), "split": "train",
+            "clips": len(ts.items), "fps": float(m.get("config", {}).get("fps", 0.0)),
+            "representation": R.VERSION, "signatures": ts.signatures, "widths": ts.widths,
+            "max_objects": ts.max_objects, "max_skeletons": ts.max_skeletons,
+            "syncdiff_stats_sha256": ts.stats.sha256()}
+
+
+def condition_inputs(items: list[SD.Item], bps_features: dict, max_objects: int, max_skeletons: int,
+                     bps_points: int, text: TextConditioner, device) -> dict:
+    """The condition inputs of ``items`` for :meth:`SyncDiffNet.condition` (less the column mask)."""
+    geo, shp = zip(*(SD.condition_arrays(it, bps_features, max_objects, max_skeletons, bps_points) for it in items))
+    return {"action": text([it.action for it in items], device), "objects": text([it.objects for it in items], device),
+            "geo": torch.from_numpy(np.stack(geo)).to(device), "shapes": torch.from_numpy(np.stack(shp)).to(device)}
+
+
+def pad_batch(xs: list[np.ndarray], lids: list[int], width: int, device) -> dict:
+    """Normalised clips (T_i, D_i) -> padded ``x0`` (B, T, width), ``frames``, ``cols``, ``layout``."""
+    T = max(len(x) for x in xs)
+    x0 = np.zeros((len(xs), T, width), np.float32)
+    frames = np.zeros((len(xs), T), bool)
+    cols = np.zeros((len(xs), width), np.float32)
+    for b, x in enumerate(xs):
+        x0[b, :len(x), :x.shape[1]], frames[b, :len(x)], cols[b, :x.shape[1]] = x, True, 1.0
+    f = lambda a: torch.from_numpy(a).to(device)   # noqa: E731
+    return {"x0": f(x0), "frames": f(frames), "cols": f(cols), "layout": torch.tensor(lids, device=device)}
+
+
+def make_batch(ts: SD.TrainingSet, cfg: SyncRunConfig, step: int, text: TextConditioner, device) -> dict:
+    """The batch of ``step``: clips and windows drawn from ``(seed, step)``."""
+    rng = np.random.default_rng(_seed(cfg.train.seed, "batch", step))
+    W = cfg.train.max_frames
+    picks = [ts.items[i] for i in rng.integers(0, len(ts.items), cfg.train.batch_size)]
+    xs, lids = [], []
+    for it in picks:
+        a = int(rng.integers(0, len(it.x) - W + 1)) if len(it.x) > W else 0
+        sig = it.signature
+        xs.append((it.x[a:a + W] - ts.stats.mean[sig]) / ts.stats.std[sig])
+        lids.append(ts.signatures.index(sig))
+    batch = pad_batch(xs, lids, ts.width, device)
+    batch["inputs"] = condition_inputs(picks, ts.bps_features, ts.max_objects, ts.max_skeletons,
+                                       cfg.model.bps_points, text, device)
+    return batch
+
+
+def _restore(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device):
+    def restore(ck: dict):
+        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))
+        if not 0 < step <= steps:
+            raise ValueError(f"step {step} outside 1..{steps}")
+        model.load_state_dict(ck["model"])
+        ema.load_state_dict(ck["ema"])
+        opt.load_state_dict(ck["optimizer"])
+        return step, curve, window
+    return read_checkpoint(path, ident, device, restore)
+
+
+def _one_step(model, diffusion, ts, cfg, step, text, dev, layouts, mean, std) -> dict:
+    torch.manual_seed(_seed(cfg.train.seed, "dropout", step))
+    gen = torch.Generator().manual_seed(_seed(cfg.train.seed, "noise", step))
+    batch = make_batch(ts, cfg, step, text, dev)
+    batch["cond"] = model.condition(cols=batch["cols"], **batch["inputs"])
+    return L.compute(model, diffusion, batch, cfg.syncdiff, layouts, mean, std, gen)
+
+
+def train_syncdiff(spec, data: str | Path, out: str | Path, config: SyncRunConfig | str = "tiny", *,
+                   device: str = "cpu", resume: bool = True, stop_after: int | None = None,
+                   threads: int | None = None, log: Callable[[str], None] | None = print) -> TrainResult:
+    """Train SyncDiff on ``data``'s train split into the run folder ``out`` (``steps = 0``:
+    the untrained model); see :func:`hoibench.baselines.trainer.train`."""
+    cfg = preset(config) if isinstance(config, str) else config
+    tag = f"[{spec.name}]"
+    log, out, dev, t0 = start_run(out, device, threads, log)
+    ts = SD.training_set(data, cfg)
+    dataset = dataset_block(ts)
+    finished = finished_run(out, spec.name, cfg.to_dict(), dataset, tag, log, keys=("manifest_sha256",))
+    if finished is not None:
+        return finished
+    text = TextConditioner(cfg.model.text_encoder, cfg.model.text_max_tokens, ts.vocab)
+    model = build_model(cfg, ts.width, len(text.vocab or []), text.width, ts.max_objects, ts.max_skeletons,
+                        cfg.train.seed).to(dev)
+    ema = EMA(model, cfg.train.ema_decay)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
+    diffusion = GaussianDiffusion(cfg.diffusion)
+    mean = [torch.from_numpy(ts.stats.mean[s]).to(dev) for s in ts.signatures]
+    std = [torch.from_numpy(ts.stats.std[s]).to(dev) for s in ts.signatures]
+    ident = {"config": cfg.sha(), "store": dataset["manifest_sha256"], "stats": dataset["syncdiff_stats_sha256"],
+             "baseline": spec.name}
+    cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
+    step, curve, window = 0, [], {}
+    if resume and cpath.exists():
+        step, curve, window = _restore(cpath, ident, cfg.train.steps, model, ema, opt, dev)
+        log(f"{tag} resuming at step {step}/{cfg.train.steps}")
+    start = saved = step
+    n_params = sum(p.numel() for p in model.parameters())
+    log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
+        f"{len(ts.signatures)} layouts, {cfg.train.steps} steps of {cfg.train.batch_size}, device {dev}")
+    tl = time.perf_counter()
+    model.train()
+    while step < cfg.train.steps:
+        try:
+            check_interrupted()
+        except KeyboardInterrupt:
+            if step > saved:
+                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            raise
+        losses = _one_step(model, diffusion, ts, cfg, step, text, dev, ts.layouts, mean, std)
+        if not torch.isfinite(losses["loss"]):
+            raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
+                                   f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
+        opt.zero_grad(set_to_none=True)
+        losses["loss"].backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
+        opt.step()
+        ema.update(model)
+        step += 1
+        for k, v in losses.items():
+            window.setdefault(k, []).append(float(v.detach()))
+        if step % cfg.train.log_every == 0 or step == cfg.train.steps:
+            row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
+            curve.append(row)
+            window = {}
+            rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
+            parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
+            log(f"{tag} step {step}/{cfg.train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
+        if step % cfg.train.checkpoint_every == 0 or step == cfg.train.steps:
+            _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            saved = step
+        if stop_after is not None and step - start >= stop_after and step < cfg.train.steps:
+            if step > saved:
+                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
+    return _finish(spec, cfg, ts, ema, text, dataset, curve, n_params, out, dev, t0, tl, start, cpath, log, tag)
+
+
+def _finish(spec, cfg, ts, ema, text, dataset, curve, n_params, out, dev, t0, tl, start, cpath, log, tag
+            ) -> TrainResult:
+    state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
+    state.update(ts.stats.tensors(ts.signatures))
+    card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": dataset, "text": text.describe(),
+            "curve": curve, "summary": {"steps": cfg.train.steps, "parameters": n_params,
+                                        "final_loss": curve[-1]["loss"] if curve else None},
+            "seed": cfg.train.seed, "toolkit_version": __version__, "torch_version": torch.__version__.split("+")[0]}
+    cid = ckpt.write_run(out, state, card)
+    seconds = time.perf_counter() - t0
+    if curve:
+        try:
+            _plot_curve(curve, out / ckpt.CURVE_PNG, f"{spec.title} {cfg.name} on {dataset['name']} ({cid[:12]})")
+        except ImportError:
+            log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
+    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev), "resumed_from": start,
+                                            "steps_per_second": round((cfg.train.steps - start) /
+                                                                      max(time.perf_counter() - tl, 1e-9), 3)})
+    drop_checkpoint(cpath)
+    card = json.loads((out / ckpt.CARD).read_text())
+    log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
+    return TrainResult(out, cid, card, seconds, resumed_from=start)
