@@ -127,7 +127,7 @@ def backend_of(folder: str | Path) -> Backend | None:
         if declared is not None:
             return declared
     for b in _BACKENDS.values():
-        if (folder / b.marker).is_file():
+        if b.importer is None and (folder / b.marker).is_file():   # imported folders name their backend
             return b
     return None
 

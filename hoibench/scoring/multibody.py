@@ -176,7 +176,9 @@ class MultiBodyScorer(Scorer):
                                                          legacy_manifest_sha256(store.manifest)):
             self.notes.append("the recognizer was trained on another store (manifest sha256 differs)")
         self.ids = store.clip_ids(proto.split)
-        self.limits = multibody_limits(store, self.ids, int(proto.samples_per_prompt))
+        from .submission_read import DEFAULT_MAX_SAMPLES_PER_PROMPT     # the cap validation uses too
+        self.limits = multibody_limits(store, self.ids, max(int(proto.samples_per_prompt),
+                                                            DEFAULT_MAX_SAMPLES_PER_PROMPT))
 
     def open_submission(self):
         from .submission import Submission

@@ -367,7 +367,8 @@ def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationR
     if protocol is None:
         from ..tracks.protocol import default_protocol
         protocol = default_protocol(st.manifest)
-    cap = int(getattr(protocol, "samples_per_prompt", None) or DEFAULT_MAX_SAMPLES_PER_PROMPT)
+    # the protocol's K is what it scores; SD needs K >= 2, so files may hold up to the default cap
+    cap = max(int(getattr(protocol, "samples_per_prompt", None) or 1), DEFAULT_MAX_SAMPLES_PER_PROMPT)
     rows = {c["id"]: c for c in st.manifest["clips"] if c["split"] == split}
     test_ids, fps = sorted(rows), float(st.manifest["config"]["fps"])
     own = not isinstance(sub, Submission)

@@ -18,7 +18,7 @@ import torch
 
 from ... import __version__
 from ...core.interrupts import check_interrupted
-from ...core.io import atomic_write_json
+from ...core.io import MAX_SMALL_JSON_BYTES, atomic_write_json, read_json_file
 from ...representations import multibody as R
 from .. import checkpoint as ckpt
 from ..diffusion import EMA, GaussianDiffusion
@@ -87,7 +87,7 @@ def make_batch(ts: SD.TrainingSet, cfg: SyncRunConfig, step: int, text: TextCond
 
 def _restore(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device):
     def restore(ck: dict):
-        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))
+        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))  # read-ok: strings inside our own checkpoint
         if not 0 < step <= steps:
             raise ValueError(f"step {step} outside 1..{steps}")
         model.load_state_dict(ck["model"])
@@ -194,6 +194,6 @@ def _finish(spec, cfg, ts, ema, text, dataset, curve, n_params, out, dev, t0, tl
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)
-    card = json.loads((out / ckpt.CARD).read_text())
+    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "run card")
     log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
     return TrainResult(out, cid, card, seconds, resumed_from=start)
