@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .embed import EMBED_THREADS, as_clip_list, deterministic
+from .embed import EMBED_THREADS, CardBacked, as_clip_list, deterministic
 
 #: the human feature columns the motion branch reads (hml263)
 MOTION_DIM = 263
@@ -98,7 +98,7 @@ class ChainHOINet(nn.Module):
         return self._unit((self.text_encoder(**batch)["pooler_output"] @ self.text_proj).float())
 
 
-class ChainHOIEvaluator:
+class ChainHOIEvaluator(CardBacked):
     """ChainHOI's evaluator with hoibench's embedding interface.
 
     ``embed_motion(features, lengths)``: raw hml263 rows (or hoi269 rows: their first 263
@@ -123,18 +123,6 @@ class ChainHOIEvaluator:
         self.max_frames = int(max_frames)
         self.text_max_tokens = int(text_max_tokens)
         self.threads = EMBED_THREADS if threads is None else threads
-
-    @property
-    def id(self) -> str | None:
-        return self.card.get("evaluator_id")
-
-    @property
-    def dataset(self) -> dict:
-        return self.card.get("dataset", {})
-
-    @property
-    def representation(self) -> str | None:
-        return self.dataset.get("representation")
 
     @property
     def embed_dim(self) -> int:

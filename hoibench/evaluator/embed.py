@@ -80,7 +80,29 @@ def as_clip_list(features, lengths=None) -> list[np.ndarray]:
     return clips
 
 
-class Evaluator:
+class CardBacked:
+    """What every loaded evaluator reads from its card: ``id``, the ``dataset`` block and the
+    ``representation`` version its motion rows must have (None: the card names none)."""
+
+    card: dict
+
+    @property
+    def id(self) -> str | None:
+        return self.card.get("evaluator_id")
+
+    @property
+    def dataset(self) -> dict:
+        """The card's ``dataset`` block (name, manifest sha256, representation, splits, ...)."""
+        return self.card.get("dataset", {})
+
+    @property
+    def representation(self) -> str | None:
+        """Representation version the evaluator was trained on (e.g. ``hml263-clean-1.0``):
+        embed features of that version only."""
+        return self.dataset.get("representation")
+
+
+class Evaluator(CardBacked):
     """A text-motion evaluator: model, normalisation statistics and tokenizer.
 
     Build one with :func:`hoibench.evaluator.load_evaluator` (from a verified folder) or
@@ -96,21 +118,6 @@ class Evaluator:
         self.stats = stats
         self.card = card or {}
         self.threads = EMBED_THREADS if threads is None else threads
-
-    @property
-    def id(self) -> str | None:
-        return self.card.get("evaluator_id")
-
-    @property
-    def dataset(self) -> dict:
-        """The card's ``dataset`` block (name, manifest sha256, representation, splits, ...)."""
-        return self.card.get("dataset", {})
-
-    @property
-    def representation(self) -> str | None:
-        """Representation version the evaluator was trained on (e.g. ``hml263-clean-1.0``):
-        embed features of that version only."""
-        return self.card.get("dataset", {}).get("representation")
 
     @property
     def variant(self) -> str:

@@ -47,7 +47,7 @@ import torch
 from torch import nn
 from torch.nn.utils.rnn import pack_padded_sequence
 
-from .embed import EMBED_THREADS, as_clip_list, deterministic
+from .embed import EMBED_THREADS, CardBacked, as_clip_list, deterministic
 from .errors import CorruptEvaluatorFile, EvaluatorError, EvaluatorIntegrityError
 from .t2m_text import POS_SLOTS, SEQ_LEN, WORD_DIM, Vocabulary, read_glove
 
@@ -336,7 +336,7 @@ def _order(lengths: Sequence[int]) -> np.ndarray:
     return np.argsort(np.asarray(lengths))[::-1].copy()
 
 
-class T2MEvaluator:
+class T2MEvaluator(CardBacked):
     """Embeds motions and captions with the published t2m evaluator (same API as
     :class:`hoibench.evaluator.embed.Evaluator`: ``embed_motion``, ``embed_text``, ``id``, ``card``)."""
 
@@ -351,16 +351,8 @@ class T2MEvaluator:
         self.threads = EMBED_THREADS if threads is None else threads
 
     @property
-    def id(self) -> str | None:
-        return self.card.get("evaluator_id")
-
-    @property
-    def dataset(self) -> dict:
-        return self.card.get("dataset", {})
-
-    @property
     def representation(self) -> str | None:
-        return None
+        return None                           # the card lists accepted versions instead
 
     @property
     def embed_dim(self) -> int:
