@@ -306,7 +306,6 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                 f"not in the {split!r} split of dataset {st.manifest.get('dataset', '?')!r}"
             problems.append(Problem(sid, SAMPLES_DIR, f"extra file: {why} (not read)"))
         refused = {p.id for p in problems if p.severity == "error" and p.id != "*"}
-        multibody = st.is_multibody
         valid, ks, ups = [], {}, {}
         for sid in test_ids:
             if sid not in found or sid in refused:
