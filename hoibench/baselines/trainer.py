@@ -308,6 +308,57 @@ def start_run(out: str | Path, device: str, threads: int | None, log: Callable[[
     return log or (lambda s: None), Path(out), torch.device(device), time.perf_counter()
 
 
+
+def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, step: int, curve: list, window: dict,
+              cpath: Path, ident: dict, out: Path, t0: float, tag: str, log: Callable[[str], None],
+              stop_after: int | None = None) -> TrainResult | None:
+    """The optimiser loop every diffusion baseline shares, from ``step`` to ``train.steps``:
+    ``step_losses(step)`` gives the step's losses (``loss`` is optimised); a non-finite loss
+    stops the run (:class:`TrainingDiverged`); gradients are clipped to ``train.grad_clip``
+    (0: none); the EMA follows; the mean of each loss over ``train.log_every`` steps goes into
+    ``curve`` (appended in place) and the log; a checkpoint is written every
+    ``train.checkpoint_every`` steps, at the end, and on an interrupt. Returns the partial
+    :class:`TrainResult` when ``stop_after`` steps have run before the end, else None."""
+    start = saved = step
+    tl = time.perf_counter()
+    model.train()
+    while step < train.steps:
+        try:
+            check_interrupted()
+        except KeyboardInterrupt:
+            if step > saved:                             # keep the work done since the last checkpoint
+                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            raise
+        losses = step_losses(step)
+        if not torch.isfinite(losses["loss"]):
+            raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
+                                   f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
+        opt.zero_grad(set_to_none=True)
+        losses["loss"].backward()
+        if train.grad_clip > 0:                          # 0: no clipping (ChainHOI released)
+            torch.nn.utils.clip_grad_norm_(model.parameters(), train.grad_clip)
+        opt.step()
+        ema.update(model)
+        step += 1
+        for k, v in losses.items():
+            window.setdefault(k, []).append(float(v.detach()))
+        if step % train.log_every == 0 or step == train.steps:
+            row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
+            curve.append(row)
+            window = {}
+            rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
+            parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
+            log(f"{tag} step {step}/{train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
+        if step % train.checkpoint_every == 0 or step == train.steps:
+            _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            saved = step
+        if stop_after is not None and step - start >= stop_after and step < train.steps:
+            if step > saved:
+                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
+    return None
+
+
 def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig | str = "tiny", *,
                 device: str = "cpu", resume: bool = True, stop_after: int | None = None, threads: int | None = None,
                 log: Callable[[str], None] | None = print) -> TrainResult:
@@ -338,46 +389,17 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
     n_params = sum(p.numel() for p in model.parameters())
     log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
         f"{cfg.train.steps} steps of {cfg.train.batch_size}, device {dev}")
-    tl = time.perf_counter()
-    model.train()
-    saved = step
-    while step < cfg.train.steps:
-        try:
-            check_interrupted()
-        except KeyboardInterrupt:
-            if step > saved:                             # keep the work done since the last checkpoint
-                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            raise
+
+    def step_losses(step: int) -> dict:
         torch.manual_seed(_seed(cfg.train.seed, "dropout", step))
         gen = torch.Generator().manual_seed(_seed(cfg.train.seed, "noise", step))
-        batch = make_batch(ts, cfg, step, text, dev)
-        losses = spec.losses(model, diffusion, batch, cfg, mean, std, gen)
-        if not torch.isfinite(losses["loss"]):
-            raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
-                                   f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
-        opt.zero_grad(set_to_none=True)
-        losses["loss"].backward()
-        if cfg.train.grad_clip > 0:                      # 0: no clipping (ChainHOI released)
-            torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
-        opt.step()
-        ema.update(model)
-        step += 1
-        for k, v in losses.items():
-            window.setdefault(k, []).append(float(v.detach()))
-        if step % cfg.train.log_every == 0 or step == cfg.train.steps:
-            row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
-            curve.append(row)
-            window = {}
-            rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
-            parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
-            log(f"{tag} step {step}/{cfg.train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
-        if step % cfg.train.checkpoint_every == 0 or step == cfg.train.steps:
-            _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            saved = step
-        if stop_after is not None and step - start >= stop_after and step < cfg.train.steps:
-            if step > saved:
-                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
+        return spec.losses(model, diffusion, make_batch(ts, cfg, step, text, dev), cfg, mean, std, gen)
+
+    tl = time.perf_counter()
+    stopped = run_steps(model, ema, opt, cfg.train, step_losses, step=step, curve=curve, window=window, cpath=cpath,
+                        ident=ident, out=out, t0=t0, tag=tag, log=log, stop_after=stop_after)
+    if stopped is not None:
+        return stopped
     state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
     state.update({k: torch.from_numpy(v) for k, v in ts.stats.tensors().items()})
     card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": dataset,

@@ -17,14 +17,13 @@ import numpy as np
 import torch
 
 from ... import __version__
-from ...core.interrupts import check_interrupted
 from ...core.io import MAX_SMALL_JSON_BYTES, atomic_write_json, read_json_file
 from ...representations import multibody as R
 from .. import checkpoint as ckpt
 from ..diffusion import EMA, GaussianDiffusion
 from ..text import TextConditioner
-from ..trainer import (TrainResult, TrainingDiverged, _plot_curve, _save_checkpoint, _seed, drop_checkpoint,
-                       finished_run, read_checkpoint, start_run)
+from ..trainer import (TrainResult, _plot_curve, _seed, drop_checkpoint, finished_run, read_checkpoint, run_steps,
+                       start_run)
 from . import data as SD
 from . import losses as L
 from .config import SyncRunConfig, preset
@@ -133,45 +132,17 @@ def train_syncdiff(spec, data: str | Path, out: str | Path, config: SyncRunConfi
     if resume and cpath.exists():
         step, curve, window = _restore(cpath, ident, cfg.train.steps, model, ema, opt, dev)
         log(f"{tag} resuming at step {step}/{cfg.train.steps}")
-    start = saved = step
+    start = step
     n_params = sum(p.numel() for p in model.parameters())
     log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
         f"{len(ts.signatures)} layouts, {cfg.train.steps} steps of {cfg.train.batch_size}, device {dev}")
     tl = time.perf_counter()
-    model.train()
-    while step < cfg.train.steps:
-        try:
-            check_interrupted()
-        except KeyboardInterrupt:
-            if step > saved:
-                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            raise
-        losses = _one_step(model, diffusion, ts, cfg, step, text, dev, ts.layouts, mean, std)
-        if not torch.isfinite(losses["loss"]):
-            raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
-                                   f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
-        opt.zero_grad(set_to_none=True)
-        losses["loss"].backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
-        opt.step()
-        ema.update(model)
-        step += 1
-        for k, v in losses.items():
-            window.setdefault(k, []).append(float(v.detach()))
-        if step % cfg.train.log_every == 0 or step == cfg.train.steps:
-            row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
-            curve.append(row)
-            window = {}
-            rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
-            parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
-            log(f"{tag} step {step}/{cfg.train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
-        if step % cfg.train.checkpoint_every == 0 or step == cfg.train.steps:
-            _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            saved = step
-        if stop_after is not None and step - start >= stop_after and step < cfg.train.steps:
-            if step > saved:
-                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
+    stopped = run_steps(model, ema, opt, cfg.train,
+                        lambda step: _one_step(model, diffusion, ts, cfg, step, text, dev, ts.layouts, mean, std),
+                        step=step, curve=curve, window=window, cpath=cpath, ident=ident, out=out, t0=t0, tag=tag,
+                        log=log, stop_after=stop_after)
+    if stopped is not None:
+        return stopped
     return _finish(spec, cfg, ts, ema, text, dataset, curve, n_params, out, dev, t0, tl, start, cpath, log, tag)
 
 
