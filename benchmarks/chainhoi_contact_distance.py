@@ -12,6 +12,10 @@ Objects: the synthetic track's eight templates, and a BEHAVE-sized mesh (the syn
 table scaled to 1.0 m across, about the size of BEHAVE's square table, subdivided twice so the
 face count is that of a BEHAVE template).
 
+Then times the exact ``L_h``'s face search (:func:`hoibench.baselines.mesh_distance.nearest_face`)
+on a training batch's worth of queries (16 clips x 96 frames x 8 interaction joints, in
+contact or not) with its two backends, torch (pruned search) and open3d (BVH), one thread.
+
     python benchmarks/chainhoi_contact_distance.py
 """
 from __future__ import annotations
@@ -98,7 +102,38 @@ def main() -> None:
     for n in COUNTS:
         print(f"synthetic objects, {n} samples: mean error {100 * np.mean(summary[n]):.2f} cm "
               f"(objects' means {100 * min(summary[n]):.2f}-{100 * max(summary[n]):.2f} cm)")
+    time_nearest_face(meshes)
     print(f"({time.time() - t0:.1f} s)")
+
+
+def time_nearest_face(meshes: list, batch: int = 16, frames: int = 96, joints: int = 8, reps: int = 3) -> None:
+    import torch
+
+    from hoibench.baselines.joint_data import stack_meshes
+    from hoibench.baselines.mesh_distance import nearest_face
+    torch.set_num_threads(1)
+    for label, chosen in (("synthetic templates", meshes[:-1]), ("behave-sized table", meshes[-1:])):
+        tris = [v[f].astype(np.float32) for _, v, f in chosen]
+        stacked = torch.from_numpy(stack_meshes([tris[i % len(tris)] for i in range(batch)]))
+        g = torch.Generator().manual_seed(0)
+        owner = torch.arange(batch).repeat_interleave(frames * joints)
+        pts = torch.randn(len(owner), 3, generator=g) * 0.4
+        found = {}
+        for backend in ("torch", "open3d"):
+            t = time.perf_counter()
+            for _ in range(reps):
+                found[backend] = nearest_face(pts, owner, stacked, backend=backend)
+            per = (time.perf_counter() - t) / reps
+            print(f"nearest face, {label} ({stacked.shape[1]} faces padded), {len(pts)} points, {backend}: "
+                  f"{1000 * per:.0f} ms per batch")
+        from hoibench.baselines.mesh_distance import closest_point_on_triangle
+        dist = {}
+        for k, idx in found.items():
+            tri = stacked[owner, idx]
+            dist[k] = (pts - closest_point_on_triangle(pts, tri[:, 0], tri[:, 1], tri[:, 2])).norm(dim=-1)
+        same = (found["torch"] == found["open3d"]).float().mean().item()
+        print(f"  same face for {100 * same:.2f}% of the points; distance to the chosen faces differs by at most "
+              f"{(dist['torch'] - dist['open3d']).abs().max().item():.1e} m")
 
 
 if __name__ == "__main__":

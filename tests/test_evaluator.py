@@ -105,6 +105,24 @@ def test_a_local_model_folder_can_replace_the_packaged_encoder(untrained, stats,
         resolve_text_encoder(str(tmp_path / "roberta-base"))
 
 
+def test_an_evaluator_folder_can_ship_its_own_text_encoder(store_root, tmp_path):
+    from hoibench.evaluator.card import SHIPPED_TEXT_ENCODER
+    from hoibench.evaluator.text import packaged_minilm_path
+    local = tmp_path / "encoder-elsewhere"
+    shutil.copytree(packaged_minilm_path(), local)
+    out = tmp_path / "ev"
+    res = train_evaluator(store_root, out, _tiny(epochs=2, unfreeze=2), text_encoder=str(local), replications=2,
+                          log=_quiet)
+    with pytest.raises(FileNotFoundError, match="encoder-elsewhere"):   # the card's name is no path here
+        load_evaluator(out, allow_failed_gate=True)
+    shutil.copytree(local, out / SHIPPED_TEXT_ENCODER)
+    assert load_evaluator(out, allow_failed_gate=True).id == res.evaluator_id
+    weights = out / SHIPPED_TEXT_ENCODER / "model.safetensors"
+    weights.write_bytes(weights.read_bytes()[:-1] + b"\0")                # another encoder: refused
+    with pytest.raises(EvaluatorIntegrityError, match="text encoder mismatch"):
+        load_evaluator(out, allow_failed_gate=True)
+
+
 # --------------------------------------------------------------------------- embedding API
 def test_embeddings_have_shape_512_and_unit_norm(untrained, store_root):
     clips = _test_clips(store_root)

@@ -45,7 +45,8 @@ def test_closest_point_is_the_minimum_over_a_dense_sampling():
     assert (dense - d <= edge / 200 + 1e-9).all()                       # and within the grid spacing
 
 
-def test_pruned_nearest_face_equals_the_minimum_over_every_face():
+@pytest.mark.parametrize("backend", ["torch", "open3d"])
+def test_pruned_nearest_face_equals_the_minimum_over_every_face(backend):
     from hoibench.datasets.synthetic_objects import build_object
     meshes = [torch.from_numpy(build_object(n).vertices[build_object(n).faces].astype(np.float32))
               for n in ("stool", "backpack")]
@@ -53,7 +54,9 @@ def test_pruned_nearest_face_equals_the_minimum_over_every_face():
     g = torch.Generator().manual_seed(1)
     p = torch.cat([torch.randn(300, 3, generator=g) * 0.3, torch.zeros(20, 3)])   # incl. the centre
     owner = torch.randint(0, 2, (len(p),), generator=g)
-    idx = nearest_face(p, owner, stacked, chunk_points=64)
+    if backend == "open3d":
+        pytest.importorskip("open3d")
+    idx = nearest_face(p, owner, stacked, chunk_points=64, backend=backend)
     t = stacked[owner]
     every = ((p[:, None] - closest_point_on_triangle(p[:, None], t[:, :, 0], t[:, :, 1], t[:, :, 2])) ** 2).sum(-1)
     d2 = squared_distance(p, owner, stacked)

@@ -126,9 +126,10 @@ def _tiny_cfg():
                                      "train.checkpoint_every": 2, "diffusion.ddim_steps": 4, "syncdiff.sync_every": 2})
 
 
-def test_padded_batch_gives_each_clip_what_it_gets_alone():
+@pytest.mark.parametrize("freq_position", ["index", "rate"])
+def test_padded_batch_gives_each_clip_what_it_gets_alone(freq_position):
     from hoibench.baselines.syncdiff.trainer import build_model
-    cfg = _tiny_cfg()
+    cfg = _tiny_cfg().replace(**{"syncdiff.freq_position": freq_position})
     model = build_model(cfg, 10, 6, 0, 1, 1, seed=0).eval()
     g = torch.Generator().manual_seed(1)
     lens, widths = (40, 28), (10, 7)
@@ -147,6 +148,21 @@ def test_padded_batch_gives_each_clip_what_it_gets_alone():
             alone = model(x[None], t[b:b + 1], torch.ones(1, len(x), dtype=torch.bool), cols[b:b + 1], conds[b:b + 1])
             torch.testing.assert_close(both[b, :len(x)], alone["x0"][0], atol=2e-5, rtol=1e-4)
             assert both[b, len(x):].abs().sum() == 0 and both[b, :, widths[b]:].abs().sum() == 0
+
+
+def test_rate_positions_give_one_stroke_frequency_one_code_in_every_clip_length():
+    from hoibench.baselines.syncdiff.trainer import build_model
+    model = build_model(_tiny_cfg().replace(**{"syncdiff.freq_position": "rate"}), 10, 6, 0, 1, 1, seed=0)
+    low = model.low
+    # row 2 j (cos) / 2 j + 1 (sin) carries k = low + 1 + j; k = 6 in 60 frames and k = 12 in 120
+    # frames are the same rate (0.1 cycles per frame), one code; k = 6 in 120 frames is not
+    pos = model.frequency_positions(torch.tensor([60, 120]))
+    j60, j120 = 6 - low - 1, 12 - low - 1
+    torch.testing.assert_close(pos[0, 2 * j60], pos[1, 2 * j120])
+    torch.testing.assert_close(pos[0, 2 * j60 + 1], pos[1, 2 * j120 + 1])
+    assert (pos[0, 2 * j60] - pos[1, 2 * j60]).abs().max() > 0.1
+    with pytest.raises(ValueError, match="freq_position"):
+        _tiny_cfg().replace(**{"syncdiff.freq_position": "hz"})
 
 
 # ----------------------------------------------------------------------------- train, resume, sample

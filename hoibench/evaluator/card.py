@@ -35,6 +35,9 @@ from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError, StoreMismatch
 FORMAT = "hoibench-evaluator-1"
 WEIGHTS = "weights.safetensors"
 CARD = "card.json"
+#: a text encoder folder an evaluator may ship beside its weights (used when the card names
+#: an encoder other than the packaged MiniLM and no ``text_encoder`` is passed)
+SHIPPED_TEXT_ENCODER = "text_encoder"
 CURVE_PNG = "curve.png"
 TRAIN_LOG = "train_log.json"
 #: size limits when reading a folder (a card is ~100 KB; paper-size weights with a fine-tuned
@@ -298,7 +301,9 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
     :func:`~hoibench.evaluator.gate.recompute_gate`.
 
     ``text_encoder``: where the pretrained sentence encoder is when it is not the packaged
-    all-MiniLM-L6-v2 (a local folder); its weights must hash to the card's value.
+    all-MiniLM-L6-v2 (a local folder); its weights must hash to the card's value. Without
+    it, a card naming another encoder uses ``folder/text_encoder/`` when that folder exists
+    (an evaluator that ships its own text encoder), else the card's name as a path.
     ``threads``/``device``: see :class:`~hoibench.evaluator.embed.Evaluator`.
     """
     import torch
@@ -325,6 +330,9 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
     except (KeyError, TypeError, ValueError) as exc:
         raise CorruptEvaluatorFile(f"{cpath}: field normalization: {exc}") from None
     te = card["text_encoder"]
+    shipped = Path(folder) / SHIPPED_TEXT_ENCODER
+    if text_encoder is None and te["name"] != text_mod.DEFAULT_TEXT_ENCODER and (shipped / "config.json").is_file():
+        text_encoder = str(shipped)          # a text encoder shipped inside the evaluator folder
     name, path = text_mod.resolve_text_encoder(text_encoder or te["name"])
     sha = text_mod.weights_sha256(path)
     if sha != te["weights_sha256"]:

@@ -20,6 +20,7 @@ syncdiff.sync_every 5        5       explicit sync every k of the sampling steps
 syncdiff.sync_weight 1.0     1.0     w = sigma_t^2 / sigma_s^2 per edge (*chosen*)
 syncdiff.lambda_align 1.0    1.0     weight of L_align (*chosen*)
 syncdiff.lambda_norm 0.1     0.1     weight of the quaternion-norm loss (*chosen*)
+syncdiff.freq_position index index  frequency tokens' position: row index, or ``rate`` k / n (*chosen*)
 ==================  =======  ======  =========================================================
 
 Training: paper Adam, batch 32, lr 1e-4 (*chosen*), 100k steps; tiny batch 16, lr 1e-3, 1,000
@@ -35,6 +36,7 @@ from ..config import TEXT_ENCODERS, TrainConfig, check_ints, dotted_replace, sec
 from ..diffusion import DiffusionConfig
 
 SECTIONS = ("model", "syncdiff", "train", "diffusion")
+FREQ_POSITIONS = ("index", "rate")
 
 
 @dataclass(frozen=True)
@@ -78,8 +80,14 @@ class SyncConfig:
     sync_weight: float = 1.0
     lambda_align: float = 1.0
     lambda_norm: float = 0.1
+    #: what the high part's tokens are told about their frequency: ``index`` (the row: k
+    #: cycles per clip, whatever the clip's length) or ``rate`` (k / n cycles per frame, a
+    #: physical rate: one stroke frequency is one embedding in every clip length)
+    freq_position: str = "index"
 
     def __post_init__(self) -> None:
+        if self.freq_position not in FREQ_POSITIONS:
+            raise ValueError(f"syncdiff.freq_position: expected one of {FREQ_POSITIONS}, got {self.freq_position!r}")
         for name in ("decompose", "align_loss", "explicit_sync"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"syncdiff.{name}: expected true or false, got {getattr(self, name)!r}")

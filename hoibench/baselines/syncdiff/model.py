@@ -36,6 +36,7 @@ class SyncDiffNet(nn.Module):
         self.width, self.decompose = width, bool(sync.decompose)
         self.low, self.cutoff = int(sync.low), int(sync.cutoff)
         self.rows = F.coefficient_rows(self.low, self.cutoff)
+        self.freq_position = getattr(sync, "freq_position", "index")
         self.tokens = m.text_encoder == "tokens"
         tw = m.cond_width if self.tokens else text_width
         if self.tokens:
@@ -51,6 +52,8 @@ class SyncDiffNet(nn.Module):
             self.enc_high = nn.Conv1d(width + 1 + cond, m.latent, 1)
             self.dec_high = nn.Linear(m.latent, width)
             self.stream = nn.Parameter(torch.zeros(2, m.latent))
+            if self.freq_position == "rate":
+                self.parity = nn.Parameter(torch.randn(2, m.latent) * 0.02)   # a_k (cos) / b_k (sin) rows
         self.time = nn.Sequential(nn.Linear(m.time_width, m.latent), nn.GELU(), nn.Linear(m.latent, m.latent))
         self.time_width, self.latent = m.time_width, m.latent
         layer = nn.TransformerEncoderLayer(m.latent, m.heads, m.ff_mult * m.latent, m.dropout, batch_first=True,
@@ -89,6 +92,17 @@ class SyncDiffNet(nn.Module):
             out[b, :n] = low[b, :n] + F.high_frames(high[b], n, self.low)
         return out
 
+    def frequency_positions(self, lengths: torch.Tensor) -> torch.Tensor:
+        """(1 or B, R, latent) position codes of the high part's rows: the row index, or
+        (``rate``) the rate ``k / n`` cycles per frame of row ``(a_k | b_k)`` in a clip of ``n``
+        frames (scaled by 1000 into the sinusoid's range) plus a learned cos/sin code."""
+        rows = torch.arange(self.rows, device=lengths.device)
+        if self.freq_position == "index":
+            return sinusoidal(rows, self.latent)[None]
+        k = (self.low + 1 + rows // 2).to(torch.float32)
+        rate = k[None] / lengths.to(torch.float32).clamp(min=1.0)[:, None]
+        return sinusoidal(1000.0 * rate, self.latent) + self.parity[rows % 2][None]
+
     def _encode(self, enc, vals: torch.Tensor, mask: torch.Tensor, cond: torch.Tensor, cols: torch.Tensor):
         m = mask.to(vals.dtype)[..., None]
         inp = torch.cat([vals * cols[:, None], m, cond[:, None].expand(-1, vals.shape[1], -1)], -1) * m
@@ -107,7 +121,7 @@ class SyncDiffNet(nn.Module):
             h = self.backbone(h, src_key_padding_mask=~frames)
             return {"x0": self.dec_low(h) * cols[:, None] * frames[..., None]}
         low, high, rmask = self.split(x_t, lengths)
-        hpos = sinusoidal(torch.arange(self.rows, device=x_t.device), self.latent)[None]
+        hpos = self.frequency_positions(lengths)
         h_low = self._encode(self.enc_low, low, frames, cond, cols) + pos + self.stream[0] + temb
         h_high = self._encode(self.enc_high, high, rmask, cond, cols) + hpos + self.stream[1] + temb
         T = x_t.shape[1]
