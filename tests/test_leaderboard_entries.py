@@ -126,3 +126,45 @@ def test_the_multibody_track_renders_its_own_columns():
     assert "half-width" in text and "fid_vs_r1" not in text
     sync = next(e for e in entries if e["method"] == "SyncDiff tiny (300 steps)")
     assert 0 < sync["metrics"]["csiou"]["ci95"] < 0.2 and sync["metrics"]["iv_cm3"]["mean"] > 0
+
+
+def test_a_multibody_result_file_is_read_and_becomes_an_entry(tmp_path):
+    """`leaderboard add` reads multi-body results (plain values, half-widths in ci95, null
+    for an undefined metric) and refuses a malformed one naming the field."""
+    import json
+
+    from hoibench.scoring.results import ResultError, read_result
+    res = {"kind": "multibody", "metrics": {"csiou": 0.85, "ra": 0.39, "sd": None},
+           "ci95": {"csiou": 0.06, "ra": 0.13, "sd": None}, "counts": {"clips": 54, "samples": 54},
+           "protocol": "multibody-synthetic", "protocol_version": "1.0", "recognizer_id": "f831072f3a33",
+           "protocol_settings": {"samples_per_prompt": 1}, "complete": True}
+    path = tmp_path / "mb.json"
+    path.write_text(json.dumps(res))
+    e = entry_from_result(read_result(path), method="SyncDiff tiny", track="multibody-synthetic")
+    assert e["metrics"] == {"csiou": {"mean": 0.85, "ci95": 0.06, "n": 54}, "ra": {"mean": 0.39, "ci95": 0.13, "n": 54}}
+    assert e["evaluator_id"] == "f831072f3a33" and e["scored_ids"] == 54 and e["samples_per_prompt"] == 1
+    path.write_text(json.dumps({**res, "metrics": {**res["metrics"], "ra": "0.39"}}))
+    with pytest.raises(ResultError, match=r"mb.json: field metrics.ra: expected a number or null"):
+        read_result(path)
+
+
+def test_add_reads_the_scored_submissions_training_budget(tmp_path):
+    """`leaderboard add` finds the submission a result names (beside the result file) and keeps
+    its source block, so a baseline row states its training budget."""
+    import json
+
+    from hoibench.publish.leaderboard import add_result
+    res = {"kind": "multibody", "metrics": {"ra": 0.39}, "ci95": {"ra": 0.13}, "counts": {"clips": 54, "samples": 54},
+           "protocol": "multibody-synthetic", "protocol_version": "1.0", "recognizer_id": "f831072f3a33",
+           "complete": True, "submission": {"path": "sub_rate"}}
+    (tmp_path / "sub_rate").mkdir()
+    budget = {"steps": 1000, "parameters": 264460, "wall_seconds": 556.0, "hardware": "cpu"}
+    (tmp_path / "sub_rate" / "submission.json").write_text(json.dumps({"source": {"training": budget}}))
+    (tmp_path / "res.json").write_text(json.dumps(res))
+    path = add_result(tmp_path / "res.json", tmp_path / "lb" / "multibody-synthetic", method="SyncDiff tiny",
+                      role="baseline")
+    assert json.loads(path.read_text())["submission_source"]["training"] == budget
+    (tmp_path / "sub_rate" / "submission.json").unlink()                  # not here: nothing claimed
+    path = add_result(tmp_path / "res.json", tmp_path / "lb" / "multibody-synthetic", method="SyncDiff tiny",
+                      role="baseline", replace=True)
+    assert json.loads(path.read_text())["submission_source"] == {}

@@ -55,7 +55,7 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
     if result.get("kind") == "multibody":          # plain values, half-widths in ``ci95``
         ci = result.get("ci95", {})
         metrics = {k: {"mean": v, "ci95": ci.get(k), "n": counts.get("samples")}
-                   for k, v in sorted(result.get("metrics", {}).items())}
+                   for k, v in sorted(result.get("metrics", {}).items()) if v is not None}
         counts = {"samples_per_prompt": result.get("protocol_settings", {}).get("samples_per_prompt"),
                   "scored_ids": counts.get("clips"), "test_ids": counts.get("clips")}
     else:
@@ -339,6 +339,28 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         raise LeaderboardError(f"{path}: field method: an entry named {_existing_method(path, existing)!r} exists "
                                f"already (--method {method!r} has the same file name); choose another --method or "
                                f"pass --replace")
+    if submission_meta is None:
+        submission_meta = submission_meta_of(result, result_path)
     entry = entry_from_result(result, method=method, track=track, submission_meta=submission_meta, notes=notes)
     entry["role"] = role
     return write_entry(entry, track_dir / "entries")
+
+
+def submission_meta_of(result: dict, result_path: str | Path) -> dict | None:
+    """The ``submission.json`` of the submission a result scored (its ``submission.path``,
+    relative to the current folder or to the result file's), for the entry's ``source`` block
+    (a baseline's training budget, its conditioner); None when that submission is not here
+    or its file is unreadable (the entry then says "not stated")."""
+    from ..core.io import read_json_file
+    sub = (result.get("submission") or {}).get("path")
+    if not isinstance(sub, str) or not sub:
+        return None
+    for base in (Path.cwd(), Path(result_path).resolve().parent):
+        meta = base / sub / "submission.json"
+        if meta.is_file():
+            try:
+                got = read_json_file(meta, 1 << 20, "submission file")
+            except ValueError:
+                return None
+            return got if isinstance(got, dict) else None
+    return None

@@ -22,7 +22,10 @@ def read_result(path: str | Path) -> dict:
         raise ResultError(str(exc)) from None
     if not isinstance(result, dict) or not isinstance(result.get("metrics"), dict):
         raise ResultError(f"{path}: field metrics: not a result of `hoibench evaluate`")
-    problem = metrics_problem(result["metrics"]) or counts_problem(result.get("counts", {}), "counts")
+    if result.get("kind") == "multibody":      # plain values, half-widths in ``ci95``
+        problem = multibody_metrics_problem(result)
+    else:
+        problem = metrics_problem(result["metrics"]) or counts_problem(result.get("counts", {}), "counts")
     if problem:
         raise ResultError(f"{path}: {problem}")
     return result
@@ -57,6 +60,19 @@ def metrics_problem(metrics: dict, prefix: str = "metrics") -> str | None:
     return None
 
 
+def multibody_metrics_problem(result: dict) -> str | None:
+    """What is wrong with a multi-body result's ``metrics`` (each a number, or null when
+    undefined) and ``ci95`` (an object of numbers or nulls), or None."""
+    ci = result.get("ci95", {})
+    if not isinstance(ci, dict):
+        return f"field ci95: expected an object, got {type(ci).__name__}"
+    for block, values in (("metrics", result["metrics"]), ("ci95", ci)):
+        for name, v in values.items():
+            if v is not None and not _number(v):
+                return f"field {block}.{name}: expected a number or null, got {type(v).__name__}"
+    return None
+
+
 def counts_problem(counts, prefix: str = "counts") -> str | None:
     """What is wrong with a ``counts`` block (or a leaderboard entry's top-level counts)."""
     if not isinstance(counts, dict):
@@ -71,4 +87,5 @@ def counts_problem(counts, prefix: str = "counts") -> str | None:
     return None
 
 
-__all__ = ["ResultError", "read_result", "MAX_RESULT_BYTES", "metrics_problem", "counts_problem"]
+__all__ = ["ResultError", "read_result", "MAX_RESULT_BYTES", "metrics_problem", "multibody_metrics_problem",
+           "counts_problem"]

@@ -169,7 +169,8 @@ class LoadedSyncDiff:
                            **opts, "decompose": sd.decompose, "align_loss": sd.align_loss,
                            "explicit_sync": sd.explicit_sync, "sync_every": sd.sync_every,
                            "sync_weight": sd.sync_weight, "inference_overrides": dict(inference or {}), "condition": "action label, object labels, BPS, shapes",
-                           "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__}}
+                           "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__,
+                           "training": ckpt.training_budget(self.folder, self.card)}}
         t0 = time.perf_counter()
 
         def gen():
