@@ -126,10 +126,10 @@ def _tiny_cfg():
                                      "train.checkpoint_every": 2, "diffusion.ddim_steps": 4, "syncdiff.sync_every": 2})
 
 
-@pytest.mark.parametrize("freq_position", ["index", "rate"])
-def test_padded_batch_gives_each_clip_what_it_gets_alone(freq_position):
+@pytest.mark.parametrize("freq_position, groups", [("index", 1), ("rate", 1), ("rate", 3)])
+def test_padded_batch_gives_each_clip_what_it_gets_alone(freq_position, groups):
     from hoibench.baselines.syncdiff.trainer import build_model
-    cfg = _tiny_cfg().replace(**{"syncdiff.freq_position": freq_position})
+    cfg = _tiny_cfg().replace(**{"syncdiff.freq_position": freq_position, "syncdiff.high_groups": groups})
     model = build_model(cfg, 10, 6, 0, 1, 1, seed=0).eval()
     g = torch.Generator().manual_seed(1)
     lens, widths = (40, 28), (10, 7)

@@ -21,6 +21,7 @@ syncdiff.sync_weight 1.0     1.0     w = sigma_t^2 / sigma_s^2 per edge (*chosen
 syncdiff.lambda_align 1.0    1.0     weight of L_align (*chosen*)
 syncdiff.lambda_norm 0.1     0.1     weight of the quaternion-norm loss (*chosen*)
 syncdiff.freq_position index index  frequency tokens' position: row index, or ``rate`` k / n (*chosen*)
+syncdiff.high_groups 1       1       high-part tokens per coefficient row (column groups) (*chosen*)
 ==================  =======  ======  =========================================================
 
 Training: paper Adam, batch 32, lr 1e-4 (*chosen*), 100k steps; tiny batch 16, lr 1e-3, 1,000
@@ -84,6 +85,9 @@ class SyncConfig:
     #: cycles per clip, whatever the clip's length) or ``rate`` (k / n cycles per frame, a
     #: physical rate: one stroke frequency is one embedding in every clip length)
     freq_position: str = "index"
+    #: tokens per coefficient row of the high part: its columns split into this many groups,
+    #: one token each (1: one token per row over all columns)
+    high_groups: int = 1
 
     def __post_init__(self) -> None:
         if self.freq_position not in FREQ_POSITIONS:
@@ -91,7 +95,7 @@ class SyncConfig:
         for name in ("decompose", "align_loss", "explicit_sync"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"syncdiff.{name}: expected true or false, got {getattr(self, name)!r}")
-        check_ints(self, ("cutoff", "sync_every"), "syncdiff", hi=10_000)
+        check_ints(self, ("cutoff", "sync_every", "high_groups"), "syncdiff", hi=10_000)
         check_ints(self, ("low",), "syncdiff", lo=0, hi=10_000)
         if self.low >= self.cutoff:
             raise ValueError(f"syncdiff.low ({self.low}) must be below syncdiff.cutoff ({self.cutoff})")

@@ -37,6 +37,8 @@ class SyncDiffNet(nn.Module):
         self.low, self.cutoff = int(sync.low), int(sync.cutoff)
         self.rows = F.coefficient_rows(self.low, self.cutoff)
         self.freq_position = getattr(sync, "freq_position", "index")
+        self.groups = int(getattr(sync, "high_groups", 1))
+        self.group_width = -(-width // self.groups)               # columns per high-part token
         self.tokens = m.text_encoder == "tokens"
         tw = m.cond_width if self.tokens else text_width
         if self.tokens:
@@ -49,11 +51,13 @@ class SyncDiffNet(nn.Module):
         self.enc_low = nn.Conv1d(width + 1 + cond, m.latent, 1)
         self.dec_low = nn.Linear(m.latent, width)
         if self.decompose:
-            self.enc_high = nn.Conv1d(width + 1 + cond, m.latent, 1)
-            self.dec_high = nn.Linear(m.latent, width)
+            self.enc_high = nn.Conv1d(self.group_width + 1 + cond, m.latent, 1)
+            self.dec_high = nn.Linear(m.latent, self.group_width)
             self.stream = nn.Parameter(torch.zeros(2, m.latent))
             if self.freq_position == "rate":
                 self.parity = nn.Parameter(torch.randn(2, m.latent) * 0.02)   # a_k (cos) / b_k (sin) rows
+            if self.groups > 1:
+                self.group = nn.Parameter(torch.randn(self.groups, m.latent) * 0.02)
         self.time = nn.Sequential(nn.Linear(m.time_width, m.latent), nn.GELU(), nn.Linear(m.latent, m.latent))
         self.time_width, self.latent = m.time_width, m.latent
         layer = nn.TransformerEncoderLayer(m.latent, m.heads, m.ff_mult * m.latent, m.dropout, batch_first=True,
@@ -108,6 +112,29 @@ class SyncDiffNet(nn.Module):
         inp = torch.cat([vals * cols[:, None], m, cond[:, None].expand(-1, vals.shape[1], -1)], -1) * m
         return enc(inp.transpose(1, 2)).transpose(1, 2)
 
+    def _encode_high(self, high: torch.Tensor, rmask: torch.Tensor, cond: torch.Tensor, cols: torch.Tensor
+                     ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(tokens (B, R G, latent), mask (B, R G)) of the high part's coefficients (B, R, D):
+        row r's columns in G groups, one token per (row, group); a group of padding columns
+        only is masked out."""
+        B, R, D = high.shape
+        G, gw = self.groups, self.group_width
+        extra = G * gw - D
+        vals = nn.functional.pad(high * cols[:, None], (0, extra)).reshape(B, R * G, gw)
+        gvalid = nn.functional.pad(cols, (0, extra)).reshape(B, G, gw).sum(-1) > 0
+        tmask = (rmask[:, :, None] & gvalid[:, None, :]).reshape(B, R * G)
+        m = tmask.to(high.dtype)[..., None]
+        inp = torch.cat([vals, m, cond[:, None].expand(-1, R * G, -1)], -1) * m
+        h = self.enc_high(inp.transpose(1, 2)).transpose(1, 2)
+        if G > 1:
+            h = h + self.group.repeat(R, 1)[None]
+        return h, tmask
+
+    def _decode_high(self, h: torch.Tensor, cols: torch.Tensor, rmask: torch.Tensor) -> torch.Tensor:
+        B, D = cols.shape
+        out = self.dec_high(h).reshape(B, self.rows, self.groups * self.group_width)[..., :D]
+        return out * cols[:, None] * rmask[..., None]
+
     def forward(self, x_t: torch.Tensor, t: torch.Tensor, frames: torch.Tensor, cols: torch.Tensor,
                 cond: torch.Tensor) -> dict[str, torch.Tensor]:
         """x0 prediction for noised ``x_t`` (B, T, D); ``frames`` (B, T) bool, ``cols`` (B, D)
@@ -123,9 +150,10 @@ class SyncDiffNet(nn.Module):
         low, high, rmask = self.split(x_t, lengths)
         hpos = self.frequency_positions(lengths)
         h_low = self._encode(self.enc_low, low, frames, cond, cols) + pos + self.stream[0] + temb
-        h_high = self._encode(self.enc_high, high, rmask, cond, cols) + hpos + self.stream[1] + temb
+        h_high, hmask = self._encode_high(high, rmask, cond, cols)
+        h_high = h_high + hpos.repeat_interleave(self.groups, dim=1) + self.stream[1] + temb
         T = x_t.shape[1]
-        h = self.backbone(torch.cat([h_low, h_high], 1), src_key_padding_mask=~torch.cat([frames, rmask], 1))
+        h = self.backbone(torch.cat([h_low, h_high], 1), src_key_padding_mask=~torch.cat([frames, hmask], 1))
         p_low = self.dec_low(h[:, :T]) * cols[:, None] * frames[..., None]
-        p_high = self.dec_high(h[:, T:]) * cols[:, None] * rmask[..., None]
+        p_high = self._decode_high(h[:, T:], cols, rmask)
         return {"x0": self.recompose(p_low, p_high, lengths), "low": p_low, "high": p_high, "rows": rmask}
