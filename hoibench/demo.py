@@ -214,11 +214,13 @@ def _score(label: str, role: str, sub: Path, data: Path, ev_dir: Path, track: Pa
     return result
 
 
-#: the demo's training schedules, about two thirds of the tiny configs' (ChainHOI 1,500 steps;
-#: CATMO VQ-VAE 4,000 and GPT 3,000), so that ``make demo`` ends within 15 minutes on 2 cores;
-#: the rows of ``leaderboards/synthetic`` use the full tiny schedules
-DEMO_SCHEDULES = {"chainhoi": ["--set", "train.steps=1000"],
-                  "catmo": ["--set", "train.vq_steps=2800", "--set", "train.gpt_steps=2000"]}
+#: the demo's training schedules, about a third of the tiny configs' (ChainHOI 1,500 steps;
+#: CATMO VQ-VAE 4,000, contact VQ-VAE 1,500, GPT 3,000, object head 1,500), so that ``make
+#: demo`` ends within 15 minutes on 2 cores; the rows of ``leaderboards/synthetic`` use the full
+#: tiny schedules (``benchmarks/baselines_synthetic.py``)
+DEMO_SCHEDULES = {"chainhoi": ["--set", "train.steps=450"],
+                  "catmo": ["--set", "train.vq_steps=1500", "--set", "train.contact_steps=550",
+                            "--set", "train.gpt_steps=1100", "--set", "object.steps=550"]}
 
 
 def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baselines: bool = True) -> dict:
@@ -249,7 +251,7 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
     times["reference_rows_s"] = round(time.perf_counter() - t0, 1)
     if baselines:
         t1 = time.perf_counter()
-        print("[baselines] training ChainHOI tiny and CATMO tiny side by side (one CPU thread each, ~10 min; "
+        print("[baselines] training ChainHOI tiny and CATMO tiny side by side (one CPU thread each, ~9 min; "
               "the demo's schedules: " + "; ".join(f"{n} {' '.join(a[1::2])}" for n, a in DEMO_SCHEDULES.items())
               + f", shorter than the checked-in track's tiny rows); logs in {out / 'runs'}")
         (out / "runs").mkdir(parents=True, exist_ok=True)
