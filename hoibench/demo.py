@@ -309,7 +309,7 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
 
 def run_demo(out: Path, seed: int = 0, baselines: bool = True) -> dict:
     """The main job on generated data; ``baselines=False`` skips training the two tiny
-    baselines (the ~15 minutes of the demo)."""
+    baselines (about 9 of the demo's 13 minutes)."""
     out = Path(out)
     t0 = time.perf_counter()
     report = {"representations": representation_stage(out / "representations", seed=seed)}
