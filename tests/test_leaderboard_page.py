@@ -124,3 +124,11 @@ def test_scatter_labels_do_not_overlap():
     assert clashes == []
     assert all(fig.bbox.contains(b.x0, b.y0) and fig.bbox.contains(b.x1, b.y1) for b in boxes)
     plt.close(fig)
+
+
+def test_training_cells_shorten_hardware_names():
+    from hoibench.publish.pages import budget
+    e = {"role": "baseline", "source": "reproduced", "submission_source": {"training": {
+        "steps": 1500, "parameters": 1780000, "wall_seconds": 612.0,
+        "hardware": "CPU Intel(R) Xeon(R) Processor @ 2.80GHz, 1 thread(s)"}}}
+    assert budget(e) == "1,500 steps, 1.78 M params, 10.2 min, CPU Intel Xeon 2.80GHz, 1 thread"

@@ -84,8 +84,18 @@ def budget(e: dict) -> str:
     if isinstance(t.get("wall_seconds"), (int, float)):
         parts.append(f"{t['wall_seconds'] / 60:.1f} min")
     if t.get("hardware"):
-        parts.append(str(t["hardware"]))
+        parts.append(short_hardware(str(t["hardware"])))
     return ("~" if t.get("approximate") else "") + ", ".join(parts)
+
+
+def short_hardware(text: str) -> str:
+    """A hardware string without trademark marks and filler words, for a table cell
+    (``CPU Intel(R) Xeon(R) Processor @ 2.80GHz, 1 thread(s)`` -> ``CPU Intel Xeon 2.80GHz, 1 thread``)."""
+    import re
+    for junk in ("(R)", "(TM)", "(tm)", " Processor", " CPU @", " @"):
+        text = text.replace(junk, "" if junk.startswith("(") else (" " if "@" in junk else ""))
+    text = re.sub(r"\b1 thread\(s\)", "1 thread", text).replace("thread(s)", "threads")
+    return re.sub(r"\s+", " ", text).strip()
 
 
 def _flags(e: dict, entries: list[dict] = ()) -> list[str]:
@@ -413,7 +423,7 @@ th { cursor: pointer; background: #edf2f7; vertical-align: bottom; }
 td.name, th.name, td.flags, th.flags { text-align: left; }
 td.name { white-space: normal; min-width: 12em; max-width: 22em; }
 td.flags { white-space: normal; max-width: 12em; font-size: 12px; }
-td.training { white-space: normal; max-width: 11em; font-size: 11px; text-align: left; color: #4a5568; }
+td.training { white-space: normal; min-width: 16em; max-width: 22em; font-size: 11px; text-align: left; color: #4a5568; }
 td small { display: block; color: #718096; font-size: 11px; }
 tr.band th { text-align: left; background: #f7fafc; font-weight: 600; color: #2d3748; cursor: default;
              border-top: 2px solid #cbd5e0; }
