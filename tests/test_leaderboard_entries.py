@@ -84,7 +84,7 @@ def test_rows_state_their_training_budget_and_a_shared_text_encoder_is_flagged()
            "evaluator_text_encoder": {"name": "all-MiniLM-L6-v2", "weights_sha256": "m" * 64}}
     shared = {**entry_from_result(own, method="ChainHOI paper", track="synthetic",
                                   submission_meta={"source": {"training": training}}), "role": "baseline"}
-    assert budget(shared) == "1,500 steps, 1.78 M params, 10.2 min, CPU Xeon, 2 thread(s)"
+    assert budget(shared) == "1,500 steps, 1.78 M params, 10.2 min, CPU Xeon, 2 threads"
     assert _flags(shared) == ["conditioned on the evaluator's text encoder"]
     tokens = {**shared, "submission_source": {"training": {**training, "text_encoder": {"encoder": "tokens"}}}}
     assert _flags(tokens) == []
