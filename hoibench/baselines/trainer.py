@@ -380,11 +380,7 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
     mean = torch.from_numpy(ts.stats.mean).to(dev)
     std = torch.from_numpy(ts.stats.std).to(dev)
     ident = {**_identity(cfg, dataset), "baseline": spec.name}
-    cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
-    step, curve, window = 0, [], {}
-    if resume and cpath.exists():
-        step, curve, window = _load_checkpoint(cpath, ident, cfg.train.steps, model, ema, opt, dev)
-        log(f"{tag} resuming at step {step}/{cfg.train.steps}")
+    cpath, step, curve, window = resume_point(out, resume, ident, cfg.train.steps, model, ema, opt, dev, log, tag)
     start = step
     n_params = sum(p.numel() for p in model.parameters())
     log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
@@ -402,6 +398,28 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
         return stopped
     state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
     state.update({k: torch.from_numpy(v) for k, v in ts.stats.tensors().items()})
+    return finish_run(spec, cfg, state, dataset, text, curve, n_params, out, dev, t0, tl, start, cpath, log, tag,
+                      ts.store.manifest.get("dataset", ""))
+
+
+def resume_point(out: Path, resume: bool, ident: dict, steps: int, model, ema: EMA, opt, device,
+                 log: Callable[[str], None], tag: str) -> tuple[Path, int, list[dict], dict]:
+    """(checkpoint path, step, curve, window) a diffusion run starts from: ``OUT/checkpoint/last.pt``
+    restored when ``resume`` and it exists (model, EMA and optimiser loaded), else step 0."""
+    cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
+    if not (resume and cpath.exists()):
+        return cpath, 0, [], {}
+    step, curve, window = _load_checkpoint(cpath, ident, steps, model, ema, opt, device)
+    log(f"{tag} resuming at step {step}/{steps}")
+    return cpath, step, curve, window
+
+
+def finish_run(spec, cfg, state: dict, dataset: dict, text: TextConditioner, curve: list[dict], n_params: int,
+               out: Path, dev, t0: float, tl: float, start: int, cpath: Path, log: Callable[[str], None], tag: str,
+               dataset_name: str) -> TrainResult:
+    """Write a finished diffusion run: ``state`` (EMA weights and statistics) and its card as the
+    run folder, the loss curve, ``train_log.json`` (seconds, device, hardware, resumed step,
+    steps/s); then drop the checkpoint."""
     card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": dataset,
             "text": text.describe(), "curve": curve,
             "summary": {"steps": cfg.train.steps, "parameters": n_params,
@@ -411,8 +429,7 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
     seconds = time.perf_counter() - t0
     if curve:
         try:
-            _plot_curve(curve, out / ckpt.CURVE_PNG, f"{spec.title} {cfg.name} on {ts.store.manifest.get('dataset', '')} "
-                                                     f"({cid[:12]})")
+            _plot_curve(curve, out / ckpt.CURVE_PNG, f"{spec.title} {cfg.name} on {dataset_name} ({cid[:12]})")
         except ImportError:              # a GPU machine with only torch, numpy and safetensors
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
@@ -420,6 +437,6 @@ def train_joint(spec: Spec, data: str | Path, out: str | Path, config: RunConfig
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)
-    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "checkpoint card")
+    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "run card")
     log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
     return TrainResult(out, cid, card, seconds, resumed_from=start)

@@ -8,7 +8,6 @@ checkpoint id).
 """
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Callable
@@ -16,14 +15,10 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ... import __version__
-from ...core.io import MAX_SMALL_JSON_BYTES, atomic_write_json, read_json_file
 from ...representations import multibody as R
-from .. import checkpoint as ckpt
 from ..diffusion import EMA, GaussianDiffusion
 from ..text import TextConditioner
-from ..trainer import (TrainResult, _plot_curve, _seed, drop_checkpoint, finished_run, read_checkpoint, run_steps,
-                       start_run)
+from ..trainer import TrainResult, _seed, finish_run, finished_run, resume_point, run_steps, start_run
 from . import data as SD
 from . import losses as L
 from .config import SyncRunConfig, preset
@@ -84,18 +79,6 @@ def make_batch(ts: SD.TrainingSet, cfg: SyncRunConfig, step: int, text: TextCond
     return batch
 
 
-def _restore(path: Path, ident: dict, steps: int, model, ema: EMA, opt, device):
-    def restore(ck: dict):
-        step, curve, window = int(ck["step"]), json.loads(ck["curve"]), json.loads(ck.get("window", "{}"))  # read-ok: strings inside our own checkpoint
-        if not 0 < step <= steps:
-            raise ValueError(f"step {step} outside 1..{steps}")
-        model.load_state_dict(ck["model"])
-        ema.load_state_dict(ck["ema"])
-        opt.load_state_dict(ck["optimizer"])
-        return step, curve, window
-    return read_checkpoint(path, ident, device, restore)
-
-
 def _one_step(model, diffusion, ts, cfg, step, text, dev, layouts, mean, std) -> dict:
     torch.manual_seed(_seed(cfg.train.seed, "dropout", step))
     gen = torch.Generator().manual_seed(_seed(cfg.train.seed, "noise", step))
@@ -127,11 +110,7 @@ def train_syncdiff(spec, data: str | Path, out: str | Path, config: SyncRunConfi
     std = [torch.from_numpy(ts.stats.std[s]).to(dev) for s in ts.signatures]
     ident = {"config": cfg.sha(), "store": dataset["manifest_sha256"], "stats": dataset["syncdiff_stats_sha256"],
              "baseline": spec.name}
-    cpath = out / ckpt.CHECKPOINT_DIR / "last.pt"
-    step, curve, window = 0, [], {}
-    if resume and cpath.exists():
-        step, curve, window = _restore(cpath, ident, cfg.train.steps, model, ema, opt, dev)
-        log(f"{tag} resuming at step {step}/{cfg.train.steps}")
+    cpath, step, curve, window = resume_point(out, resume, ident, cfg.train.steps, model, ema, opt, dev, log, tag)
     start = step
     n_params = sum(p.numel() for p in model.parameters())
     log(f"{tag} training {cfg.name}: {n_params / 1e6:.2f} M parameters, {len(ts.items)} train clips, "
@@ -143,28 +122,7 @@ def train_syncdiff(spec, data: str | Path, out: str | Path, config: SyncRunConfi
                         log=log, stop_after=stop_after)
     if stopped is not None:
         return stopped
-    return _finish(spec, cfg, ts, ema, text, dataset, curve, n_params, out, dev, t0, tl, start, cpath, log, tag)
-
-
-def _finish(spec, cfg, ts, ema, text, dataset, curve, n_params, out, dev, t0, tl, start, cpath, log, tag
-            ) -> TrainResult:
     state = {"model." + k: v.detach().cpu().contiguous().clone() for k, v in ema.state_dict().items()}
     state.update(ts.stats.tensors(ts.signatures))
-    card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": dataset, "text": text.describe(),
-            "curve": curve, "summary": {"steps": cfg.train.steps, "parameters": n_params,
-                                        "final_loss": curve[-1]["loss"] if curve else None},
-            "seed": cfg.train.seed, "toolkit_version": __version__, "torch_version": torch.__version__.split("+")[0]}
-    cid = ckpt.write_run(out, state, card)
-    seconds = time.perf_counter() - t0
-    if curve:
-        try:
-            _plot_curve(curve, out / ckpt.CURVE_PNG, f"{spec.title} {cfg.name} on {dataset['name']} ({cid[:12]})")
-        except ImportError:
-            log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
-    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev), "resumed_from": start,
-                                            "steps_per_second": round((cfg.train.steps - start) /
-                                                                      max(time.perf_counter() - tl, 1e-9), 3)})
-    drop_checkpoint(cpath)
-    card = read_json_file(out / ckpt.CARD, MAX_SMALL_JSON_BYTES, "run card")
-    log(f"{tag} wrote {out} (checkpoint id {cid[:12]}) in {seconds:.0f} s")
-    return TrainResult(out, cid, card, seconds, resumed_from=start)
+    return finish_run(spec, cfg, state, dataset, text, curve, n_params, out, dev, t0, tl, start, cpath, log, tag,
+                      dataset["name"])
