@@ -92,8 +92,8 @@ def short_hardware(text: str) -> str:
     """A hardware string without trademark marks and filler words, for a table cell
     (``CPU Intel(R) Xeon(R) Processor @ 2.80GHz, 1 thread(s)`` -> ``CPU Intel Xeon 2.80GHz, 1 thread``)."""
     import re
-    for junk in ("(R)", "(TM)", "(tm)", " Processor", " CPU @", " @"):
-        text = text.replace(junk, "" if junk.startswith("(") else (" " if "@" in junk else ""))
+    text = re.sub(r"\((?:R|TM|tm)\)| Processor", "", text)
+    text = re.sub(r"(?: CPU)? @", " ", text)
     text = re.sub(r"\b1 thread\(s\)", "1 thread", text).replace("thread(s)", "threads")
     return re.sub(r"\s+", " ", text).strip()
 
