@@ -51,8 +51,12 @@ class SyncDiffNet(nn.Module):
         self.enc_low = nn.Conv1d(width + 1 + cond, m.latent, 1)
         self.dec_low = nn.Linear(m.latent, width)
         if self.decompose:
-            self.enc_high = nn.Conv1d(self.group_width + 1 + cond, m.latent, 1)
-            self.dec_high = nn.Linear(m.latent, self.group_width)
+            G, gw = self.groups, self.group_width
+            # one encoder and one decoder per column group (grouped kernel-1 convolutions), so a
+            # token knows which columns it carries; G = 1 is the single per-row encoder
+            self.enc_high = nn.Conv1d(G * (gw + 1 + cond), G * m.latent, 1, groups=G)
+            self.dec_high = (nn.Linear(m.latent, gw) if G == 1 else
+                             nn.Conv1d(G * m.latent, G * gw, 1, groups=G))
             self.stream = nn.Parameter(torch.zeros(2, m.latent))
             if self.freq_position == "rate":
                 self.parity = nn.Parameter(torch.randn(2, m.latent) * 0.02)   # a_k (cos) / b_k (sin) rows
@@ -124,15 +128,19 @@ class SyncDiffNet(nn.Module):
         gvalid = nn.functional.pad(cols, (0, extra)).reshape(B, G, gw).sum(-1) > 0
         tmask = (rmask[:, :, None] & gvalid[:, None, :]).reshape(B, R * G)
         m = tmask.to(high.dtype)[..., None]
-        inp = torch.cat([vals, m, cond[:, None].expand(-1, R * G, -1)], -1) * m
-        h = self.enc_high(inp.transpose(1, 2)).transpose(1, 2)
+        inp = (torch.cat([vals, m, cond[:, None].expand(-1, R * G, -1)], -1) * m).reshape(B, R, -1)
+        h = self.enc_high(inp.transpose(1, 2)).transpose(1, 2).reshape(B, R * G, -1)
         if G > 1:
             h = h + self.group.repeat(R, 1)[None]
         return h, tmask
 
     def _decode_high(self, h: torch.Tensor, cols: torch.Tensor, rmask: torch.Tensor) -> torch.Tensor:
         B, D = cols.shape
-        out = self.dec_high(h).reshape(B, self.rows, self.groups * self.group_width)[..., :D]
+        if self.groups == 1:
+            out = self.dec_high(h)
+        else:                                                      # (B, R G, latent) -> (B, R, G gw)
+            out = self.dec_high(h.reshape(B, self.rows, -1).transpose(1, 2)).transpose(1, 2)
+        out = out.reshape(B, self.rows, self.groups * self.group_width)[..., :D]
         return out * cols[:, None] * rmask[..., None]
 
     def forward(self, x_t: torch.Tensor, t: torch.Tensor, frames: torch.Tensor, cols: torch.Tensor,
