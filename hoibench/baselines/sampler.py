@@ -213,15 +213,10 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
     opts = loaded.options(guidance, steps, temperature)
     points_cache: dict[str, np.ndarray] = {}
     tag = f"[{loaded.spec.name}]"
-    meta = {"method": f"{loaded.spec.title} ({loaded.config.name}, hoibench reproduction)", "version": __version__,
-            "url": "", "representation": store.manifest.get("representations", {}).get("hml263", ""),
-            "fps": float(store.manifest["config"]["fps"]),
-            "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"
-                      if loaded.spec.kind == "diffusion" else "last"},
-            "source": {"baseline": loaded.spec.name, "checkpoint_id": loaded.id, "config": loaded.config.name,
-                       "seed": seed, **opts, "caption": "first caption of each clip",
-                       "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__,
-                       "training": ckpt.training_budget(loaded.folder, loaded.card)}}
+    meta = submission_meta(loaded.spec.title, loaded.spec.name, loaded, store, samples=samples, seed=seed,
+                           split=split, representation=store.manifest.get("representations", {}).get("hml263", ""),
+                           selection="last (EMA)" if loaded.spec.kind == "diffusion" else "last",
+                           settings={**opts, "caption": "first caption of each clip"})
     t0 = time.perf_counter()
 
     def gen():
@@ -249,8 +244,30 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
             log(f"{tag} sampled {i + 1}/{len(ids)} {cid} (K={samples}, T={T}) {el:.1f} s")
             yield cid, arrays
 
+    return write_logged(out, meta, gen(), clips=len(ids), samples=samples, tag=tag, t0=t0, as_zip=as_zip, log=log)
+
+
+def submission_meta(title: str, baseline: str, run, store: Store, *, samples: int, seed: int, split: str,
+                    representation: str, selection: str, settings: dict) -> dict:
+    """A baseline submission's ``submission.json`` block: method, representation, flags, and a
+    ``source`` naming the run (baseline, checkpoint id, config, seed), the sampling
+    ``settings``, the store and split, and the run's training budget. ``run``: a loaded run
+    (``id``, ``config``, ``folder``, ``card``)."""
+    return {"method": f"{title} ({run.config.name}, hoibench reproduction)", "version": __version__,
+            "url": "", "representation": representation, "fps": float(store.manifest["config"]["fps"]),
+            "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": selection},
+            "source": {"baseline": baseline, "checkpoint_id": run.id, "config": run.config.name, "seed": seed,
+                       **settings, "store": store.manifest.get("dataset", ""), "split": split,
+                       "toolkit_version": __version__, "training": ckpt.training_budget(run.folder, run.card)}}
+
+
+def write_logged(out, meta: dict, items, *, clips: int, samples: int, tag: str, t0: float, as_zip: bool,
+                 log: Callable[[str], None]) -> Path:
+    """Write the submission (``items``: (clip id, arrays) pairs) and log its size and the
+    average inference time per sample (AIT, seconds, from ``t0``)."""
     from ..scoring.submission import write_submission
-    path = write_submission(out, meta, gen(), as_zip=as_zip)
-    log(f"{tag} wrote {path}: {len(ids)} clips x {samples} samples in {time.perf_counter() - t0:.1f} s "
-        f"(AIT {(time.perf_counter() - t0) / (len(ids) * samples):.3f} s per sample)")
+    path = write_submission(out, meta, items, as_zip=as_zip)
+    el = time.perf_counter() - t0
+    log(f"{tag} wrote {path}: {clips} clips x {samples} samples in {el:.1f} s "
+        f"(AIT {el / (clips * samples):.3f} s per sample)")
     return path

@@ -20,13 +20,12 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ... import __version__
 from ...core.interrupts import check_interrupted
 from ...datasets.store import Store
 from ...representations import multibody as R
 from .. import checkpoint as ckpt
 from ..diffusion import GaussianDiffusion
-from ..sampler import StoreMismatch, load_model_tensors, run_text_conditioner
+from ..sampler import StoreMismatch, load_model_tensors, run_text_conditioner, submission_meta, write_logged
 from ..registry import get_spec
 from ..trainer import _seed
 from . import data as SD
@@ -147,7 +146,6 @@ class LoadedSyncDiff:
         overrides the inference-time fields :data:`INFERENCE_FIELDS` (e.g. the "w/o exp sync"
         ablation of a run trained with it: explicit synchronization acts at sampling only)."""
         from ...scoring.multibody import sample_arrays
-        from ...scoring.submission import write_submission
         log = log or (lambda s: None)
         if inference:
             bad = sorted(set(inference) - set(INFERENCE_FIELDS))
@@ -162,15 +160,12 @@ class LoadedSyncDiff:
             raise ValueError(f"{data}: split {split!r} has no clips")
         opts = self.options(steps)
         sd = self.config.syncdiff
-        meta = {"method": f"SyncDiff ({self.config.name}, hoibench reproduction)", "version": __version__,
-                "url": "", "representation": "multibody-joints", "fps": float(store.manifest["config"]["fps"]),
-                "flags": {"uses_gt_length": True, "samples_per_prompt": samples, "checkpoint_selection": "last (EMA)"},
-                "source": {"baseline": "syncdiff", "checkpoint_id": self.id, "config": self.config.name, "seed": seed,
-                           **opts, "decompose": sd.decompose, "align_loss": sd.align_loss,
-                           "explicit_sync": sd.explicit_sync, "sync_every": sd.sync_every,
-                           "sync_weight": sd.sync_weight, "inference_overrides": dict(inference or {}), "condition": "action label, object labels, BPS, shapes",
-                           "store": store.manifest.get("dataset", ""), "split": split, "toolkit_version": __version__,
-                           "training": ckpt.training_budget(self.folder, self.card)}}
+        meta = submission_meta("SyncDiff", "syncdiff", self, store, samples=samples, seed=seed, split=split,
+                               representation="multibody-joints", selection="last (EMA)",
+                               settings={**opts, "decompose": sd.decompose, "align_loss": sd.align_loss,
+                                         "explicit_sync": sd.explicit_sync, "sync_every": sd.sync_every,
+                                         "sync_weight": sd.sync_weight, "inference_overrides": dict(inference or {}),
+                                         "condition": "action label, object labels, BPS, shapes"})
         t0 = time.perf_counter()
 
         def gen():
@@ -182,8 +177,5 @@ class LoadedSyncDiff:
                     f"{time.perf_counter() - t0:.1f} s")
                 yield cid, sample_arrays(clips)
 
-        path = write_submission(out, meta, gen(), as_zip=as_zip)
-        el = time.perf_counter() - t0
-        log(f"[syncdiff] wrote {path}: {len(ids)} clips x {samples} samples in {el:.1f} s "
-            f"(AIT {el / (len(ids) * samples):.3f} s per sample)")
-        return path
+        return write_logged(out, meta, gen(), clips=len(ids), samples=samples, tag="[syncdiff]", t0=t0,
+                            as_zip=as_zip, log=log)
