@@ -86,10 +86,36 @@ def _open3d():
     return open3d
 
 
+_SCENES: dict[bytes, tuple] = {}
+_SCENE_CACHE = 64
+
+
+def _scene(o3d, tri):
+    """(RaycastingScene, kept face indices) for triangles ``tri`` (F, 3, 3) float32, cached by
+    their bytes: a training run queries the same few object templates every step, and the BVH
+    build and the de-duplication cost more than the query."""
+    import hashlib
+    import numpy as np
+    key = hashlib.blake2b(tri.tobytes(), digest_size=16).digest() + str(tri.shape).encode()
+    hit = _SCENES.get(key)
+    if hit is not None:
+        return hit
+    # padding repeats a face; a BVH over hundreds of copies of one triangle is slow
+    _, first = np.unique(tri.reshape(len(tri), 9), axis=0, return_index=True)
+    first = np.sort(first)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(np.ascontiguousarray(tri[first].reshape(-1, 3))),
+                        o3d.core.Tensor(np.arange(3 * len(first), dtype=np.uint32).reshape(-1, 3)))
+    if len(_SCENES) >= _SCENE_CACHE:
+        _SCENES.pop(next(iter(_SCENES)))
+    _SCENES[key] = (scene, first)
+    return scene, first
+
+
 @torch.no_grad()
 def nearest_face_open3d(points: torch.Tensor, owner: torch.Tensor, meshes: torch.Tensor) -> torch.Tensor:
     """:func:`nearest_face` by open3d's ``RaycastingScene.compute_closest_points`` (float32, one
-    scene per mesh that owns points, as many threads as torch uses)."""
+    scene per distinct mesh, built once and cached; as many threads as torch uses)."""
     o3d = _open3d()
     if o3d is None:
         raise ImportError("nearest_face: backend 'open3d' needs the open3d package")
@@ -98,13 +124,7 @@ def nearest_face_open3d(points: torch.Tensor, owner: torch.Tensor, meshes: torch
     own = owner.detach().cpu().numpy()
     out = np.zeros(len(pts), dtype=np.int64)
     for b in np.unique(own):
-        tri = meshes[int(b)].detach().to("cpu", torch.float32).numpy()
-        # padding repeats a face; a BVH over hundreds of copies of one triangle is slow
-        _, first = np.unique(tri.reshape(len(tri), 9), axis=0, return_index=True)
-        first = np.sort(first)
-        scene = o3d.t.geometry.RaycastingScene()
-        scene.add_triangles(o3d.core.Tensor(np.ascontiguousarray(tri[first].reshape(-1, 3))),
-                            o3d.core.Tensor(np.arange(3 * len(first), dtype=np.uint32).reshape(-1, 3)))
+        scene, first = _scene(o3d, np.ascontiguousarray(meshes[int(b)].detach().to("cpu", torch.float32).numpy()))
         sel = own == b
         ans = scene.compute_closest_points(o3d.core.Tensor(np.ascontiguousarray(pts[sel])),
                                            nthreads=torch.get_num_threads())
