@@ -69,6 +69,39 @@ def family_scores(sub: Path, data: Path, rec_dir: Path, family: str = "hands") -
     return float(sum(p == g.action for p, g in zip(pred, gens)) / len(gens)), float(fid(gt_feats, gen_feats))
 
 
+def clip_accuracy(sub: Path, data: Path, rec_dir: Path) -> dict[str, float]:
+    """Per test clip: the fraction of its samples the recognizer labels with the clip's action."""
+    from hoibench.bodies.multibody import MultiBodyClip
+    from hoibench.datasets.store import Store
+    from hoibench.evaluator.recognizer import load_recognizer
+    from hoibench.scoring.multibody import clip_from_sample
+    from hoibench.scoring.submission import Submission
+    store, rec = Store(data), load_recognizer(rec_dir)
+    out = {}
+    with Submission(sub) as s:
+        for cid in store.clip_ids("test"):
+            gt = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
+            arrays = s.load(cid, keys=None)
+            gens = [clip_from_sample(gt, arrays, k, cid) for k in range(len(next(iter(arrays.values()))))]
+            _, pred = rec.run(gens)
+            out[cid] = float(np.mean([p == g.action for p, g in zip(pred, gens)]))
+    return out
+
+
+def paired_ra_difference(a: dict[str, float], b: dict[str, float], reps: int = 10_000, seed: int = 0
+                         ) -> tuple[float, float, float]:
+    """RA(a) - RA(b) on the same clips, with a 95% paired bootstrap interval (clips resampled
+    with replacement, ``reps`` times, seeded): the comparison the unpaired per-row intervals
+    are too wide for, since both rows are scored on the same 54 prompts."""
+    ids = sorted(a)
+    if sorted(b) != ids:
+        raise ValueError("paired_ra_difference: the two submissions cover different clips")
+    d = np.array([a[c] - b[c] for c in ids])
+    idx = np.random.default_rng(seed).integers(0, len(d), size=(reps, len(d)))
+    boot = d[idx].mean(1)
+    return float(d.mean()), float(np.quantile(boot, 0.025)), float(np.quantile(boot, 0.975))
+
+
 def contact_and_recognizer_scores(sub: Path, data: Path, rec_dir: Path) -> dict:
     """CSIoU, RA and FID of a submission computed as the scorer does, without IV and ID: for a
     submission whose bodies are so far-flung that IV's 5 mm voxels over their overlapping
@@ -154,6 +187,12 @@ def main() -> None:
             res = evaluate(path, data, out / "rec", executor=args.executor)
             res_path.write_text(json.dumps(res, indent=1))
         print(f"| {label} | " + " | ".join(_fmt(res, k) for k in KEYS) + " |")
+    print("RA minus the static reference's, paired over the test clips (95% bootstrap interval):")
+    static = clip_accuracy(subs["static reference"], data, out / "rec")
+    for label, path in subs.items():
+        if label != "static reference":
+            d, lo, hi = paired_ra_difference(clip_accuracy(path, data, out / "rec"), static)
+            print(f"| {label} | {d:+.3f} [{lo:+.3f}, {hi:+.3f}] |")
     print("TACO-like family (hands), RA / FID:")
     for label, path in subs.items():
         ra, f = family_scores(path, data, out / "rec")
