@@ -2,7 +2,7 @@
 model and the static reference, every row a standard submission scored by `hoibench evaluate`
 (docs/baselines.md, "SyncDiff").
 
-    python benchmarks/syncdiff_multibody.py [--out /tmp/sd_bench] [--clips 216] [--steps N]
+    python benchmarks/syncdiff_multibody.py [--out /tmp/sd_bench] [--clips 216] [--steps N] [--set K=V]
 
 Writes the synthetic multi-body store, trains the recognizer, trains SyncDiff tiny (``--steps``
 overrides its step count) and the two ablations that change training (``decompose``,
@@ -153,8 +153,15 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/sd_bench"))
     ap.add_argument("--clips", type=int, default=216)
     ap.add_argument("--steps", type=int, default=None, help="training steps (default: the tiny config's)")
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                    help="override a config field of every trained run (JSON value), e.g. "
+                         "syncdiff.freq_position='\"index\"' for the tiny config before 0.7.0")
     ap.add_argument("--executor", default="processes:2")
     args = ap.parse_args()
+    overrides = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        overrides[key] = json.loads(value)
     out, data = args.out, args.out / "data"
     if not (data / "manifest.json").exists():
         mbl.write_synthetic_layout(out / "raw", args.clips, seed=0)
@@ -165,7 +172,8 @@ def main() -> None:
     times = {}
     for name, over in {**RUNS, "untrained": None}.items():
         cfg = preset("tiny").replace(**({"train.steps": 0} if over is None else
-                                        {**over, **({"train.steps": args.steps} if args.steps else {})}))
+                                        {**overrides, **over,
+                                         **({"train.steps": args.steps} if args.steps else {})}))
         t = time.perf_counter()
         train("syncdiff", data, out / f"run_{name}", cfg, threads=1)
         times[name] = json.loads((out / f"run_{name}" / "train_log.json").read_text())["seconds"] \

@@ -124,8 +124,11 @@ def test_the_multibody_track_renders_its_own_columns():
     assert [c.strip() for c in header.split("|")[4:-2]] == ["CSR ≈GT", "CRR ≈GT", "CSIoU ↑", "IV ↓", "ID ↓", "OD ≈GT",
                                                             "RA ↑", "FID ↓"]
     assert "half-width" in text and "fid_vs_r1" not in text
-    sync = next(e for e in entries if e["method"] == "SyncDiff tiny (300 steps)")
+    sync = next(e for e in entries if e["method"] == "SyncDiff tiny")
     assert 0 < sync["metrics"]["csiou"]["ci95"] < 0.2 and sync["metrics"]["iv_cm3"]["mean"] > 0
+    # multi-body CIs are over clips or samples: a zero half-width is a zero spread, not "n/a (K = 1)"
+    gt_row = next(line for line in text.splitlines() if "GT (real motion)" in line)
+    assert entries[0]["metrics"]["crr"]["ci95"] == 0 and "1.000 ± 0.000" in gt_row and "n/a" not in text
 
 
 def test_a_multibody_result_file_is_read_and_becomes_an_entry(tmp_path):

@@ -151,8 +151,15 @@ def _bands(entries: list[dict]) -> list[tuple[str, str, list[tuple[int | None, d
             if any(band(e) == b for e in entries)]
 
 
+def _replication_k(e: dict):
+    """The K that decides whether a zero CI means "n/a (K = 1)": the row's samples per prompt
+    for replication CIs; None for a multi-body row, whose CIs are over clips or samples (a
+    zero there is a zero spread)."""
+    return None if "csiou" in e["metrics"] else e.get("samples_per_prompt")
+
+
 def _any_k1(entries: list[dict], cols: list[str]) -> bool:
-    return any(e.get("samples_per_prompt") == 1 and _parts(e["metrics"].get(c), 1)[1] == K1_CI
+    return any(_replication_k(e) == 1 and _parts(e["metrics"].get(c), 1)[1] == K1_CI
                for e in entries for c in cols)
 
 
@@ -217,7 +224,7 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
             name = f"**{m}**" if b == "ground-truth" else (f"*{m}*" if b == "reference" else m)
             if e["source"] == "reported":
                 name += f" ({md_text(e.get('citation'))})"
-            k = e.get("samples_per_prompt")
+            k = _replication_k(e)
             lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))} | "
                          + " | ".join(fmt(e["metrics"].get(c), k) for c in cols) + f" | {md_text(budget(e))} |")
     units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
@@ -473,7 +480,7 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
                 name += f' <span class="cite">{e_(str(e.get("citation")))}</span> <span class="badge">{badge}</span>'
             if not e.get("complete", True):
                 name += ' <span class="badge warn">incomplete</span>'
-            k = e.get("samples_per_prompt")
+            k = _replication_k(e)
             cells = []
             for m in (e["metrics"].get(c) for c in cols):
                 mean, ci = _parts(m, k)
