@@ -129,6 +129,9 @@ def test_the_multibody_track_renders_its_own_columns():
     # multi-body CIs are over clips or samples: a zero half-width is a zero spread, not "n/a (K = 1)"
     gt_row = next(line for line in text.splitlines() if "GT (real motion)" in line)
     assert entries[0]["metrics"]["crr"]["ci95"] == 0 and "1.000 ± 0.000" in gt_row and "n/a" not in text
+    from hoibench.publish.pages import page
+    legend = page("multibody-synthetic", entries, {})
+    assert "over clips or samples" in legend and "over the protocol's replications" not in legend
 
 
 def test_a_multibody_result_file_is_read_and_becomes_an_entry(tmp_path):

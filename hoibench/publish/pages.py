@@ -205,12 +205,21 @@ def _multibody(entries: list[dict]) -> bool:
     return any("csiou" in e["metrics"] for e in entries)
 
 
+def _cells_text(entries: list[dict], form: str = "md") -> str:
+    """What a cell's ± means: over clips or samples (multi-body), over replications (else)."""
+    if _multibody(entries):
+        return ("value ± 95% half-width of the mean over clips or samples (none for the set-level SD, OD, FID)"
+                if form == "md" else "value, and below it the 95% half-width (±) of the mean over clips or "
+                "samples (none for the set-level SD, OD, FID)")
+    return ("mean ± 95% CI over the protocol's replications" if form == "md" else
+            "mean, and below it the 95% CI (±) over the protocol's replications")
+
+
 def markdown(track: str, entries: list[dict], about: str = "") -> str:
     """README.md: one table, its rows in bands (:func:`_bands`); only methods and baselines
     carry a rank."""
     cols = _columns(entries)
-    cells = ("value ± 95% half-width of the mean over clips or samples (none for the set-level SD, OD, FID)"
-             if _multibody(entries) else "mean ± 95% CI over the protocol's replications")
+    cells = _cells_text(entries)
     lines = [f"# {track} leaderboard", ""] + ([md_about(about.strip()), ""] if about.strip() else []) + [
         _context(entries) + f". Cells: {cells}. ↑ higher is better, "
         "↓ lower is better, ≈GT closest to the ground truth.", "",
@@ -456,9 +465,8 @@ def _legend(entries: list[dict], cols: list[str]) -> str:
     swatches = " ".join(f'<span class="swatch" style="background:{COLORS[b]}"></span>{e_(b.replace("-", " "))}'
                         for b in bands)
     k1 = f"<li>{e_(K1_NOTE)}</li>" if _any_k1(entries, cols) else ""
-    return (f'<div class="legend"><b>Legend</b><ul>{rows}{k1}<li>Each cell: mean, and below it the 95% CI '
-            f"(±) over the protocol's replications.</li><li>Bar and point colours in the plots: {swatches}."
-            f"</li></ul></div>")
+    return (f'<div class="legend"><b>Legend</b><ul>{rows}{k1}<li>Each cell: {html.escape(_cells_text(entries, "html"), quote=False)}.'
+            f"</li><li>Bar and point colours in the plots: {swatches}.</li></ul></div>")
 
 
 def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
