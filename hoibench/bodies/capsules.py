@@ -284,29 +284,70 @@ def pair_penetration(clip: MultiBodyClip, i: int, j: int, fields: dict[str, Obje
         if np.any(hi <= lo):
             continue
         order = sorted((("A", geo["A"], A), ("B", geo["B"], B)), key=lambda kb: kb[1][0] == "object")  # capsules first
-        vol[n] = sum(_inside_both(slo, shi, voxel_m, order, t) for slo, shi in _slabs(lo, hi, voxel_m)) * voxel_m ** 3
+        if _voxel_count(lo, hi, voxel_m) <= GRID_BLOCK_VOXELS:
+            vol[n] = _inside_both(lo, hi, voxel_m, order, t) * voxel_m ** 3
+        else:
+            vol[n] = _inside_both_by_parts(lo, hi, voxel_m, order, t) * voxel_m ** 3
     return vol, dep
 
 
-#: voxels of one block of the overlap grid (larger overlaps -- far-flung generated bodies --
-#: are counted slab by slab, so memory stays bounded)
+#: voxels of one block of the overlap grid: a larger overlap -- far-flung generated bodies --
+#: is counted part pair by part pair, in blocks of at most this many voxels
 GRID_BLOCK_VOXELS = 2_000_000
 
 
-def _slabs(lo: np.ndarray, hi: np.ndarray, voxel: float):
-    """``(lo, hi)`` blocks along x whose :func:`_grid` voxels partition those of ``(lo, hi)``;
-    one block (the box itself) when it holds at most :data:`GRID_BLOCK_VOXELS`."""
+def _voxel_count(lo: np.ndarray, hi: np.ndarray, voxel: float) -> int:
     n = [len(np.arange(lo[k] + voxel / 2, hi[k], voxel)) for k in range(3)]
-    if n[0] * n[1] * n[2] <= GRID_BLOCK_VOXELS:
-        yield lo, hi
-        return
-    rows = max(1, GRID_BLOCK_VOXELS // max(1, n[1] * n[2]))
-    for i0 in range(0, n[0], rows):
-        i1 = min(n[0], i0 + rows)
-        slo, shi = lo.copy(), hi.copy()
-        slo[0] = lo[0] + i0 * voxel
-        shi[0] = hi[0] if i1 == n[0] else lo[0] + i1 * voxel
-        yield slo, shi
+    return n[0] * n[1] * n[2]
+
+
+def _parts(geometry, t: int) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """(box lo, box hi, capsule index or -1 for the object) of a body's parts at frame ``t``."""
+    kind, g, _ = geometry
+    if kind == "object":
+        return [(g[t].min(0), g[t].max(0), -1)]
+    a, b, r = g
+    lo = np.minimum(a[t], b[t]) - r[:, None]
+    hi = np.maximum(a[t], b[t]) + r[:, None]
+    return [(lo[s], hi[s], s) for s in range(len(r))]
+
+
+def _in_part(centres: np.ndarray, geometry, body, t: int, s: int) -> np.ndarray:
+    kind, g, extra = geometry
+    if kind == "object":
+        return extra.inside(centres[None], body.rot[t:t + 1], body.trans[t:t + 1])[0]
+    a, b, r = g
+    return _segment_distance(centres, a[t][s:s + 1], b[t][s:s + 1])[:, 0] < r[s]
+
+
+def _inside_both_by_parts(lo: np.ndarray, hi: np.ndarray, voxel: float, order, t: int) -> int:
+    """:func:`_inside_both` for an overlap too large for one grid: a voxel is inside both
+    bodies when it is inside some part of each (a capsule, or the object), so only the boxes
+    where a part of one meets a part of the other are gridded (on the same voxel centres as
+    the whole box's grid), and the voxels found are counted once. Same count, bounded memory,
+    and time proportional to the parts' overlaps instead of the bodies' far-flung boxes."""
+    axes = [np.arange(lo[k] + voxel / 2, hi[k], voxel) for k in range(3)]
+    shape = tuple(len(x) for x in axes)
+    (_, geo_p, body_p), (_, geo_q, body_q) = order          # capsules first
+    found = []
+    for plo, phi, ps in _parts(geo_p, t):
+        for qlo, qhi, qs in _parts(geo_q, t):
+            blo, bhi = np.maximum(np.maximum(plo, qlo), lo), np.minimum(np.minimum(phi, qhi), hi)
+            idx = [(int(np.searchsorted(x, blo[k])), int(np.searchsorted(x, bhi[k], side="right")))
+                   for k, x in enumerate(axes)]
+            if any(i0 >= i1 for i0, i1 in idx):
+                continue
+            plane = (idx[1][1] - idx[1][0]) * (idx[2][1] - idx[2][0])
+            rows = max(1, GRID_BLOCK_VOXELS // plane)
+            for x0 in range(idx[0][0], idx[0][1], rows):
+                rng = [np.arange(x0, min(idx[0][1], x0 + rows)), np.arange(*idx[1]), np.arange(*idx[2])]
+                ii = np.stack(np.meshgrid(*rng, indexing="ij"), -1).reshape(-1, 3)
+                centres = np.stack([axes[k][ii[:, k]] for k in range(3)], -1)
+                sel = np.flatnonzero(_in_part(centres, geo_p, body_p, t, ps))
+                if len(sel):
+                    sel = sel[_in_part(centres[sel], geo_q, body_q, t, qs)]
+                    found.append(np.ravel_multi_index(tuple(ii[sel].T), shape))
+    return int(len(np.unique(np.concatenate(found)))) if found else 0
 
 
 def _inside_both(lo: np.ndarray, hi: np.ndarray, voxel: float, order, t: int) -> int:
