@@ -320,19 +320,78 @@ def _in_part(centres: np.ndarray, geometry, body, t: int, s: int) -> np.ndarray:
     return _segment_distance(centres, a[t][s:s + 1], b[t][s:s + 1])[:, 0] < r[s]
 
 
+def segment_segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Distance (m) between segments ``p1 q1`` and ``p2 q2`` (broadcast over leading axes; the
+    last axis is xyz): the closest pair of points, parameters clamped to the segments
+    (Ericson, Real-Time Collision Detection, 5.1.9)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e = (d1 * d1).sum(-1), (d2 * d2).sum(-1)
+    b, c, f = (d1 * d2).sum(-1), (d1 * r).sum(-1), (d2 * r).sum(-1)
+    tiny = 1e-18
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = a * e - b * b
+        s = np.where(denom > tiny, np.clip((b * f - c * e) / np.where(denom > tiny, denom, 1.0), 0.0, 1.0), 0.0)
+        t = np.where(e > tiny, (b * s + f) / np.where(e > tiny, e, 1.0), 0.0)
+        safe_a = np.where(a > tiny, a, 1.0)
+        s = np.where(t < 0, np.clip(-c / safe_a, 0.0, 1.0), np.where(t > 1, np.clip((b - c) / safe_a, 0.0, 1.0), s))
+        s = np.where(a > tiny, s, 0.0)
+        t = np.clip(t, 0.0, 1.0)
+    return np.linalg.norm(p1 + d1 * s[..., None] - p2 - d2 * t[..., None], axis=-1)
+
+
+def _meeting(geo_p, geo_q, t: int):
+    """Bool (parts of p, parts of q): whether two capsules come within the sum of their radii
+    (a voxel centre inside both needs it); object pairs are always kept."""
+    if geo_p[0] != "skeleton" or geo_q[0] != "skeleton":
+        return None
+    (ap, bp, rp), (aq, bq, rq) = geo_p[1], geo_q[1]
+    d = segment_segment_distance(ap[t][:, None], bp[t][:, None], aq[t][None], bq[t][None])
+    return d < rp[:, None] + rq[None] + 1e-6
+
+
+def _near_part_box(a: np.ndarray, b: np.ndarray, r: float, a2: np.ndarray, b2: np.ndarray, reach: float,
+                   samples: int = 64) -> tuple[np.ndarray, np.ndarray] | None:
+    """Box holding every point within ``r`` of the part of segment ``a b`` that comes within
+    ``reach`` of segment ``a2 b2`` (None: no part does). The distance to ``a2 b2`` moves at
+    most ``|b - a|`` per unit of the segment's parameter, so a sample cell whose centre is
+    farther than ``reach`` plus that bound times the half-cell holds no such point."""
+    s = (np.arange(samples) + 0.5) / samples
+    pts = a + (b - a) * s[:, None]
+    d = _segment_distance(pts, a2[None], b2[None])[:, 0]
+    keep = np.flatnonzero(d < reach + np.linalg.norm(b - a) * 0.5 / samples)
+    if not len(keep):
+        return None
+    ends = a + (b - a) * np.array([keep[0] / samples, (keep[-1] + 1) / samples])[:, None]
+    return ends.min(0) - r, ends.max(0) + r
+
+
 def _inside_both_by_parts(lo: np.ndarray, hi: np.ndarray, voxel: float, order, t: int) -> int:
     """:func:`_inside_both` for an overlap too large for one grid: a voxel is inside both
     bodies when it is inside some part of each (a capsule, or the object), so only the boxes
-    where a part of one meets a part of the other are gridded (on the same voxel centres as
+    where a part of one meets a part of the other (capsules: closer than their radii's sum)
+    are gridded (on the same voxel centres as
     the whole box's grid), and the voxels found are counted once. Same count, bounded memory,
     and time proportional to the parts' overlaps instead of the bodies' far-flung boxes."""
     axes = [np.arange(lo[k] + voxel / 2, hi[k], voxel) for k in range(3)]
     shape = tuple(len(x) for x in axes)
     (_, geo_p, body_p), (_, geo_q, body_q) = order          # capsules first
     found = []
+    meets = _meeting(geo_p, geo_q, t)
     for plo, phi, ps in _parts(geo_p, t):
         for qlo, qhi, qs in _parts(geo_q, t):
-            blo, bhi = np.maximum(np.maximum(plo, qlo), lo), np.minimum(np.minimum(phi, qhi), hi)
+            if meets is not None:
+                if not meets[ps, qs]:
+                    continue
+                (ap, bp, rp), (aq, bq, rq) = geo_p[1], geo_q[1]
+                reach = float(rp[ps] + rq[qs]) + 1e-6
+                near_p = _near_part_box(ap[t][ps], bp[t][ps], float(rp[ps]), aq[t][qs], bq[t][qs], reach)
+                near_q = _near_part_box(aq[t][qs], bq[t][qs], float(rq[qs]), ap[t][ps], bp[t][ps], reach)
+                if near_p is None or near_q is None:
+                    continue
+                blo = np.maximum.reduce([plo, qlo, near_p[0], near_q[0], lo])
+                bhi = np.minimum.reduce([phi, qhi, near_p[1], near_q[1], hi])
+            else:
+                blo, bhi = np.maximum(np.maximum(plo, qlo), lo), np.minimum(np.minimum(phi, qhi), hi)
             idx = [(int(np.searchsorted(x, blo[k])), int(np.searchsorted(x, bhi[k], side="right")))
                    for k, x in enumerate(axes)]
             if any(i0 >= i1 for i0, i1 in idx):
