@@ -368,10 +368,10 @@ def _near_part_box(a: np.ndarray, b: np.ndarray, r: float, a2: np.ndarray, b2: n
 def _inside_both_by_parts(lo: np.ndarray, hi: np.ndarray, voxel: float, order, t: int) -> int:
     """:func:`_inside_both` for an overlap too large for one grid: a voxel is inside both
     bodies when it is inside some part of each (a capsule, or the object), so only the boxes
-    where a part of one meets a part of the other (capsules: closer than their radii's sum)
-    are gridded (on the same voxel centres as
-    the whole box's grid), and the voxels found are counted once. Same count, bounded memory,
-    and time proportional to the parts' overlaps instead of the bodies' far-flung boxes."""
+    where a part of one meets a part of the other (two capsules: where their segments come
+    within the sum of their radii) are gridded, on the whole box's voxel centres, and each
+    voxel found is counted once. Same count, bounded memory, and time proportional to where
+    the parts meet instead of to the bodies' far-flung boxes."""
     axes = [np.arange(lo[k] + voxel / 2, hi[k], voxel) for k in range(3)]
     shape = tuple(len(x) for x in axes)
     (_, geo_p, body_p), (_, geo_q, body_q) = order          # capsules first
