@@ -178,7 +178,7 @@ def store(tmp_path_factory):
     return base
 
 
-def test_resume_gives_the_same_checkpoint_and_seeded_sampling_is_byte_identical(store):
+def test_resume_gives_the_same_checkpoint_and_seeded_sampling_is_byte_identical(store, capsys):
     from hoibench.baselines.sampler import sample
     from hoibench.baselines.trainer import train
     from hoibench.scoring.validate import validate
@@ -188,6 +188,10 @@ def test_resume_gives_the_same_checkpoint_and_seeded_sampling_is_byte_identical(
     assert part.checkpoint_id == "" and (store / "run_part" / "checkpoint" / "last.pt").exists()
     done = train("syncdiff", store / "data", store / "run_part", cfg, log=None)
     assert done.resumed_from == 1 and done.checkpoint_id == full.checkpoint_id
+    from hoibench.baselines.commands import main_show
+    main_show(store / "run_full")
+    shown = capsys.readouterr().out
+    assert 'freq_position "rate"' in shown and "decompose true" in shown and "high_groups 1" in shown
     subs = [sample(store / "run_full", store / "data", store / f"sub{i}", samples=2, seed=7, limit=2, log=None)
             for i in range(2)]
     for name in sorted(p.name for p in (subs[0] / "samples").iterdir()):

@@ -153,6 +153,14 @@ def main_show(run: str | Path) -> int:
               f"{ct['accuracy']:.3f}, F1 {ct['f1']:.3f}, perplexity {ct['perplexity']:.1f} "
               f"({ct['codes_used']}/{ct['codebook']} codes)")
     print("  text encoder: " + json.dumps({k: v for k, v in card.get("text", {}).items() if k != "vocab"}))
+    sync = (card.get("config") or {}).get("syncdiff")
+    if isinstance(sync, dict):                                # a card without a field: the field's default
+        from dataclasses import asdict
+
+        from .syncdiff.config import SyncConfig
+        full = {**asdict(SyncConfig()), **sync}
+        print("  syncdiff: " + ", ".join(f"{k} {json.dumps(full[k])}" for k in (
+            "decompose", "align_loss", "explicit_sync", "freq_position", "high_groups", "cutoff", "low")))
     return 0
 
 
