@@ -174,3 +174,8 @@ def test_add_reads_the_scored_submissions_training_budget(tmp_path):
     path = add_result(tmp_path / "res.json", tmp_path / "lb" / "multibody-synthetic", method="SyncDiff tiny",
                       role="baseline", replace=True)
     assert json.loads(path.read_text())["submission_source"] == {}
+    # another recognizer than the track's: refused naming the multi-body result's field
+    from hoibench.publish.leaderboard import LeaderboardError
+    (tmp_path / "other.json").write_text(json.dumps({**res, "recognizer_id": "c0ca5e7a1536"}))
+    with pytest.raises(LeaderboardError, match=r"other.json: field recognizer_id: c0ca5e7a1536 is not the evaluator"):
+        add_result(tmp_path / "other.json", tmp_path / "lb" / "multibody-synthetic", method="Other", role="method")

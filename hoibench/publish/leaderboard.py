@@ -321,7 +321,8 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         shipped = track_dir / TRACK_EVALUATOR
         how = (f"rescore with the track's evaluator (hoibench evaluate SUB --data DATA --evaluator {shipped})"
                if (shipped / "card.json").is_file() else "rescore with that evaluator")
-        raise LeaderboardError(f"{result_path}: field evaluator_id: {str(result['evaluator_id'])[:12]} is not the "
+        field = "evaluator_id" if result.get("evaluator_id") else "recognizer_id"
+        raise LeaderboardError(f"{result_path}: field {field}: {str(_evaluator_id(result))[:12]} is not the "
                                f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): {how}, or "
                                f"rescore every row with this one")
     protos = sorted({f"{e.get('protocol')}@{e.get('protocol_version')}" for e in ours})
