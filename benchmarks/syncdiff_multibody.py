@@ -161,7 +161,14 @@ def main() -> None:
     overrides = {}
     for item in args.set:
         key, _, value = item.partition("=")
-        overrides[key] = json.loads(value)
+        try:
+            overrides[key] = json.loads(value)
+        except json.JSONDecodeError:
+            ap.error(f"--set {item}: expected SECTION.FIELD=VALUE with a JSON value (strings in double quotes)")
+    try:
+        preset("tiny").replace(**overrides)                  # an unknown field or a bad value, named
+    except ValueError as exc:
+        ap.error(f"--set: {exc}")
     out, data = args.out, args.out / "data"
     if not (data / "manifest.json").exists():
         mbl.write_synthetic_layout(out / "raw", args.clips, seed=0)
