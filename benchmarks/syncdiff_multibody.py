@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hoibench.baselines.commands import parse_overrides
 from hoibench.baselines.sampler import sample
 from hoibench.baselines.syncdiff.config import preset
 from hoibench.baselines.trainer import train
@@ -45,25 +46,32 @@ def _fmt(res: dict, k: str) -> str:
     return f"{v:.4g}" + (f" ± {ci:.2g}" if ci is not None else "")
 
 
-def family_scores(sub: Path, data: Path, rec_dir: Path, family: str = "hands") -> tuple[float, float]:
-    """(RA, FID) of the recognizer on one family's test clips (the TACO-like ``hands`` by
-    default): accuracy on the generated clips, Frechet distance to the ground truth's features."""
+def _test_clips(sub: Path, data: Path, family: str | None = None):
+    """(clip id, ground-truth clip, generated clips) of each test clip (of ``family`` only when given)."""
     from hoibench.bodies.multibody import MultiBodyClip
     from hoibench.datasets.store import Store
-    from hoibench.evaluator.recognizer import load_recognizer
-    from hoibench.metrics.embedding import fid
     from hoibench.scoring.multibody import clip_from_sample
     from hoibench.scoring.submission import Submission
-    store, rec = Store(data), load_recognizer(rec_dir)
-    gts, gens = [], []
+    store = Store(data)
     with Submission(sub) as s:
         for cid in store.clip_ids("test"):
-            if f"_{family}_" not in cid:
+            if family is not None and f"_{family}_" not in cid:
                 continue
             gt = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
             arrays = s.load(cid, keys=None)
-            gts.append(gt)
-            gens += [clip_from_sample(gt, arrays, k, cid) for k in range(len(next(iter(arrays.values()))))]
+            yield cid, gt, [clip_from_sample(gt, arrays, k, cid) for k in range(len(next(iter(arrays.values()))))]
+
+
+def family_scores(sub: Path, data: Path, rec_dir: Path, family: str = "hands") -> tuple[float, float]:
+    """(RA, FID) of the recognizer on one family's test clips (the TACO-like ``hands`` by
+    default): accuracy on the generated clips, Frechet distance to the ground truth's features."""
+    from hoibench.evaluator.recognizer import load_recognizer
+    from hoibench.metrics.embedding import fid
+    rec = load_recognizer(rec_dir)
+    gts, gens = [], []
+    for _, gt, clips in _test_clips(sub, data, family):
+        gts.append(gt)
+        gens += clips
     gen_feats, pred = rec.run(gens)
     gt_feats, _ = rec.run(gts)
     return float(sum(p == g.action for p, g in zip(pred, gens)) / len(gens)), float(fid(gt_feats, gen_feats))
@@ -71,20 +79,12 @@ def family_scores(sub: Path, data: Path, rec_dir: Path, family: str = "hands") -
 
 def clip_accuracy(sub: Path, data: Path, rec_dir: Path) -> dict[str, float]:
     """Per test clip: the fraction of its samples the recognizer labels with the clip's action."""
-    from hoibench.bodies.multibody import MultiBodyClip
-    from hoibench.datasets.store import Store
     from hoibench.evaluator.recognizer import load_recognizer
-    from hoibench.scoring.multibody import clip_from_sample
-    from hoibench.scoring.submission import Submission
-    store, rec = Store(data), load_recognizer(rec_dir)
+    rec = load_recognizer(rec_dir)
     out = {}
-    with Submission(sub) as s:
-        for cid in store.clip_ids("test"):
-            gt = MultiBodyClip.from_arrays(store.load(cid), store.object_template)
-            arrays = s.load(cid, keys=None)
-            gens = [clip_from_sample(gt, arrays, k, cid) for k in range(len(next(iter(arrays.values()))))]
-            _, pred = rec.run(gens)
-            out[cid] = float(np.mean([p == g.action for p, g in zip(pred, gens)]))
+    for cid, _, gens in _test_clips(sub, data):
+        _, pred = rec.run(gens)
+        out[cid] = float(np.mean([p == g.action for p, g in zip(pred, gens)]))
     return out
 
 
@@ -158,17 +158,11 @@ def main() -> None:
                          "syncdiff.freq_position='\"index\"' for the tiny config before 0.7.0")
     ap.add_argument("--executor", default="processes:2")
     args = ap.parse_args()
-    overrides = {}
-    for item in args.set:
-        key, _, value = item.partition("=")
-        try:
-            overrides[key] = json.loads(value)
-        except json.JSONDecodeError:
-            ap.error(f"--set {item}: expected SECTION.FIELD=VALUE with a JSON value (strings in double quotes)")
     try:
+        overrides = parse_overrides(args.set)                # the CLI's --set: JSON values, bare words strings
         preset("tiny").replace(**overrides)                  # an unknown field or a bad value, named
     except ValueError as exc:
-        ap.error(f"--set: {exc}")
+        ap.error(str(exc))
     out, data = args.out, args.out / "data"
     if not (data / "manifest.json").exists():
         mbl.write_synthetic_layout(out / "raw", args.clips, seed=0)
