@@ -155,7 +155,7 @@ def _replication_k(e: dict):
     """The K that decides whether a zero CI means "n/a (K = 1)": the row's samples per prompt
     for replication CIs; None for a multi-body row, whose CIs are over clips or samples (a
     zero there is a zero spread)."""
-    return None if "csiou" in e["metrics"] else e.get("samples_per_prompt")
+    return None if _multibody_entry(e) else e.get("samples_per_prompt")
 
 
 def _any_k1(entries: list[dict], cols: list[str]) -> bool:
@@ -200,9 +200,14 @@ def md_about(text: str) -> str:
     return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
 
 
+def _multibody_entry(e: dict) -> bool:
+    """Whether a row is a multi-body result's (SyncDiff's metrics, one replication)."""
+    return "csiou" in e["metrics"]
+
+
 def _multibody(entries: list[dict]) -> bool:
-    """Whether the rows are a multi-body track's (SyncDiff's metrics, one replication)."""
-    return any("csiou" in e["metrics"] for e in entries)
+    """Whether the rows are a multi-body track's."""
+    return any(_multibody_entry(e) for e in entries)
 
 
 def _cells_text(entries: list[dict], form: str = "md") -> str:
