@@ -377,12 +377,13 @@ def _inside_both_by_parts(lo: np.ndarray, hi: np.ndarray, voxel: float, order, t
     (_, geo_p, body_p), (_, geo_q, body_q) = order          # capsules first
     found = []
     meets = _meeting(geo_p, geo_q, t)
+    if meets is not None:
+        (ap, bp, rp), (aq, bq, rq) = geo_p[1], geo_q[1]
     for plo, phi, ps in _parts(geo_p, t):
         for qlo, qhi, qs in _parts(geo_q, t):
             if meets is not None:
                 if not meets[ps, qs]:
                     continue
-                (ap, bp, rp), (aq, bq, rq) = geo_p[1], geo_q[1]
                 reach = float(rp[ps] + rq[qs]) + 1e-6
                 near_p = _near_part_box(ap[t][ps], bp[t][ps], float(rp[ps]), aq[t][qs], bq[t][qs], reach)
                 near_q = _near_part_box(aq[t][qs], bq[t][qs], float(rq[qs]), ap[t][ps], bp[t][ps], reach)
