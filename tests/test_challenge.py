@@ -204,7 +204,7 @@ def test_the_public_folder_holds_nothing_computed_from_a_test_motion(challenge, 
 
 
 def test_engine_exports_come_back_as_entries_and_the_site_lists_every_track(challenge, tmp_path):
-    import shutil
+    from committed import committed_track
     from hoibench.challenge.engine_results import add_hosted_rows
     from hoibench.challenge.reference import engine_id
     from hoibench.publish.site import build_site
@@ -222,7 +222,7 @@ def test_engine_exports_come_back_as_entries_and_the_site_lists_every_track(chal
     assert [p.name for p in written] == ["alice-11.json"] and len(refused) == 1 and "bob-12" in refused[0]
     e = json.loads(written[0].read_text())
     assert e["metrics"]["fid"]["mean"] == 0.25 and e["hosted"]["engine"] == "codabench"
-    shutil.copytree(ROOT / "leaderboards" / "synthetic", tmp_path / "leaderboards" / "synthetic")
+    committed_track("synthetic", tmp_path)                                # as shipped, without a user's rows
     paths = build_site(tmp_path / "leaderboards", tmp_path / "site")
     index = paths["index.html"].read_text()
     assert 'href="synthetic/index.html"' in index and 'href="hosted/index.html"' in index

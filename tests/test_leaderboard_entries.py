@@ -60,14 +60,14 @@ def test_a_row_is_comparable_with_a_paper_only_under_its_legacy_protocol_and_eva
         read_entry(tmp_path / "bad.json")
 
 
-def test_no_checked_in_row_is_comparable_until_a_published_evaluator_scores_one():
+def test_no_checked_in_row_is_comparable_until_a_published_evaluator_scores_one(tmp_path):
     """The ChainHOI rows name behave-legacy/omomo-legacy with ChainHOI's evaluator; every
     hoibench row was scored with hoibench's own, so none is comparable (docs/leaderboards.md)."""
-    from pathlib import Path
+    from committed import committed_track
     from hoibench.publish.leaderboard import comparable, load_track
-    root = Path(__file__).resolve().parent.parent / "leaderboards"
+    root = tmp_path / "leaderboards"                                 # the committed rows, not a user's
     for track in ("behave", "omomo", "rich-cat", "synthetic"):
-        entries = load_track(root / track)
+        entries = load_track(committed_track(track, tmp_path))
         papers = [e for e in entries if e["source"] == "reported"]
         assert not any(comparable(e, p) for e in entries for p in papers)
     assert all(p.get("comparable_with", {}).get("evaluator_backend") == "chainhoi"
@@ -111,13 +111,13 @@ def test_scoring_notes_a_generator_conditioned_on_the_evaluators_text_encoder():
     other = SimpleNamespace(card={"text_encoder": {"name": "roberta", "weights_sha256": "r" * 64}})
     assert _shares_text_encoder(meta, other) == "" and _text_encoder(SimpleNamespace(card=None)) == {}
 
-def test_the_multibody_track_renders_its_own_columns():
+def test_the_multibody_track_renders_its_own_columns(tmp_path):
     """The checked-in multi-body track: SyncDiff's metrics as columns, with arrows, and
     value ± half-width cells; no FID-vs-R@1 plot."""
-    from pathlib import Path
+    from committed import committed_track
     from hoibench.publish.leaderboard import load_track, order
     from hoibench.publish.pages import markdown
-    entries = order(load_track(Path(__file__).resolve().parent.parent / "leaderboards" / "multibody-synthetic"))
+    entries = order(load_track(committed_track("multibody-synthetic", tmp_path)))
     assert entries[0]["role"] == "ground-truth" and entries[0]["evaluator_id"] == entries[-1]["evaluator_id"]
     text = markdown("multibody-synthetic", entries)
     header = next(line for line in text.splitlines() if line.startswith("| # |"))
