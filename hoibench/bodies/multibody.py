@@ -43,8 +43,6 @@ HAND_JOINTS = 21
 HAND_TIP_ORDER = ("thumb", "index", "middle", "ring", "pinky")
 #: the value of a multi-body clip file's ``layout`` array.
 LAYOUT = "multibody-1.0"
-#: human joints SyncDiff's CRR calls the hand roots (SMPL's wrists).
-HUMAN_HAND_ROOTS = (20, 21)
 
 
 @dataclass

@@ -182,11 +182,6 @@ def _rest_joints(model_type: str = "smplh") -> np.ndarray:
     return out
 
 
-def _rest_joints_smplh() -> np.ndarray:
-    """(52, 3) SMPL-H rest joints (see :func:`_rest_joints`)."""
-    return _rest_joints("smplh")
-
-
 def _finger_tip(joint3: int, model_type: str = "smplh") -> np.ndarray:
     _, _, lbase, rbase = _LAYOUT[model_type]
     side = 0 if joint3 < rbase else 1
@@ -331,10 +326,6 @@ def _parts(model_type: str = "smplh") -> list[_Part]:
             add(name, j, J[j] + (0.0, 0.0, 0.025), _X, (0.012, 0.012), (0.012, 0.012), 0.012, 0.012,
                 j, j0=j, res=finger)
     return P
-
-
-def _parts_smplh() -> list[_Part]:
-    return _parts("smplh")
 
 
 #: ``smplx``'s ``vertex_ids`` (smplx/vertex_ids.py): head, finger tips, toes and heels.

@@ -138,7 +138,7 @@ __all__ = [
     "CAMERA_R", "CAMERA_C", "FRAME_TIME_OFFSET_S", "JOINT_PENETRATION_TOL_M",
     "ClipSpec", "Defect", "ObjectModel", "SyntheticClip",
     "build_object", "plan_clips", "generate_clip", "write_behave_layout",
-    "rigid_transform_smpl", "world_to_camera", "camera_to_world", "subject_betas",
+    "rigid_transform_smpl", "world_to_camera", "subject_betas",
     "rest_joints", "frame_times", "measure_clip", "ply_bytes",
 ]
 
@@ -149,16 +149,6 @@ def world_to_camera(root_orient, trans, rest_pelvis, obj_rot, obj_trans):
     ``(root_orient', trans', obj_rot', obj_trans')``."""
     r, t = rigid_transform_smpl(root_orient, trans, rest_pelvis, CAMERA_R, CAMERA_C)
     return r, t, CAMERA_R @ obj_rot, np.asarray(obj_trans) @ CAMERA_R.T + CAMERA_C
-
-
-def camera_to_world(root_orient, trans, rest_pelvis, obj_rot=None, obj_trans=None):
-    """Inverse of :func:`world_to_camera` (``R = CAMERA_R^T``, ``c = -CAMERA_R^T CAMERA_C``)."""
-    Ri = CAMERA_R.T
-    ci = -Ri @ CAMERA_C
-    r, t = rigid_transform_smpl(root_orient, trans, rest_pelvis, Ri, ci)
-    if obj_rot is None:
-        return r, t
-    return r, t, Ri @ obj_rot, np.asarray(obj_trans) @ Ri.T + ci
 
 
 def frame_times(n: int, offset_s: float = FRAME_TIME_OFFSET_S, fps: float = FPS) -> np.ndarray:

@@ -65,7 +65,6 @@ SOURCE_FPS = 30.0
 LOADER_VERSION = "taco-1"
 SIDES = ("left", "right")
 _TRIPLET = re.compile(r"^\(([^,()]+), ([^,()]+), ([^,()]+)\)$")
-_SEQ = re.compile(r"^(\d{8})_(\d{3})$")
 MAX_PICKLE_BYTES = 256 * 1024 ** 2
 
 

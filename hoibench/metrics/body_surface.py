@@ -108,11 +108,6 @@ def _clusters() -> _Clusters:
                      part_centre, part_radius)
 
 
-def proxy_faces() -> np.ndarray:
-    """Triangles (F, 3) of the proxy surface."""
-    return _proxy()[1]
-
-
 def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Smallest rotations (n, 3, 3) turning directions a (n, 3) onto b (n, 3)."""
     a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)

@@ -42,7 +42,6 @@ CI_Z = 1.96
 
 
 #: the fields each kind of protocol has, in the order results list them (``to_dict``)
-COMMON_FIELDS = ("id", "version", "dataset", "split")
 KIND_FIELDS: dict[str, tuple[str, ...]] = {
     "hoi": ("id", "version", "dataset", "split", "mode", "fps", "representation", "replications", "seed",
             "r_precision_pool_size", "r_precision_top_k", "r_precision_drop_last", "diversity_pairs", "mm_texts",

@@ -139,15 +139,6 @@ class SyncRunConfig:
         return json.dumps(self.to_dict(), sort_keys=True)
 
 
-#: the paper's ablation rows (C.4) as ``--set`` overrides
-ABLATIONS = {
-    "w/o decompose": {"syncdiff.decompose": False},
-    "w/o L_align": {"syncdiff.align_loss": False},
-    "w/o exp sync": {"syncdiff.explicit_sync": False},
-    "w/o L_align, exp sync": {"syncdiff.align_loss": False, "syncdiff.explicit_sync": False},
-}
-
-
 def preset(name: str = "tiny") -> SyncRunConfig:
     """``paper`` or ``tiny`` (trains on the synthetic multi-body store on 2 CPU cores)."""
     diffusion = DiffusionConfig(steps=1000, ddim_steps=50, guidance=1.0, cond_drop=0.0)
