@@ -40,21 +40,14 @@ from __future__ import annotations
 
 from .multibody_common import (CRR_THRESHOLD_M, CSR_THRESHOLD_M, DIFFH2O_FRAMES, DISTANCES, DIVERSITY_MODES, IV_VOXEL_M,
                                M3_TO_CM3, M_TO_MM, NSAMPLES, PAIR_REDUCTIONS, PosedMesh, check_closed)
-from .multibody_common import (_MAX_GRID_POINTS, _array, _clip_key, _distance_kind, _faces, _finite,  # noqa: F401
-                               _frame_origin, _frame_sets, _frames, _meshes, _mode, _nearest, _nsamples, _num_frames,
-                               _occupied, _pair_reduction, _PerClipMean, _points, _posed_mesh, _positive, _scene,
-                               _sequence, _signed, _tensor, _unsigned)
 from .multibody_contact import (CRR, CSR, CSIoU, contact_frames_hand, contact_frames_human_roots, contact_ratio,
                                 contact_root_ratio, contact_surface_iou, contact_surface_ratio, frame_iou,
                                 hand_object_distance, root_object_distances)
-from .multibody_contact import _hand_object_distance, _root_object_distances  # noqa: F401
 from .multibody_penetration import (InterpenetrationDepth, InterpenetrationVolume, PairwisePenetration,
                                     clip_interpenetration_depth, clip_interpenetration_volume, interpenetration_depth,
                                     interpenetration_volume, pairwise_penetration, reduce_pairs)
-from .multibody_penetration import _aabb_overlap, _depth, _frame_pair, _pairs, _Penetration, _volume  # noqa: F401
 from .multibody_diversity import (OverallDiversity, SampleDiversity, downsample_indices, mean_pairwise_distance,
                                   overall_diversity, sample_diversity, wrist_trajectory)
-from .multibody_diversity import _prompt_diversity, _stack  # noqa: F401
 
 __all__ = [
     "CSR_THRESHOLD_M", "CRR_THRESHOLD_M", "IV_VOXEL_M", "DIFFH2O_FRAMES", "NSAMPLES", "DISTANCES",
