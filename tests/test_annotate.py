@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from hoibench.text import annotate as an
+from hoibench.text.spec import UPOS
 from hoibench.bodies import contact as contact_mod
 
 N_CLIPS = 12
@@ -137,7 +138,7 @@ def test_humanml3d_lines_parse_back(store):
                 assert fields[2:] == ["0.0", "0.0"]
             for tok in fields[1].split(" "):
                 word, _, pos = tok.partition("/")
-                assert word.isalpha() and pos in an.UPOS, tok
+                assert word.isalpha() and pos in UPOS, tok
             # nouns and verbs are lemmatised like HumanML3D ("hands" -> "hand", "lifts" -> "lift")
             assert "hands/" not in fields[1] and "lifts/" not in fields[1]
 

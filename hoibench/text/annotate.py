@@ -59,10 +59,8 @@ from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_write_json, atomic_write_tex
 from ..core.parallel import map_units
 from .captions import ANNOTATOR_ID, SOURCE, ClipAnnotation, annotate_clip, humanml3d_line, parse_humanml3d_line
 from .spec import SPEC_ENV, AnnotatorSpec, SpecError, Token, default_spec_dir, load_spec, parse_phrase
-from .spec import SPEC_FILE, UPOS, Phrase, Slot  # noqa: F401  (re-exported for callers of this module)
 from .timeline import (_REPEAT_SUFFIX, ActionSpan, action_from_name, body_part_timeline, resolve_action,
                        scene_action_name, scene_partner)
-from .timeline import group_id  # noqa: F401  (re-exported for callers of this module)
 
 __all__ = [
     "SPEC_ENV", "SOURCE", "SpecError", "Token", "AnnotatorSpec", "ActionSpan", "ClipAnnotation",
