@@ -29,7 +29,7 @@ from pathlib import Path
 from hoibench.baselines.registry import get_spec
 from hoibench.baselines.sampler import sample
 from hoibench.baselines.trainer import train
-from hoibench.baselines.trivial import write_mean_pose_submission
+from hoibench.scoring.mean_pose import write_mean_pose_submission
 from hoibench.scoring.evaluate import evaluate
 from hoibench.core.io import atomic_write_json, atomic_write_text
 from hoibench.publish.leaderboard import entry_from_result, write_entry

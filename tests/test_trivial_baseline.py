@@ -1,4 +1,4 @@
-"""The "mean pose + static object" baseline (hoibench.baselines.trivial) against independent
+"""The "mean pose + static object" baseline (hoibench.scoring.mean_pose) against independent
 computations on the session's synthetic store."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from hoibench.baselines import trivial
+from hoibench.scoring import mean_pose
 from hoibench.representations import hml263
 from hoibench.datasets.store import Store
 from hoibench.scoring.submission import Submission, validation_report
@@ -40,7 +40,7 @@ def store(synthetic_store):
 
 @pytest.fixture(scope="module")
 def samples(store):
-    return dict(trivial.mean_pose_samples(store))
+    return dict(mean_pose.mean_pose_samples(store))
 
 
 def test_samples_cover_test_ids_with_gt_lengths_and_shapes(store, samples):
@@ -88,20 +88,20 @@ def test_pose_ignores_test_clips(store, samples, tmp_path):
 
     for cid in st.clip_ids("test"):
         perturb(cid)
-    again = dict(trivial.mean_pose_samples(data))
+    again = dict(mean_pose.mean_pose_samples(data))
     assert list(again) == list(samples)
     for sid in samples:
         for k in samples[sid]:
             np.testing.assert_array_equal(again[sid][k], samples[sid][k])
     # the check is sensitive: the same change to a train clip moves the pose
     perturb(st.clip_ids("train")[0])
-    moved = next(trivial.mean_pose_samples(data))[1]
+    moved = next(mean_pose.mean_pose_samples(data))[1]
     assert not np.allclose(moved["joints"][0, 0], samples[next(iter(samples))]["joints"][0, 0], atol=1e-4)
 
 
 @pytest.mark.parametrize("as_zip", [False, True])
 def test_submission_validates_and_matches_samples(store, samples, tmp_path, as_zip):
-    out = trivial.write_mean_pose_submission(store, tmp_path / ("sub.zip" if as_zip else "sub"), as_zip=as_zip)
+    out = mean_pose.write_mean_pose_submission(store, tmp_path / ("sub.zip" if as_zip else "sub"), as_zip=as_zip)
     rep = validation_report(out, store)
     assert rep.complete and not rep.errors, [str(p) for p in rep.problems]
     test_ids = Store(store).clip_ids("test")

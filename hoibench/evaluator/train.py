@@ -40,7 +40,7 @@ from ..datasets.store import Store, legacy_manifest_sha256, manifest_sha256
 from . import card as card_mod
 from . import text as text_mod
 from .config import EvaluatorConfig, preset
-from .data import SplitItems, feature_key, load_items, store_protocol  # noqa: F401  (store_protocol: its old home)
+from .data import SplitItems, feature_key, load_items, store_protocol
 from .embed import Evaluator, deterministic
 from .features import FeatureStats, object_relative, object_stats
 from .errors import CheckpointError, EvaluatorFolderExists, EvaluatorIntegrityError
