@@ -4,6 +4,7 @@ pipeline, and modules and functions stay small. Imports inside functions count t
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -15,25 +16,108 @@ STAGES = ("core", "bodies", "representations", "datasets", "text", "metrics", "t
           "baselines", "publish", "challenge")
 #: modules at the top of the package: the version and entry points, above every stage
 TOP_MODULES = {"hoibench", "hoibench.cli", "hoibench.demo"}
-MAX_MODULE_LINES = 850
+MAX_MODULE_LINES = 800
+#: imports the checks let pass for now, each in a file rewritten elsewhere: (importer, imported) -> where and why
+KNOWN_EXCEPTIONS = {
+    ("hoibench.scoring.pipeline", "hoibench.scoring.hoi"):
+        "hoibench/scoring/pipeline.py registers the scorer as '.hoi:HOIScorer' and scoring.hoi imports pipeline",
+    ("hoibench.scoring.pipeline", "hoibench.scoring.multibody"):
+        "hoibench/scoring/pipeline.py registers the scorer as '.multibody:MultiBodyScorer' and scoring.multibody "
+        "imports pipeline",
+    ("hoibench.metrics.catalog", "hoibench.metrics.embedding"):
+        "hoibench/metrics/catalog.py names its implementations by '<module>:<attr>' and metrics.state imports it",
+    ("hoibench.metrics.catalog", "hoibench.metrics.multibody"):
+        "hoibench/metrics/catalog.py names its implementations by '<module>:<attr>' and metrics.state imports it",
+}
 MAX_FUNCTION_LINES = 125
 
 
-def _modules() -> dict[str, Path]:
+def _modules(package: Path = PACKAGE) -> dict[str, Path]:
     out = {}
-    for path in PACKAGE.rglob("*.py"):
-        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    for path in package.rglob("*.py"):
+        parts = list(path.relative_to(package.parent).with_suffix("").parts)
         if parts[-1] == "__init__":
             parts = parts[:-1]
         out[".".join(parts)] = path
     return out
 
 
+#: a ``"module:attr"`` reference (``load_object``, registries, entry points): absolute, or
+#: relative to the package of the module holding it when it starts with dots
+_REFERENCE = re.compile(r"(\.*)((?:[A-Za-z_]\w*)(?:\.[A-Za-z_]\w*)*)?:[A-Za-z_]\w*")
+#: calls that import the module their first argument names
+_IMPORT_CALLS = ("import_module", "__import__")
+
+
+def _absolute(target: str, package: list[str]) -> str | None:
+    """``target`` with its leading dots resolved against ``package`` (None when it climbs out)."""
+    level = len(target) - len(target.lstrip("."))
+    if not level:
+        return target
+    if level > len(package):
+        return None
+    rest = target[level:]
+    return ".".join(package[:len(package) - level + 1] + ([rest] if rest else []))
+
+
+def _constants(tree: ast.Module) -> dict[str, str]:
+    """Module-level ``NAME = "string"`` assignments (read in f-string references)."""
+    out = {}
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str):
+            out.update({t.id: node.value.value for t in node.targets if isinstance(t, ast.Name)})
+    return out
+
+
+def _literal(node: ast.AST | None, constants: dict[str, str]) -> str | None:
+    """The string ``node`` spells: a literal, a module-level string constant, or an f-string of
+    those (None for anything computed at run time)."""
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        return node.value
+    if isinstance(node, ast.Name):
+        return constants.get(node.id)
+    if isinstance(node, ast.JoinedStr):
+        parts = [_literal(v.value if isinstance(v, ast.FormattedValue) and v.format_spec is None and
+                          v.conversion == -1 else v, constants) for v in node.values]
+        return None if None in parts else "".join(parts)
+    return None
+
+
+def _call_target(node: ast.Call, name: str, package: list[str], constants: dict[str, str]) -> str | None:
+    """The module an ``import_module(name, package)`` / ``__import__(name, ..., level)`` call
+    with a literal name imports (None when the name is computed)."""
+    func = node.func
+    called = func.id if isinstance(func, ast.Name) else func.attr if isinstance(func, ast.Attribute) else None
+    if called not in _IMPORT_CALLS or not node.args:
+        return None
+    target = _literal(node.args[0], constants)
+    if target is None:
+        return None
+    keywords = {k.arg: k.value for k in node.keywords}
+    if called == "__import__":
+        level = node.args[4] if len(node.args) > 4 else keywords.get("level")
+        dots = level.value if isinstance(level, ast.Constant) and isinstance(level.value, int) else 0
+        return _absolute("." * dots + target, package)
+    anchor = node.args[1] if len(node.args) > 1 else keywords.get("package")
+    if not target.startswith("."):
+        return target
+    if isinstance(anchor, ast.Name) and anchor.id == "__package__":
+        return _absolute(target, package)
+    if isinstance(anchor, ast.Name) and anchor.id == "__name__":
+        return _absolute(target, name.split("."))
+    anchor_name = _literal(anchor, constants)
+    return _absolute(target, anchor_name.split(".")) if anchor_name else None
+
+
 def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """The package modules ``name`` imports, anywhere in its body."""
+    """The package modules ``name`` imports, anywhere in its body: ``import`` statements,
+    ``import_module`` / ``__import__`` calls with a literal name, and ``"module:attr"``
+    strings (absolute, or relative with leading dots) that name a package module."""
     package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    tree = ast.parse(path.read_text())
+    constants = _constants(tree)
     found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(tree):
         targets = []
         if isinstance(node, ast.Import):
             targets = [a.name for a in node.names]
@@ -43,7 +127,18 @@ def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
             else:
                 base = node.module or ""
             targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+        elif isinstance(node, ast.Call):
+            targets = [_call_target(node, name, package, constants)]
+        elif isinstance(node, (ast.Constant, ast.JoinedStr)):
+            text = _literal(node, constants)
+            match = _REFERENCE.fullmatch(text) if text else None
+            if match and match.group(2) is not None:
+                targets = [_absolute(text.partition(":")[0], package)]
+            elif match and match.group(1):            # ".:attr": the package itself
+                targets = [_absolute(match.group(1), package)]
         for t in targets:
+            if t is None:
+                continue
             while t not in modules and "." in t:
                 t = t.rsplit(".", 1)[0]
             if t in modules and t != name:
@@ -51,9 +146,12 @@ def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
     return found
 
 
-def _graph() -> dict[str, set[str]]:
-    modules = _modules()
-    return {name: _imports(name, path, modules) for name, path in modules.items()}
+def _graph(package: Path = PACKAGE, known: dict | None = None) -> dict[str, set[str]]:
+    """Module -> the package modules it imports, less the ``known`` exceptions."""
+    modules = _modules(package)
+    known = KNOWN_EXCEPTIONS if known is None else known
+    return {name: {d for d in _imports(name, path, modules) if (name, d) not in known}
+            for name, path in modules.items()}
 
 
 def _stage(name: str) -> int:
@@ -101,15 +199,20 @@ def test_no_import_circles():
     assert _cycles(_graph()) == []
 
 
-def test_imports_run_from_later_stages_to_earlier_ones():
+def _wrong_way(graph: dict[str, set[str]]) -> list[str]:
+    """``importer -> imported`` for every import of a later stage by an earlier one."""
     wrong = []
-    for name, deps in sorted(_graph().items()):
+    for name, deps in sorted(graph.items()):
         for dep in sorted(deps):
             if dep == "hoibench":          # the package root: its version only
                 continue
             if _stage(dep) > _stage(name):
                 wrong.append(f"{name} -> {dep}")
-    assert wrong == []
+    return wrong
+
+
+def test_imports_run_from_later_stages_to_earlier_ones():
+    assert _wrong_way(_graph()) == []
 
 
 def test_the_checks_see_a_wrong_way_import_and_a_circle(tmp_path):
@@ -145,16 +248,42 @@ def test_modules_and_functions_stay_small(limit):
     assert long_modules == [] and long_functions == []
 
 
-def test_old_import_paths_forward_with_a_deprecation_warning():
+def _write(root: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text)
+    return root / "hoibench"
+
+
+def test_the_checks_see_importlib_calls_and_module_attr_references(tmp_path):
+    package = _write(tmp_path, {
+        "hoibench/__init__.py": "",
+        "hoibench/core/__init__.py": "",
+        "hoibench/core/a.py": "import importlib\n\ndef f():\n    return importlib.import_module('.b', __package__)\n",
+        "hoibench/core/b.py": "def g():\n    return __import__('hoibench.core.a')\n",
+        "hoibench/core/c.py": "from importlib import import_module\n\ndef h(name):\n    return import_module(name)\n",
+        "hoibench/core/d.py": "import importlib\nM = importlib.import_module('..metrics.m', package='hoibench.core')\n",
+        "hoibench/metrics/__init__.py": "from .m import X\nREG = {'x': 'hoibench.evaluator.e:load'}\n",
+        "hoibench/metrics/m.py": "X = 1\n",
+        "hoibench/evaluator/__init__.py": "",
+        "hoibench/evaluator/e.py": "_M = 'hoibench.metrics.m'\nREF = f'{_M}:X'\nNOTE = 'hand:left'\n",
+        "hoibench/evaluator/f.py": "import importlib\nE = importlib.import_module('.e', __name__.rpartition('.')[0])\n",
+    })
+    graph = _graph(package, known={})
+    assert graph["hoibench.core.a"] == {"hoibench.core.b"} and graph["hoibench.core.b"] == {"hoibench.core.a"}
+    assert graph["hoibench.core.c"] == set()                           # a computed name is not seen
+    assert graph["hoibench.core.d"] == {"hoibench.metrics.m"}
+    assert graph["hoibench.evaluator.e"] == {"hoibench.metrics.m"}       # f-string of a module constant
+    assert graph["hoibench.evaluator.f"] == set()                      # a computed package is not seen
+    assert _cycles(graph) == [["hoibench.core.a", "hoibench.core.b"]]
+    assert _wrong_way(graph) == ["hoibench.core.d -> hoibench.metrics.m",
+                                 "hoibench.metrics -> hoibench.evaluator.e"]
+    known = {("hoibench.core.b", "hoibench.core.a"): "test"}
+    assert _cycles(_graph(package, known=known)) == []
+
+
+def test_old_import_paths_are_gone():
     import importlib
-    import sys
     for old in ("hoibench.store", "hoibench.multibody.metrics"):
-        sys.modules.pop(old, None)
-    with pytest.warns(DeprecationWarning, match="hoibench.datasets.store"):
-        old_store = importlib.import_module("hoibench.store")
-    from hoibench.datasets.store import Store
-    assert old_store.Store is Store
-    with pytest.warns(DeprecationWarning, match="hoibench.metrics.multibody"):
-        from hoibench.multibody.metrics import CSR
-    from hoibench.metrics.multibody import CSR as new_csr
-    assert CSR is new_csr
+        with pytest.raises(ModuleNotFoundError, match=old.rsplit(".", 1)[0]):
+            importlib.import_module(old)
