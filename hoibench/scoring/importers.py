@@ -37,6 +37,7 @@ MDM's and HOI-Diff's files are pickles: loading one can run code. They are read 
 from __future__ import annotations
 
 import json
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -50,7 +51,7 @@ FORMATS = ("mdm", "hoidiff", "joints", "chois", "features", "params")
 SOURCE_FPS = {"mdm": 20.0, "hoidiff": 20.0, "chois": 30.0}
 
 
-from .import_common import ImportProblem, _group_files  # noqa: E402,F401  (re-exported)
+from .import_common import ImportProblem, _group_files, pickle_refusal, pickled_members  # noqa: E402,F401
 
 
 class ReadBudget:
@@ -90,14 +91,23 @@ class ReadBudget:
         except ImportProblem:
             raise
         except ValueError as exc:
-            raise ImportProblem(str(exc)) from None
+            raise self._refusal(path, None, exc) from None
 
     def npz(self, path: Path, what: str, keys=None) -> dict:
         from ..core.io import load_raw_npz
         try:
             return load_raw_npz(path, self.take(path), what, keys=keys)
         except ValueError as exc:
-            raise ImportProblem(str(exc)) from None
+            raise self._refusal(path, keys, exc) from None
+
+    @staticmethod
+    def _refusal(path: Path, keys, exc: ValueError) -> ImportProblem:
+        """numpy's pickle refusal turned into one naming the file and member; else ``exc``'s text."""
+        if "allow_pickle" in str(exc):
+            pickled = pickled_members(path, keys)
+            if pickled:
+                return pickle_refusal(path, pickled[0])
+        return ImportProblem(str(exc))
 
 
 # ------------------------------------------------------------------------------ conversions
@@ -304,9 +314,42 @@ def read_joint_files(folder: Path, ids: list[str], up: str, chois: bool, budget:
     return out
 
 
+#: feature rows are refused as the other kind when its log-likelihood per value is this much higher
+FEATURE_KIND_MARGIN = {"raw": 0.5, "normalized": 2.0}
+
+
+def feature_kind_score(rows: np.ndarray, mean: np.ndarray, std: np.ndarray) -> tuple[float, float, float]:
+    """How much better the store's statistics explain ``rows`` (N, D) as raw features than as
+    normalised ones: (log-likelihood difference per value, kappa_raw, kappa_norm).
+
+    Each reading is a Gaussian with one fitted common scale: raw ``x_c ~ N(mean_c, (kappa std_c)^2)``,
+    normalised ``x_c ~ N(0, kappa^2)``, with ``kappa^2`` the mean square of the standardised rows;
+    per value ``LL = -log kappa - mean_c log J_c`` (``J = std`` for raw, 1 for normalised), so a
+    generator's extra spread (a larger kappa) does not change the verdict; the wrong reading scales
+    each column by its own ``std`` and fits badly. Measured on synthetic test clips: raw rows
+    +1.7, normalised -3.1, raw rows with 3 std of noise +1.0, normalised with 3 of noise -3.3."""
+    z_raw = (rows - mean) / std
+    k_raw, k_norm = float(np.sqrt(np.mean(z_raw ** 2))), float(np.sqrt(np.mean(rows ** 2)))
+    if k_raw <= 0 or k_norm <= 0:
+        return 0.0, k_raw, k_norm
+    return float(np.log(k_norm) - np.log(k_raw) - np.mean(np.log(std))), k_raw, k_norm
+
+
+def check_feature_kind(folder: Path, rows: np.ndarray, stats, normalized: bool) -> None:
+    """Refuse rows that are clearly the other kind than ``--normalized`` says (one line)."""
+    score, k_raw, k_norm = feature_kind_score(rows, stats.mean.astype(np.float64), stats.std.astype(np.float64))
+    plausible = lambda k: 0.1 <= k <= 10.0                      # noqa: E731  (the other reading fits at all)
+    if normalized and score > FEATURE_KIND_MARGIN["raw"] and plausible(k_raw):
+        raise ImportProblem(f"{folder}: the feature rows look raw, not normalised: they match the store's train "
+                            f"mean/std (log-likelihood {score:+.1f} per value in favour of raw); drop --normalized")
+    if not normalized and score < -FEATURE_KIND_MARGIN["normalized"] and plausible(k_norm):
+        raise ImportProblem(f"{folder}: the feature rows look normalised (per-column mean ~0, std ~1; "
+                            f"log-likelihood {-score:+.1f} per value in favour of normalised): pass --normalized")
+
+
 def read_features(folder: Path, ids: list[str], store: Store, normalized: bool, budget: ReadBudget) -> list[tuple[str, str, dict]]:
     from ..representations import hml263, hoi269
-    out = []
+    loaded: list[tuple[str, list[np.ndarray]]] = []
     for key, files in _group_files(folder, ".npy", ids).items():
         samples = []
         for p in files:
@@ -318,20 +361,69 @@ def read_features(folder: Path, ids: list[str], store: Store, normalized: bool, 
                 raise ImportProblem(f"{p}: not a readable array ({type(exc).__name__})") from None
             if f.shape[-1] not in (hml263.DIM, hoi269.DIM) or f.ndim not in (2, 3):
                 raise ImportProblem(f"{p}: features: expected (T, 263), (T, 269) or (K, T, D), got {f.shape}")
-            if normalized:
-                try:
-                    st = store.stats("hoi269" if f.shape[-1] == hoi269.DIM else "hml263")
-                except FileNotFoundError:
-                    raise ImportProblem(f"{store.root}/stats: no statistics to de-normalise {p.name} with") from None
-                f = f * st.std + st.mean
             samples.extend(list(f) if f.ndim == 3 else [f])
+        loaded.append((key, samples))
+    for dim, rep in ((hoi269.DIM, "hoi269"), (hml263.DIM, "hml263")):
+        rows = [s for _, samples in loaded for s in samples if s.shape[-1] == dim]
+        if not rows:
+            continue
+        try:
+            st = store.stats(rep)
+        except FileNotFoundError:
+            if normalized:
+                raise ImportProblem(f"{store.root}/stats: no {rep} statistics to de-normalise {folder} with") from None
+            continue
+        check_feature_kind(folder, np.concatenate(rows), st, normalized)
+        if normalized:
+            for _, samples in loaded:
+                samples[:] = [s * st.std + st.mean if s.shape[-1] == dim else s for s in samples]
+    out = []
+    for key, samples in loaded:
         T = min(len(s) for s in samples)
-        f = np.stack([s[:T] for s in samples])
+        try:
+            f = np.stack([s[:T] for s in samples])
+        except ValueError:
+            raise ImportProblem(f"{folder}: samples of {key} have different feature sizes") from None
         if f.shape[-1] == hoi269.DIM:
             j, rot, trans = hoi269.decode(f)
             out.append((key, "", {"joints": j, "obj_rot": rot, "obj_trans": trans}))
         else:
             out.append((key, "", {"joints": hml263.decode(f)}))
+    return out
+
+
+#: SMPL-family thigh (hip -> knee, joints 1->4 and 2->5) length in metres an adult has
+THIGH_M = (0.25, 0.65)
+_UNITS = ((100.0, "centimetres", 0.01), (1000.0, "millimetres", 0.001))
+
+
+def joint_warnings(results: Path, entries: list, converted_from_z: bool) -> list[str]:
+    """Warnings about joints that look in other units than metres or another up axis than the
+    import assumed: the median thigh length (``|J_knee - J_hip|``, metres expected in
+    :data:`THIGH_M`) and the median spine direction (pelvis -> neck, joints 0 -> 12; +y expected)."""
+    js = [a["joints"] for _, _, a in entries if "joints" in a and np.asarray(a["joints"]).size]
+    if not js:
+        return []
+    j = np.concatenate([np.asarray(x, np.float64).reshape(-1, 22, 3) for x in js])
+    j = j[np.isfinite(j).all((1, 2))]
+    if not len(j):
+        return []
+    out = []
+    thigh = float(np.median(np.linalg.norm(j[:, [4, 5]] - j[:, [1, 2]], axis=-1)))
+    for factor, unit, scale in _UNITS:
+        if THIGH_M[0] * factor * 0.5 <= thigh <= THIGH_M[1] * factor * 1.5:
+            out.append(f"{results}: the joints look like {unit} (median thigh {thigh:.1f} units long; an adult's is "
+                       f"{THIGH_M[0]}-{THIGH_M[1]} m): multiply them by {scale:g} (metres expected) and import again")
+            break
+    c = np.median(j[:, 12] - j[:, 0], axis=0)
+    spine = np.array([c[0], -c[2], c[1]]) if converted_from_z else c        # back in the source's frame
+    axis = int(np.argmax(np.abs(spine)))
+    found, assumed = ("-" if spine[axis] < 0 else "+") + "xyz"[axis], "+z" if converted_from_z else "+y"
+    if np.linalg.norm(spine) > 0 and found != assumed:
+        fix = {"+z": "pass --up z", "+y": "they are y up: do not pass --up z"}.get(
+            found, "rotate them to y up (or z up with --up z) first")
+        out.append(f"{results}: the joints' spine (pelvis -> neck) points along {found} in the source, but "
+                   f"{assumed} is up for this import: {fix}")
     return out
 
 
@@ -367,6 +459,9 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
     if not entries:
         raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt in ('chois', 'params') else '.npy'} sample files "
                             f"or entries found)")
+    warnings = joint_warnings(results, entries, fmt == "chois" or (up == "z" and fmt in ("joints", "params")))
+    for line in warnings:
+        print(f"hoibench import: warning: {line}", file=sys.stderr)
     src_fps = float(fps) if fps is not None else SOURCE_FPS.get(fmt, store_fps)
     if not (np.isfinite(src_fps) and 1 <= src_fps <= 1000):
         raise ImportProblem(f"--fps: expected 1..1000 frames per second, got {fps!r}")
@@ -397,7 +492,7 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
                    **({"body_model": model_type, "default_gender": gender} if fmt == "params" else {})}
     report = {"matched": len(samples), "test_ids": len(ids), "missing_ids": sorted(set(ids) - set(samples)),
               "unmatched_entries": matcher.unmatched, "ambiguous_texts": sorted(set(matcher.ambiguous)),
-              "samples_per_prompt": sorted(K), "conversions": conversions}
+              "samples_per_prompt": sorted(K), "conversions": conversions, "warnings": warnings}
     gt_len = {cid: len(store.load(cid, keys=("joints",))["joints"]) for cid in samples}
     has_object = {c["id"] for c in store.manifest["clips"] if c.get("object")}
     without = sorted(c for c in samples if c in has_object and "obj_trans" not in samples[c])
@@ -412,7 +507,7 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
                       "samples_per_prompt": max(K), "checkpoint_selection": "unknown",
                       **({"human_only": True} if human_only else {})},
             "source": {"import": {**conversions, "results": str(results), "missing_ids": len(report["missing_ids"]),
-                                  "unmatched_entries": len(matcher.unmatched)}, "toolkit_version": __version__}}
+                                  "unmatched_entries": len(matcher.unmatched), "warnings": warnings}, "toolkit_version": __version__}}
     if len(K) > 1:
         raise ImportProblem(f"{results}: prompts have different numbers of samples ({sorted(K)}); a submission "
                             f"has one K")
