@@ -1,4 +1,4 @@
-"""Reference baselines trained, sampled and scored by hoibench (DESIGN section 10).
+"""Reference baselines trained, sampled and scored by hoibench (docs/baselines.md).
 
 ``diffusion``  the diffusion core the diffusion baselines share (schedule, x0, DDIM, CFG, EMA)
 ``chainhoi``   ChainHOI (CVPR 2025): GST-GCN + KIM over the HOI joint graph

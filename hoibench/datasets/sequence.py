@@ -1,6 +1,6 @@
 """``HOISequence``: the canonical in-memory clip every loader produces.
 
-Conventions (DESIGN section 3): metres, seconds, y-up right-handed world with the floor at
+Conventions (docs/representations.md, docs/datasets.md): metres, seconds, y-up right-handed world with the floor at
 y = 0, SMPL joint order. Object vertices are ``v = R v_template + t`` with the template
 centred on its vertex mean.
 """

@@ -1,6 +1,6 @@
 """``synthetic``: a deterministic procedural HOI dataset in the BEHAVE raw layout.
 
-hoibench's embedded default data (DESIGN section 4): clips of a person lifting, carrying,
+hoibench's embedded default data (docs/datasets.md, "synthetic (embedded default)"): clips of a person lifting, carrying,
 putting down, pushing, pulling, sitting on, kicking and holding primitive-built objects,
 written exactly like BEHAVE's release so that ``hoibench prepare behave`` runs end to end on
 it, with the ground truth beside every sequence so that metrics can be checked against

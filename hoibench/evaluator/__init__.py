@@ -1,4 +1,4 @@
-"""Contrastive text-motion evaluator (DESIGN section 7).
+"""Contrastive text-motion evaluator (docs/evaluator.md).
 
 Modules, one job each:
 

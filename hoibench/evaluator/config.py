@@ -51,7 +51,7 @@ def check_fields(cfg, ints: dict, reals: dict, section: str) -> None:
 class ModelConfig:
     """Architecture of both branches.
 
-    ``paper``: width 384, 8 layers, 8 heads, feed-forward 1536, dropout 0.3 (DESIGN section 7).
+    ``paper``: width 384, 8 layers, 8 heads, feed-forward 1536, dropout 0.3 (docs/evaluator.md, "Model").
     ``tiny``: width 64, 2 layers, 4 heads, feed-forward 128, dropout 0.1, for CPU tests.
     """
 
