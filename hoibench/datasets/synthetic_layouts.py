@@ -69,7 +69,7 @@ from ..bodies.proxy import PROXY_SCALE_PER_BETA, ProxyBody, write_proxy_model
 from ..bodies.transform import rigid_transform_smpl
 from ..core.io import atomic_write_bytes, atomic_write_text, npz_bytes
 from .omomo import PICKLES, ZUP_TO_YUP
-from .rich import SMPL_NUM_VERTICES, vertex_joint_map
+from .rich_contacts import SMPL_NUM_VERTICES, vertex_joint_map
 from .synthetic import FPS, GENERATOR_VERSION, OBJECTS, SyntheticClip, build_object, generate_clip, plan_clips
 
 __all__ = ["OMOMO_SUBJECT", "OMOMO_OBJECT_SCALE", "RICH_SCENES", "write_omomo_layout", "write_rich_layout"]
