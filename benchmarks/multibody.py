@@ -15,7 +15,8 @@ from pathlib import Path
 
 from hoibench.datasets import multibody as mbl
 from hoibench.datasets import synthetic_multibody as syn
-from hoibench.scoring.multibody import evaluate, write_multibody_submission
+from hoibench.scoring.evaluate import evaluate
+from hoibench.scoring.multibody import write_multibody_submission
 from hoibench.evaluator.recognizer import train_recognizer
 from hoibench.datasets.store import PrepareConfig, prepare
 

@@ -28,7 +28,8 @@ from hoibench.datasets import multibody as mbl
 from hoibench.datasets import synthetic_multibody as syn
 from hoibench.datasets.store import PrepareConfig, prepare
 from hoibench.evaluator.recognizer import train_recognizer
-from hoibench.scoring.multibody import evaluate, write_multibody_submission
+from hoibench.scoring.evaluate import evaluate
+from hoibench.scoring.multibody import write_multibody_submission
 
 KEYS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
 RUNS = {"full": {}, "no_decompose": {"syncdiff.decompose": False}, "no_align": {"syncdiff.align_loss": False}}

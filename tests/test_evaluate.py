@@ -134,7 +134,7 @@ def test_the_gate_is_measured_on_the_store_not_read_from_the_card(setup, tmp_pat
 
 
 def test_undefined_metrics_are_named_and_infinite_ones_stop_the_run():
-    from hoibench.scoring.evaluate import _finite_rows
+    from hoibench.scoring.hoi import _finite_rows
     rows, undefined = _finite_rows([{"fid": 1.0, "fsr": float("nan")}, {"fid": 2.0, "fsr": float("nan")}])
     assert rows == [{"fid": 1.0}, {"fid": 2.0}] and "fsr" in undefined and "2 of 2" in undefined["fsr"]
     with pytest.raises(ValueError, match="'cd' is infinite in replication 1"):

@@ -97,7 +97,7 @@ def scored(monkeypatch):
         calls.append((a, k))
         return {**_result(), "kind": "hoi"}
     monkeypatch.setattr(ev_mod, "evaluate", fake)
-    monkeypatch.setattr(ev_mod, "format_any", lambda r: "TABLE")
+    monkeypatch.setattr(ev_mod, "format_result", lambda r: "TABLE")
     return calls
 
 

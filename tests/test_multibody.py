@@ -186,7 +186,7 @@ def test_the_recognizer_is_far_above_chance_on_the_ground_truth_and_deterministi
 
 
 def test_ground_truth_scores_best_and_defects_score_worse(track):
-    from hoibench.scoring.multibody import evaluate
+    from hoibench.scoring.evaluate import evaluate
     base, _, _, subs = track
     res = {k: evaluate(p, base / "data", base / "rec") for k, p in subs.items()}
     gt = res["gt"]["metrics"]
@@ -204,7 +204,7 @@ def test_ground_truth_scores_best_and_defects_score_worse(track):
 
 
 def test_serial_and_process_executors_give_identical_results(track):
-    from hoibench.scoring.multibody import evaluate
+    from hoibench.scoring.evaluate import evaluate
     base, _, _, subs = track
     a = evaluate(subs["desync"], base / "data", base / "rec", executor="serial")
     b = evaluate(subs["desync"], base / "data", base / "rec", executor="processes:2")

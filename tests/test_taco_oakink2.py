@@ -295,7 +295,8 @@ def _protocol(tmp_path, dataset: str, fps: int):
 
 def test_the_multibody_track_scores_both_stores(taco_store, oi_store, tmp_path):
     from hoibench.evaluator.recognizer import train_recognizer
-    from hoibench.scoring.multibody import evaluate, write_multibody_submission
+    from hoibench.scoring.evaluate import evaluate
+from hoibench.scoring.multibody import write_multibody_submission
     for name, data, fps in (("taco", taco_store, 30), ("oakink2", oi_store, 120)):
         proto = _protocol(tmp_path, name, fps)
         train_recognizer(data, tmp_path / f"rec_{name}", split="all", steps=5)

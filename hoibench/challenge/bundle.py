@@ -12,7 +12,9 @@ Layout of ``bundle.zip``::
     docker/Dockerfile         the image the competition names: hoibench CPU-only
 
 Phases map to the protocol's split (every phase scores the hidden test split; they differ
-in dates and submission limits: ``dev`` 5 a day, ``test`` 2 in all by default). The
+in dates and submission limits: ``dev`` 5 a day, ``test`` 2 in all by default). Their dates
+(:func:`phase_dates`) run from ``start`` (default: the day the bundle is built) to ``end``
+(default: :data:`PHASE_DAYS` days per phase), split into consecutive equal parts. The
 leaderboard has one column per metric of the track (sorting ``asc`` for lower-is-better,
 ``desc`` otherwise), the primary column first, plus the hidden ``evaluator_id8`` and
 ``protocol_sha8`` columns.
@@ -33,6 +35,8 @@ REQUIRED_FILES = ("competition.yaml", "terms.md", "scoring_program.zip", "refere
 REQUIRED_KEYS = ("version", "title", "terms", "pages", "tasks", "phases", "leaderboards")
 PHASE_LIMITS = {"dev": {"max_submissions_per_day": 5, "max_submissions": 100},
                 "test": {"max_submissions_per_day": 1, "max_submissions": 2}}
+#: the days of one phase when the bundle names no end date
+PHASE_DAYS = 90
 SCORING_COMMAND = "python3 /app/program/score.py /app/input /app/output"
 #: the largest bundle :func:`check_bundle` reads
 MAX_BUNDLE_BYTES = 64 * 1024 ** 3
@@ -43,12 +47,12 @@ MAX_KEY = 36
 def leaderboard_columns(track: str) -> list[dict]:
     """Codabench columns for ``track``'s leaderboard metrics (plus the hidden id columns)."""
     from ..metrics import METRICS
-    from ..publish.leaderboard import SHORT, table_columns
+    from ..publish.leaderboard import table_columns, title
     cols = []
     for i, key in enumerate(table_columns(track)):
         info = METRICS.get(key)
         sorting = "desc" if (info is not None and info.higher_is_better) else "asc"
-        cols.append({"title": SHORT.get(key, key)[:MAX_KEY], "key": key[:MAX_KEY], "index": i, "sorting": sorting,
+        cols.append({"title": title(key)[:MAX_KEY], "key": key[:MAX_KEY], "index": i, "sorting": sorting,
                      "precision": 4})
     n = len(cols)
     cols += [{"title": "evaluator id (8 hex as int)", "key": "evaluator_id8", "index": n, "sorting": "asc",
@@ -63,14 +67,54 @@ def _yaml(obj) -> str:
     return yaml.safe_dump(obj, sort_keys=False, allow_unicode=True, default_flow_style=False)
 
 
-def competition_yaml(title: str, track: str, phases: list[str], docker_image: str, start: date) -> dict:
-    """The ``competition.yaml`` mapping (Codabench YAML version 2)."""
+def phase_dates(n: int, start: date, end: date | None = None) -> list[tuple[date, date]]:
+    """First and last day (inclusive) of ``n`` consecutive phases from ``start`` to ``end``:
+    ``end - start + 1`` days split into ``n`` parts of ``(end - start + 1) // n`` days, the last
+    part taking the remainder. Default ``end``: ``PHASE_DAYS`` days per phase."""
+    if end is None:
+        end = start + timedelta(days=PHASE_DAYS * n - 1)
+    if end < start:
+        raise ValueError(f"--end {end.isoformat()}: before --start {start.isoformat()}")
+    days = (end - start).days + 1
+    if days < n:
+        raise ValueError(f"--end {end.isoformat()}: {n} phases need at least {n} days from --start "
+                         f"{start.isoformat()}, got {days}")
+    length = days // n
+    out = [(start + timedelta(days=length * i), start + timedelta(days=length * (i + 1) - 1)) for i in range(n)]
+    out[-1] = (out[-1][0], end)
+    return out
+
+
+def phase_warnings(phases: list[dict], today: date) -> list[str]:
+    """Phases of a ``competition.yaml`` that will take no submissions: without a start date,
+    ending before they start, or ended before ``today``."""
+    out = []
+    for p in phases:
+        name, start, end = p.get("name"), p.get("start"), p.get("end")
+        try:
+            start = date.fromisoformat(str(start)) if start is not None else None
+            end = date.fromisoformat(str(end)) if end is not None else None
+        except ValueError:
+            continue                      # a problem, reported by check_bundle
+        if start is None:
+            out.append(f"phase {name}: no start date: it never starts")
+        elif end is not None and end < start:
+            out.append(f"phase {name}: ends ({end.isoformat()}) before it starts ({start.isoformat()}): "
+                       f"it never starts")
+        elif end is not None and end < today:
+            out.append(f"phase {name}: ended on {end.isoformat()} (today is {today.isoformat()}); set new dates "
+                       f"with hoibench challenge bundle --start DATE --end DATE")
+    return out
+
+
+def competition_yaml(title: str, track: str, phases: list[str], docker_image: str, start: date,
+                     end: date | None = None) -> dict:
+    """The ``competition.yaml`` mapping (Codabench YAML version 2); phase dates by :func:`phase_dates`."""
     cols = leaderboard_columns(track)
     ph = []
-    for i, name in enumerate(phases):
-        begin = start + timedelta(days=90 * i)
+    for i, (name, (begin, last)) in enumerate(zip(phases, phase_dates(len(phases), start, end))):
         ph.append({"index": i, "name": name, "description": f"{name} phase: scores the hidden test split",
-                   "start": begin.isoformat(), "end": (begin + timedelta(days=89)).isoformat(),
+                   "start": begin.isoformat(), "end": last.isoformat(),
                    "execution_time_limit": 3600, "tasks": [0],
                    **PHASE_LIMITS.get(name, PHASE_LIMITS["dev"])})
     return {"version": 2, "title": title, "description": f"Text-driven 3D human-object interaction generation, "
@@ -147,8 +191,9 @@ def _zip_folder(folder: Path) -> bytes:
 
 def build_bundle(data: str | Path, evaluator: str | Path, out: str | Path, protocol: str | None = None,
                  title: str | None = None, phases: tuple[str, ...] = ("dev", "test"),
-                 docker_image: str | None = None, start: date | None = None) -> Path:
-    """Write the Codabench bundle ``out`` (a .zip); return its path."""
+                 docker_image: str | None = None, start: date | None = None, end: date | None = None) -> Path:
+    """Write the Codabench bundle ``out`` (a .zip); return its path. The phases run from
+    ``start`` (default: today) to ``end`` (default: ``PHASE_DAYS`` days each), :func:`phase_dates`."""
     from ..core.io import atomic_write_bytes
     from ..datasets.store import Store
     from ..evaluator.backends import load_evaluator
@@ -162,6 +207,8 @@ def build_bundle(data: str | Path, evaluator: str | Path, out: str | Path, proto
         raise ValueError(f"--out {out}: exists; choose a new file")
     if not phases or len(set(phases)) != len(phases) or not all(p.isidentifier() for p in phases):
         raise ValueError(f"--phases: expected distinct names such as dev,test, got {','.join(phases)!r}")
+    start = start or date.today()
+    phase_dates(len(phases), start, end)              # bad dates refused before any work
     store = Store(Path(data))
     track = track_for_store(store)
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
@@ -184,8 +231,8 @@ def build_bundle(data: str | Path, evaluator: str | Path, out: str | Path, proto
         (prog / "metadata.yaml").write_text(f"command: {SCORING_COMMAND}\n")
         (prog / "score.py").write_text(SCORE_PY)
         members["scoring_program.zip"] = _zip_folder(prog)
-    members["competition.yaml"] = _yaml(competition_yaml(title, track.name, list(phases), image,
-                                                         start or date(date.today().year, 1, 1))).encode()
+    members["competition.yaml"] = _yaml(competition_yaml(title, track.name, list(phases), image, start,
+                                                         end)).encode()
     members.update({k: v.encode() for k, v in _pages(title, track.name, proto, ev.id, cols).items()})
     members["logo.png"] = _logo_png()
     members["docker/Dockerfile"] = DOCKERFILE.format(image=image).encode()
@@ -202,23 +249,30 @@ def build_bundle(data: str | Path, evaluator: str | Path, out: str | Path, proto
 
 def check_bundle(path: str | Path) -> list[str]:
     """Problems of a bundle against Codabench's v2 unpacker: required files and keys, every
-    file the YAML names present, tasks with a scoring program, phases naming known tasks,
-    leaderboard columns with title/key/index/sorting within Codabench's limits, and a
-    scoring program with a ``command``. Empty when it would unpack."""
+    file the YAML names present, tasks with a scoring program, phases naming known tasks
+    with ISO dates, leaderboard columns with title/key/index/sorting within Codabench's
+    limits, and a scoring program with a ``command``. Empty when it would unpack."""
+    return inspect_bundle(path)[0]
+
+
+def inspect_bundle(path: str | Path, today: date | None = None) -> tuple[list[str], list[str]]:
+    """``(problems, warnings)`` of a bundle: the problems of :func:`check_bundle` and the
+    :func:`phase_warnings` of its phases on ``today`` (default: the current date)."""
     import yaml
     probs: list[str] = []
+    warns: list[str] = []
     from ..core.io import read_regular_file
     data = read_regular_file(path, MAX_BUNDLE_BYTES, "bundle")
     with zipfile.ZipFile(io.BytesIO(data)) as z:  # read-ok: bytes read through the guarded reader
         names = set(z.namelist())
         big = [i.filename for i in z.infolist() if i.filename.endswith((".yaml", ".md")) and i.file_size > 1 << 20]
         if big:
-            return [f"{big[0]}: over 1 MiB"]
+            return [f"{big[0]}: over 1 MiB"], warns
         for f in REQUIRED_FILES:
             if f not in names:
                 probs.append(f"missing file {f}")
         if "competition.yaml" not in names:
-            return probs
+            return probs, warns
         comp = yaml.safe_load(z.read("competition.yaml"))  # read-ok: size checked above; safe_load builds plain data
         for k in REQUIRED_KEYS:
             if k not in comp:
@@ -249,8 +303,12 @@ def check_bundle(path: str | Path) -> list[str]:
             if not p.get("tasks") or any(i not in tasks for i in p["tasks"]):
                 probs.append(f"phase {p.get('name')}: tasks {p.get('tasks')} unknown")
             for k in ("start", "end"):
-                if k in p:
-                    date.fromisoformat(str(p[k]))
+                try:
+                    if k in p:
+                        date.fromisoformat(str(p[k]))
+                except ValueError:
+                    probs.append(f"phase {p.get('name')}: {k} {p[k]!r} is not an ISO date (YYYY-MM-DD)")
+        warns += phase_warnings(comp.get("phases", []), today or date.today())
         for lb in comp.get("leaderboards", []):
             keys = set()
             for c in lb.get("columns", []):
@@ -264,8 +322,8 @@ def check_bundle(path: str | Path) -> list[str]:
                 if c.get("key") in keys:
                     probs.append(f"column {c.get('key')}: duplicate key")
                 keys.add(c.get("key"))
-    return probs
+    return probs, warns
 
 
-__all__ = ["REQUIRED_FILES", "REQUIRED_KEYS", "leaderboard_columns", "competition_yaml", "build_bundle",
-           "check_bundle"]
+__all__ = ["REQUIRED_FILES", "REQUIRED_KEYS", "PHASE_DAYS", "leaderboard_columns", "phase_dates", "phase_warnings",
+           "competition_yaml", "build_bundle", "check_bundle", "inspect_bundle"]

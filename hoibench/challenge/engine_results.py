@@ -43,9 +43,9 @@ def rows_from_export(export: dict) -> list[tuple[str, str, dict[str, float | str
 def entries_from_export(export_file: str | Path, bundle_info: dict, engine: str = "codabench") -> tuple[list, list]:
     """(entries, refusals) for the rows of ``export_file`` against ``bundle_info`` (the
     bundle's ``challenge.json``)."""
-    from ..publish.leaderboard import SHORT
+    from ..publish.leaderboard import title as column_title
     export = read_json_file(export_file, 64 << 20, "leaderboard export")
-    by_title = {SHORT.get(k, k): k for k in bundle_info["columns"]}
+    by_title = {column_title(k): k for k in bundle_info["columns"]}
     want_ev, want_proto = engine_id(bundle_info["evaluator_id"]), engine_id(bundle_info["protocol_sha256"])
     entries, refused = [], []
     for board, name, vals in rows_from_export(export):

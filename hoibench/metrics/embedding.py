@@ -300,9 +300,6 @@ class FID(Metric):
     """
 
     name = "fid"
-    higher_is_better = False
-    units = "squared embedding distance"
-    paper_column = "FID"
 
     def __init__(self, num_features: int = 512):
         super().__init__()
@@ -348,9 +345,6 @@ class RPrecision(Metric):
     """
 
     name = "r_precision"
-    higher_is_better = True
-    units = "fraction"
-    paper_column = "R Precision Top 1/2/3 (and MM Dist)"
 
     def __init__(self, top_k: int = 3):
         super().__init__()
@@ -386,9 +380,6 @@ class Diversity(Metric):
     real motion's value is best)."""
 
     name = "diversity"
-    higher_is_better = None
-    units = "embedding distance"
-    paper_column = "Diversity"
 
     def __init__(self, times: int = 300):
         super().__init__()
@@ -419,9 +410,6 @@ class MultiModality(Metric):
     ``compute(seed)`` stacks them in key order and applies :func:`multimodality`."""
 
     name = "multimodality"
-    higher_is_better = True
-    units = "embedding distance"
-    paper_column = "MultiModality"
 
     def __init__(self, times: int = 10):
         super().__init__()

@@ -39,7 +39,8 @@ The code lives in four parts; this module re-exports them (import from here):
 from __future__ import annotations
 
 from .multibody_common import (CRR_THRESHOLD_M, CSR_THRESHOLD_M, DIFFH2O_FRAMES, DISTANCES, DIVERSITY_MODES, IV_VOXEL_M,
-                               M3_TO_CM3, M_TO_MM, NSAMPLES, PAIR_REDUCTIONS, PosedMesh, check_closed)
+                               M3_TO_CM3, M_TO_MM, NSAMPLES, PAIR_REDUCTIONS, PosedMesh, check_closed,
+                               recognition_accuracy)
 from .multibody_contact import (CRR, CSR, CSIoU, contact_frames_hand, contact_frames_human_roots, contact_ratio,
                                 contact_root_ratio, contact_surface_iou, contact_surface_ratio, frame_iou,
                                 hand_object_distance, root_object_distances)
@@ -51,7 +52,7 @@ from .multibody_diversity import (OverallDiversity, SampleDiversity, downsample_
 
 __all__ = [
     "CSR_THRESHOLD_M", "CRR_THRESHOLD_M", "IV_VOXEL_M", "DIFFH2O_FRAMES", "NSAMPLES", "DISTANCES",
-    "PosedMesh", "check_closed", "hand_object_distance", "contact_frames_hand", "root_object_distances",
+    "PosedMesh", "check_closed", "recognition_accuracy", "hand_object_distance", "contact_frames_hand", "root_object_distances",
     "contact_frames_human_roots", "contact_ratio", "contact_surface_ratio", "contact_root_ratio", "frame_iou",
     "contact_surface_iou", "interpenetration_volume", "interpenetration_depth", "PairwisePenetration",
     "pairwise_penetration", "reduce_pairs", "clip_interpenetration_volume", "clip_interpenetration_depth",

@@ -287,3 +287,13 @@ class _PerClipMean(Metric):
         v = np.array([x for _, x in sorted_items(self.clips)], dtype=np.float64)
         v = v[~np.isnan(v)]
         return float(v.mean()) if len(v) else float("nan")
+
+
+def recognition_accuracy(predicted, actions) -> float:
+    """RA: the fraction of generated clips whose recognised action equals the prompt's
+    action label (SyncDiff, section 4.2), ``mean(predicted[i] == actions[i])``."""
+    predicted, actions = list(predicted), list(actions)
+    if len(predicted) != len(actions) or not predicted:
+        raise ValueError(f"predicted, actions: expected two non-empty lists of one length, got "
+                         f"{len(predicted)} and {len(actions)}")
+    return float(np.mean([p == a for p, a in zip(predicted, actions)]))

@@ -127,9 +127,6 @@ class CSR(_PerClipMean):
     clips (fraction; the paper prints %)."""
 
     name = "csr"
-    higher_is_better = True
-    units = "fraction"
-    paper_column = "CSR (SyncDiff)"
 
     def __init__(self, threshold_m: float = CSR_THRESHOLD_M, distance: str = "surface"):
         super().__init__()
@@ -160,9 +157,6 @@ class CRR(_PerClipMean):
     the mean over clips (fraction)."""
 
     name = "crr"
-    higher_is_better = True
-    units = "fraction"
-    paper_column = "CRR (SyncDiff)"
 
     def __init__(self, threshold_m: float = CRR_THRESHOLD_M, same_object: bool = True, distance: str = "surface"):
         super().__init__()
@@ -201,9 +195,6 @@ class CSIoU(_PerClipMean):
     None to leave that hand out)."""
 
     name = "csiou"
-    higher_is_better = True
-    units = "fraction"
-    paper_column = "CSIoU (SyncDiff)"
 
     def __init__(self, threshold_m: float = CSR_THRESHOLD_M, empty_union: float | None = 1.0,
                  distance: str = "surface"):

@@ -96,8 +96,6 @@ class _TrajectorySettings:
     """What SD and OD share: frames sampled per trajectory, the distance mode (metres) and
     their direction (higher is better)."""
 
-    higher_is_better = True
-    units = "m (diffh2o: flattened distance / frames)"
 
     def __init__(self, num_frames: int | None = DIFFH2O_FRAMES, mode: str = "diffh2o"):
         super().__init__()
@@ -113,7 +111,6 @@ class SampleDiversity(_TrajectorySettings, _PerClipMean):
     :func:`mean_pairwise_distance` for ``mode``)."""
 
     name = "sd"
-    paper_column = "SD (SyncDiff / DiffH2O)"
 
     def update(self, prompt_id, trajectories) -> None:
         """``trajectories``: the S >= 2 samples of one prompt, each (T, 3) or (T, J, 3)."""
@@ -128,7 +125,6 @@ class OverallDiversity(_TrajectorySettings, Metric):
     :func:`mean_pairwise_distance`)."""
 
     name = "od"
-    paper_column = "OD (SyncDiff / DiffH2O)"
 
     def __init__(self, num_frames: int | None = DIFFH2O_FRAMES, mode: str = "diffh2o"):
         super().__init__(num_frames, mode)

@@ -216,9 +216,6 @@ class InterpenetrationVolume(_Penetration):
     averaged over the clip's frames; the mean over clips."""
 
     name = "iv"
-    higher_is_better = False
-    units = "cm^3"
-    paper_column = "IV (SyncDiff / DiffH2O)"
 
     def __init__(self, voxel_m: float = IV_VOXEL_M, pair_reduction: str = "sum", nsamples: int = NSAMPLES,
                  check_closed_meshes: bool = True):
@@ -248,9 +245,6 @@ class InterpenetrationDepth(_Penetration):
     over the clip's frames; the mean over clips."""
 
     name = "id"
-    higher_is_better = False
-    units = "mm"
-    paper_column = "ID (SyncDiff / DiffH2O)"
 
     def update(self, clip_id, bodies, pairs=None) -> None:
         self._new_key(clip_id)

@@ -75,11 +75,6 @@ LEGACY_PS_NOTE = (
 
 #: names of the physical metrics (metadata: :data:`hoibench.metrics.METRICS`)
 PHYSICAL_OUTPUTS: tuple[str, ...] = tuple(n for n, i in METRICS.items() if i.kind == "physical")
-#: the physical metrics that need the object (its mesh and pose): undefined -- not
-#: applicable -- for clips without one (human-only stores such as RICH); FSR, FSR (GMD) and
-#: jitter read the joints only
-OBJECT_OUTPUTS: tuple[str, ...] = ("cd", "ocd", "ps", "penetration_depth_max_m", "penetration_depth_mean_m",
-                                   "contact_iou", "hand_contact_ratio", "object_floating_ratio")
 
 
 @dataclass(frozen=True)
@@ -187,8 +182,29 @@ def _body_fn(config: PhysicalConfig) -> Callable:
     return load_object(config.body_surface)
 
 
-def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig()) -> dict:
-    """Sufficient statistics of every physical metric for one clip (pure; see the module)."""
+def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(), extra: Sequence[str] = ()) -> dict:
+    """Sufficient statistics of every physical metric for one clip (pure; see the module);
+    ``extra``: catalogue metrics with a per-clip function (``clip_fn``), each one value."""
+    st = _core_stats(inp, config)
+    if extra:
+        st["extra"] = extra_clip_values(inp, extra)
+    return st
+
+
+def extra_clip_values(inp: ClipInput, names: Sequence[str]) -> dict[str, float]:
+    """``{name: clip_fn(inp)}`` for catalogue metrics defined by a per-clip function
+    (:attr:`hoibench.metrics.catalog.MetricInfo.clip_fn`); NaN where a clip has no value."""
+    from .catalog import get_metric_info
+    out = {}
+    for name in names:
+        info = get_metric_info(name)
+        if not info.clip_fn:
+            raise ValueError(f"metric {name!r}: the catalogue gives it no per-clip function (clip_fn)")
+        out[name] = float(load_object(info.clip_fn)(inp))
+    return out
+
+
+def _core_stats(inp: ClipInput, config: PhysicalConfig) -> dict:
     J = np.asarray(inp.joints, dtype=np.float64)
     if J.ndim != 3 or J.shape[1:] != (sk.NUM_JOINTS, 3):
         raise ValueError(f"{inp.key}: joints: expected shape (T, 22, 3), got {J.shape}")
@@ -282,23 +298,24 @@ def window_input(inp: ClipInput, start: int, length: int) -> ClipInput:
                    group_contacts=tuple(np.asarray(g)[start:] for g in inp.group_contacts), windows=())
 
 
-def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig()) -> dict[int, dict]:
+def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(),
+                      extra: Sequence[str] = ()) -> dict[int, dict]:
     """``{replication: stats}``: :func:`clip_physical_stats` of each window of
     ``inp.windows`` (:func:`window_input`); a window drawn twice is computed once."""
     done: dict[tuple[int, int], dict] = {}
     out = {}
     for r, start, length in inp.windows:
         if (start, length) not in done:
-            done[(start, length)] = clip_physical_stats(window_input(inp, start, length), config)
+            done[(start, length)] = clip_physical_stats(window_input(inp, start, length), config, extra)
         out[int(r)] = done[(start, length)]
     return out
 
 
-def _unit(inp: ClipInput, config: PhysicalConfig) -> tuple:
+def _unit(inp: ClipInput, config: PhysicalConfig, extra: Sequence[str] = ()) -> tuple:
     """``(key, stats)``; with windows ``(key, {"replications": {r: stats}})``."""
     if inp.windows:
-        return inp.key, {"replications": clip_window_stats(inp, config)}
-    return inp.key, clip_physical_stats(inp, config)
+        return inp.key, {"replications": clip_window_stats(inp, config, extra)}
+    return inp.key, clip_physical_stats(inp, config, extra)
 
 
 def _ratio(a, b) -> float:
@@ -314,9 +331,6 @@ class PhysicalMetrics(Metric):
     """
 
     name = "physical"
-    higher_is_better = None
-    units = "see PHYSICAL_OUTPUTS"
-    paper_column = "CD, OCD, PS, FSR (ChainHOI)"
 
     def __init__(self, mode: str = "clean", body_label: str = PROXY_LABEL):
         super().__init__()
@@ -350,6 +364,7 @@ class PhysicalMetrics(Metric):
                            contact_iou=_ratio(s.get("iou_inter", 0), s.get("iou_union", 0)),
                            hand_contact_ratio=_ratio(s["hand_frames"], s["frames"]),
                            object_floating_ratio=_ratio(s["float_frames"], s["frames"]))
+            row.update(s.get("extra", {}))
             out[k] = row
         return out
 
@@ -383,6 +398,9 @@ class PhysicalMetrics(Metric):
             "jitter_mps3": _ratio(tot("jerk_sum"), tot("jerk_count")),
             "clips": len(items), "clips_with_contact": len(cds), "body_surface": self.body_label,
         }
+        for name in sorted({n for s in items for n in s.get("extra", {})}):     # mean over clips with a value
+            vals = [s["extra"][name] for s in items if np.isfinite(s.get("extra", {}).get(name, np.nan))]
+            out[name] = _ratio(sum(vals), len(vals))
         return out
 
 
@@ -518,7 +536,7 @@ def clip_inputs(store, motions: Mapping[str, Mapping[str, np.ndarray]], sample: 
     return [make(cid, motions[cid], sample) for cid in sorted(motions)]
 
 
-__all__ = ["PHYSICAL_OUTPUTS", "OBJECT_OUTPUTS", "PS_SIGNS", "CD_EDGES", "LEGACY_PS_NOTE", "PhysicalConfig",
+__all__ = ["PHYSICAL_OUTPUTS", "PS_SIGNS", "CD_EDGES", "LEGACY_PS_NOTE", "PhysicalConfig",
            "ClipInput", "clip_physical_stats", "PhysicalMetrics", "window_input", "clip_window_stats",
            "evaluate_physical_windows",
            "evaluate_physical", "load_groups", "gt_contact_labels", "clip_inputs", "clip_input_factory"]

@@ -33,16 +33,17 @@ REDUCTIONS: tuple[str, ...] = ("sum", "keyed", "max")
 class Metric:
     """Base class: declared, mergeable state plus metadata.
 
-    Class attributes (metadata read by leaderboards instead of guessing):
-    ``name`` (registry name), ``higher_is_better`` (``True``, ``False`` or ``None`` when
-    the best value is the ground truth's, e.g. Diversity), ``units``, ``paper_column``
-    (the column it reproduces in the HumanML3D/T2M or ChainHOI tables, or ``None``).
+    ``name`` is the metric's key in the catalogue (:mod:`hoibench.metrics.catalog`), which
+    holds its unit, direction and the rest of its metadata (:attr:`info`).
     """
 
     name: ClassVar[str] = ""
-    higher_is_better: ClassVar[bool | None] = None
-    units: ClassVar[str] = ""
-    paper_column: ClassVar[str | None] = None
+
+    @property
+    def info(self):
+        """The catalogue entry of :attr:`name` (KeyError naming the known metrics)."""
+        from .catalog import get_metric_info
+        return get_metric_info(self.name)
 
     def __init__(self) -> None:
         self._defaults: dict[str, Any] = {}

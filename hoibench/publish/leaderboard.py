@@ -1,4 +1,4 @@
-"""Leaderboard entries (DESIGN section 11): one strict-JSON file per method and track.
+"""Leaderboard entries (docs/leaderboards.md): one strict-JSON file per method and track.
 
 ``leaderboards/<track>/entries/<slug>.json`` holds what a reader needs to compare a row:
 method, source (``reproduced`` by hoibench from a submission it scored, or ``reported`` in
@@ -13,9 +13,12 @@ import re
 from pathlib import Path
 
 from ..core.io import atomic_write_json
+from ..metrics.catalog import METRICS
 from ..tracks.catalog import HOI_COLUMNS
 
-ENTRY_FORMAT = "hoibench-entry-1"
+ENTRY_FORMAT = "hoibench-entry-2"
+#: entry formats :func:`read_entry` reads (older ones through :func:`upgrade_entry`)
+ENTRY_FORMATS = ("hoibench-entry-1", ENTRY_FORMAT)
 #: a track's own evaluator folder, shipped with a track whose rows hoibench reproduces
 TRACK_EVALUATOR = "evaluator"
 SOURCES = ("reproduced", "reported")
@@ -49,24 +52,18 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
                       submission_meta: dict | None = None, notes: str = "") -> dict:
     """An entry for a result of ``hoibench evaluate`` (``submission_meta``: the submission's
     ``submission.json``, for its ``source`` block)."""
+    from ..scoring.results import upgrade_result
     if source not in SOURCES:
         raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
+    result = upgrade_result(result)
     counts = result.get("counts", {})
-    if result.get("kind") == "multibody":          # plain values, half-widths in ``ci95``
-        ci = result.get("ci95", {})
-        metrics = {k: {"mean": v, "ci95": ci.get(k), "n": counts.get("samples")}
-                   for k, v in sorted(result.get("metrics", {}).items()) if v is not None}
-        counts = {"samples_per_prompt": result.get("protocol_settings", {}).get("samples_per_prompt"),
-                  "scored_ids": counts.get("clips"), "test_ids": counts.get("clips")}
-    else:
-        metrics = {k: {"mean": v["mean"], "ci95": v["ci95"], "n": v.get("n")}
-                   for k, v in sorted(result.get("metrics", {}).items())}
+    metrics = {k: {f: v.get(f) for f in ENTRY_METRIC_FIELDS} for k, v in sorted(result.get("metrics", {}).items())}
     return {
         "format": ENTRY_FORMAT, "track": track, "method": method, "source": source,
         "metrics": metrics, "undefined_metrics": result.get("undefined_metrics", {}),
-        "evaluator_id": _evaluator_id(result),
+        "evaluator_id": result.get("evaluator_id"),
         "evaluator_text_encoder": result.get("evaluator_text_encoder") or {},
-        "evaluator_backend": result.get("evaluator_backend", "contrastive" if result.get("evaluator_id") else None),
+        "evaluator_backend": result.get("evaluator_backend"),
         "protocol": result.get("protocol"),
         "protocol_version": result.get("protocol_version"), "representation": result.get("representation"),
         "toolkit_version": result.get("toolkit_version"), "replications": result.get("replications"),
@@ -78,9 +75,25 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
     }
 
 
-def _evaluator_id(result: dict) -> str | None:
-    """The id of the evaluator that scored ``result`` (a multi-body result's recognizer)."""
-    return result.get("evaluator_id") or result.get("recognizer_id")
+#: the fields of an entry's metric block
+ENTRY_METRIC_FIELDS = ("mean", "ci95", "n", "unit", "direction", "interval")
+
+
+def upgrade_entry(entry: dict) -> dict:
+    """An entry in :data:`ENTRY_FORMAT` (a new dict; numbers unchanged). ``hoibench-entry-1``
+    blocks gain the catalogue's unit and direction and what their interval is over: the
+    protocol's replications, or the scored samples for a multi-body row (its metrics are of
+    the catalogue's ``multibody`` kind, whose intervals were over samples)."""
+    if entry.get("format") != "hoibench-entry-1":
+        return entry
+    kinds = {METRICS[k].kind for k in entry.get("metrics", {}) if k in METRICS}
+    over = "samples" if "multibody" in kinds else "replications"
+    out = dict(entry, format=ENTRY_FORMAT)
+    out["metrics"] = {k: ({**m, "unit": METRICS[k].unit if k in METRICS else None,
+                           "direction": METRICS[k].direction if k in METRICS else None,
+                           "interval": over if m.get("ci95") is not None else "none"} if isinstance(m, dict) else m)
+                      for k, m in entry.get("metrics", {}).items()}
+    return out
 
 
 def write_entry(entry: dict, entries_dir: str | Path) -> Path:
@@ -90,10 +103,6 @@ def write_entry(entry: dict, entries_dir: str | Path) -> Path:
 
 # =========================================================================== tracks
 ROLES = ("ground-truth", "reference", "baseline", "method")
-#: the columns a leaderboard shows, in order (every other metric stays in the CSV)
-TABLE_METRICS = HOI_COLUMNS
-
-
 def table_columns(track: str) -> tuple[str, ...]:
     """The leaderboard columns of ``track`` (its registry entry's ``columns``; the
     single-body columns for a track the registry does not know)."""
@@ -104,10 +113,11 @@ def table_columns(track: str) -> tuple[str, ...]:
         return HOI_COLUMNS
 
 
-SHORT = {"r_precision_top1": "R@1", "r_precision_top2": "R@2", "r_precision_top3": "R@3", "fid": "FID",
-         "mm_dist": "MM-Dist", "diversity": "Diversity", "multimodality": "MModality", "cd": "CD", "ocd": "OCD",
-         "ps": "PS", "fsr": "FSR", "csr": "CSR", "crr": "CRR", "csiou": "CSIoU", "iv_cm3": "IV", "id_mm": "ID",
-         "sd": "SD", "od": "OD", "ra": "RA"}
+def title(name: str) -> str:
+    """A metric's column title (the catalogue's ``short``; the name for an unknown metric)."""
+    return METRICS[name].title if name in METRICS else name
+
+
 _REQUIRED = (("format", str), ("track", str), ("method", str), ("source", str), ("metrics", dict))
 
 
@@ -128,8 +138,9 @@ def read_entry(path: str | Path) -> dict:
     for key, t in _REQUIRED:
         if not isinstance(e.get(key), t):
             raise LeaderboardError(f"{path}: field {key}: expected a {t.__name__}, got {type(e.get(key)).__name__}")
-    if e["format"] != ENTRY_FORMAT:
-        raise LeaderboardError(f"{path}: field format: {e['format']!r} is not {ENTRY_FORMAT!r}")
+    if e["format"] not in ENTRY_FORMATS:
+        raise LeaderboardError(f"{path}: field format: {e['format']!r} is not one of {', '.join(ENTRY_FORMATS)}")
+    e = upgrade_entry(e)
     if e["source"] not in SOURCES:
         raise LeaderboardError(f"{path}: field source: expected one of {SOURCES}, got {e['source']!r}")
     from ..scoring.results import counts_problem, metrics_problem
@@ -261,7 +272,6 @@ def band(e: dict) -> str:
 def order(entries: list[dict], key: str = "fid") -> list[dict]:
     """Display order: the bands of :data:`BANDS`; inside one, rows by ``key`` (best first, rows
     without it last) -- in the reported band a paper's own ground-truth row first."""
-    from ..metrics import METRICS
     higher = METRICS[key].higher_is_better if key in METRICS else False
     bands = [b for b, _ in BANDS]
 
@@ -309,20 +319,23 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
     name (unless ``replace``), an incomplete result (unless ``allow_incomplete``: marked)."""
     if role not in ROLES:
         raise LeaderboardError(f"--role: expected one of {ROLES}, got {role!r}")
+    for flag, text in (("--method", method), ("--notes", notes)):
+        if not _utf8(text):
+            raise LeaderboardError(f"{flag}: not valid Unicode text (a byte the command line could not decode, "
+                                   f"kept as a lone surrogate): give the name in UTF-8")
     result_path, track_dir = Path(result_path), Path(track_dir)
     result = read_result(result_path)
-    if _evaluator_id(result) is None:
+    if result.get("evaluator_id") is None:
         raise LeaderboardError(f"{result_path}: field evaluator_id: missing: not a result of `hoibench evaluate`")
     track = track_dir.name
     existing = load_track(track_dir) if (track_dir / "entries").is_dir() else []
     ours = [e for e in existing if e["source"] == "reproduced"]
     ids = sorted({str(e.get("evaluator_id")) for e in ours})
-    if ids and str(_evaluator_id(result)) not in ids:
+    if ids and str(result.get("evaluator_id")) not in ids:
         shipped = track_dir / TRACK_EVALUATOR
         how = (f"rescore with the track's evaluator (hoibench evaluate SUB --data DATA --evaluator {shipped})"
                if (shipped / "card.json").is_file() else "rescore with that evaluator")
-        field = "evaluator_id" if result.get("evaluator_id") else "recognizer_id"
-        raise LeaderboardError(f"{result_path}: field {field}: {str(_evaluator_id(result))[:12]} is not the "
+        raise LeaderboardError(f"{result_path}: field evaluator_id: {str(result.get('evaluator_id'))[:12]} is not the "
                                f"evaluator of track {track!r} ({', '.join(i[:12] for i in ids)}): {how}, or "
                                f"rescore every row with this one")
     protos = sorted({f"{e.get('protocol')}@{e.get('protocol_version')}" for e in ours})

@@ -19,13 +19,13 @@ import re
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text, read_text_file
-from .leaderboard import (BANDS, SHORT, LeaderboardError, band, comparable, comparable_citations, load_track, order,
-                          ranks, shares_evaluator_text_encoder, table_columns, training_of)
+from ..metrics.catalog import ARROWS, METRICS, shown_value
+from .leaderboard import (BANDS, LeaderboardError, band, comparable, comparable_citations, load_track, order,
+                          ranks, shares_evaluator_text_encoder, table_columns, title, training_of)
 
 #: a track's about.md is read up to this size
 MAX_ABOUT_BYTES = 1024 ** 2
 
-ARROW = {True: "↑", False: "↓", None: "≈GT"}
 #: bar and point colour of each band (:data:`~hoibench.publish.leaderboard.BANDS`)
 COLORS = {"ground-truth": "#2b6cb0", "ranked": "#dd6b20", "reference": "#718096", "reported": "#a0aec0"}
 #: what a CI cell shows at K = 1 when the metric did not move over the replications
@@ -42,31 +42,30 @@ BAND_LEGEND = {"ground-truth": "bold on blue: hoibench's ground truth (the test 
 
 
 def _info(name: str):
-    from ..metrics import METRICS
     return METRICS.get(name)
 
 
-def _parts(m: dict | None, k=None) -> tuple[str, str]:
+def _parts(m: dict | None, k=None, name: str = "") -> tuple[str, str]:
     """(mean, CI) texts of a cell: 3 decimals (5 under 0.01); tiny negative FIDs of the
     reference numerics show as 0.000 (entries keep the raw value); a CI of exactly 0 at
-    K = 1 shows as :data:`K1_CI`."""
+    K = 1 shows as :data:`K1_CI` (an interval over replications only: one over clips or
+    samples of exactly 0 is a zero spread)."""
     if not m:
         return "-", ""
     mean, ci = float(m["mean"]), float(m.get("ci95") or 0.0)
-    if -1e-6 < mean < 0:
-        mean = 0.0
+    mean = shown_value(name, mean)
     digits = 3 if abs(mean) >= 0.01 or mean == 0 else 5
     if "ci95" in m and m["ci95"] is None:          # a hosted row: the engine keeps means only
         return f"{mean:.{digits}f}", ""
-    if k == 1 and ci == 0:
+    if k == 1 and ci == 0 and m.get("interval", "replications") == "replications":
         return f"{mean:.{digits}f}", K1_CI
     small = 0 < ci < 0.5 * 10 ** -digits            # a real spread that the digits would round to 0
     return f"{mean:.{digits}f}", (f"{ci:.1e}" if small else f"{ci:.{digits}f}")
 
 
-def fmt(m: dict | None, k=None) -> str:
+def fmt(m: dict | None, k=None, name: str = "") -> str:
     """``mean ± ci95`` (``-`` when absent); ``k``: the row's samples per prompt."""
-    mean, ci = _parts(m, k)
+    mean, ci = _parts(m, k, name)
     return mean if not ci else f"{mean} ± {ci}"
 
 
@@ -132,8 +131,8 @@ def _columns(entries: list[dict]) -> list[str]:
 
 def _header(name: str) -> str:
     info = _info(name)
-    arrow = ARROW[info.higher_is_better] if info else ""
-    return f"{SHORT.get(name, name)} {arrow}"
+    arrow = ARROWS[info.direction] if info else ""
+    return f"{title(name)} {arrow}"
 
 
 def _context(entries: list[dict]) -> str:
@@ -152,14 +151,13 @@ def _bands(entries: list[dict]) -> list[tuple[str, str, list[tuple[int | None, d
 
 
 def _replication_k(e: dict):
-    """The K that decides whether a zero CI means "n/a (K = 1)": the row's samples per prompt
-    for replication CIs; None for a multi-body row, whose CIs are over clips or samples (a
-    zero there is a zero spread)."""
-    return None if _multibody_entry(e) else e.get("samples_per_prompt")
+    """The K that decides whether a zero CI over replications means "n/a (K = 1)": the row's
+    samples per prompt (:func:`_parts` applies it to intervals over replications only)."""
+    return e.get("samples_per_prompt")
 
 
 def _any_k1(entries: list[dict], cols: list[str]) -> bool:
-    return any(_replication_k(e) == 1 and _parts(e["metrics"].get(c), 1)[1] == K1_CI
+    return any(_replication_k(e) == 1 and _parts(e["metrics"].get(c), 1, c)[1] == K1_CI
                for e in entries for c in cols)
 
 
@@ -200,22 +198,23 @@ def md_about(text: str) -> str:
     return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
 
 
-def _multibody_entry(e: dict) -> bool:
-    """Whether a row is a multi-body result's (SyncDiff's metrics, one replication)."""
-    return "csiou" in e["metrics"]
-
-
-def _multibody(entries: list[dict]) -> bool:
-    """Whether the rows are a multi-body track's."""
-    return any(_multibody_entry(e) for e in entries)
+def _over_replications(entries: list[dict]) -> bool:
+    """Whether the rows' intervals are over the protocol's replications (else over clips or
+    samples: each metric block says, ``interval``)."""
+    over = {m.get("interval") for e in entries for m in e["metrics"].values() if isinstance(m, dict)}
+    return "replications" in over or not (over - {"none", None})
 
 
 def _cells_text(entries: list[dict], form: str = "md") -> str:
-    """What a cell's ± means: over clips or samples (multi-body), over replications (else)."""
-    if _multibody(entries):
-        return ("value ± 95% half-width of the mean over clips or samples (none for the set-level SD, OD, FID)"
-                if form == "md" else "value, and below it the 95% half-width (±) of the mean over clips or "
-                "samples (none for the set-level SD, OD, FID)")
+    """What a cell's ± means: over replications, or over clips or samples (naming the
+    track's columns that have no interval)."""
+    if not _over_replications(entries):
+        track = entries[0]["track"] if entries else ""
+        none = ", ".join(title(c) for c in table_columns(track) if c in METRICS and METRICS[c].set_level)
+        tail = f" (none for the set-level {none})" if none else ""
+        return (f"value ± 95% half-width of the mean over clips or samples{tail}"
+                if form == "md" else f"value, and below it the 95% half-width (±) of the mean over clips or "
+                f"samples{tail}")
     return ("mean ± 95% CI over the protocol's replications" if form == "md" else
             "mean, and below it the 95% CI (±) over the protocol's replications")
 
@@ -240,13 +239,28 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
                 name += f" ({md_text(e.get('citation'))})"
             k = _replication_k(e)
             lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))} | "
-                         + " | ".join(fmt(e["metrics"].get(c), k) for c in cols) + f" | {md_text(budget(e))} |")
-    units = "; ".join(f"{SHORT.get(c, c)}: {_info(c).units}" for c in cols if _info(c))
+                         + " | ".join(fmt(e["metrics"].get(c), k, c) for c in cols) + f" | {md_text(budget(e))} |")
+    units = "; ".join(f"{title(c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else [])
     lines += ["", "Bar and point colours: " + ", ".join(f"{_COLOR_NAMES[b]} {b.replace('-', ' ')}"
                                                        for b, _, _ in _bands(entries)) + ".", "",
-              "![metrics](metrics.png)", ""] + ([] if _multibody(entries) else ["![FID vs R@1](fid_vs_r1.png)", ""])
+              "![metrics](metrics.png)", ""] + (["![FID vs R@1](fid_vs_r1.png)", ""] if _has_fid_r1(entries) else [])
     return "\n".join(lines)
+
+
+def _has_fid_r1(entries: list[dict]) -> bool:
+    """Whether some row has FID and R@1 (the FID vs R@1 plot)."""
+    return any("fid" in e["metrics"] and "r_precision_top1" in e["metrics"] for e in entries)
+
+
+def _headline(track: str) -> tuple[str, ...]:
+    """The metrics a track's page plots (its registry entry's ``headline``)."""
+    from ..tracks.registry import get_track
+    from ..tracks.track import Track
+    try:
+        return get_track(track).headline
+    except KeyError:
+        return Track.__dataclass_fields__["headline"].default
 
 
 _COLOR_NAMES = {"ground-truth": "blue", "ranked": "orange", "reference": "grey", "reported": "light grey"}
@@ -291,8 +305,7 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    shown = ("csiou", "iv_cm3", "ra", "fid") if _multibody(entries) else ("fid", "r_precision_top1", "cd", "fsr")
-    cols = [c for c in shown if any(c in e["metrics"] for e in entries)]
+    cols = [c for c in _headline(track) if any(c in e["metrics"] for e in entries)]
     out = {}
     rk = ranks(entries)
     fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 2.0),
@@ -317,7 +330,7 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     fig.legend(handles=_band_handles(entries), loc="lower center", ncol=4, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     out["metrics.png"] = _png(fig)
-    if _multibody(entries):
+    if not _has_fid_r1(entries):
         return out
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     pts, names, pcol, errs = [], [], [], []
@@ -495,8 +508,8 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
                 name += ' <span class="badge warn">incomplete</span>'
             k = _replication_k(e)
             cells = []
-            for m in (e["metrics"].get(c) for c in cols):
-                mean, ci = _parts(m, k)
+            for c, m in ((c, e["metrics"].get(c)) for c in cols):
+                mean, ci = _parts(m, k, c)
                 ci_html = f"<small>± {e_(ci)}</small>" if ci else ""
                 cells.append(f'<td data-v="{float(m["mean"]) if m else ""}">{e_(mean)}{ci_html}</td>')
             flags = e_(", ".join(_flags(e, entries)))
@@ -507,7 +520,7 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
         bodies.append(f'<tbody class="band-{b}">\n' + "\n".join(rows) + "\n</tbody>")
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
-    units = "; ".join(f"{e_(SHORT.get(c, c))}: {e_(_info(c).units)}" for c in cols if _info(c))
+    units = "; ".join(f"{e_(title(c))}: {e_(_info(c).units)}" for c in cols if _info(c))
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{e_(track)} leaderboard - hoibench</title>
 <meta name="viewport" content="width=device-width, initial-scale=1">

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .hoi import GROUPS, shown_mean
+from ..metrics.catalog import GROUPS, METRICS, shown_value
 from .results import read_result as load_result
 
 
@@ -53,7 +53,7 @@ def _cell(name: str, v: tuple[float, float] | None, ref: tuple[float, float] | N
     if v is None:
         return f"{'-':>{width}s}"
     star = "*" if starred and ref is not None and outside(v, ref) else " "
-    return f"{f'{shown_mean(name, v[0]):.4g} ± {v[1]:.2g}{star}':>{width}s}"
+    return f"{f'{shown_value(name, v[0]):.4g} ± {v[1]:.2g}{star}':>{width}s}"
 
 
 def compare(paths: list[str | Path], names: list[str] | None = None) -> str:
@@ -74,8 +74,9 @@ def compare(paths: list[str | Path], names: list[str] | None = None) -> str:
                      f"{'complete' if r.get('complete') else 'INCOMPLETE'}){flag}")
     width = min(max(18, *(len(n) for n in names)), 26) + 2
     lines += ["", f"{'metric':26s}" + "".join(f"{n[:width - 2]:>{width}s}" for n in names)]
-    for group, metric_names in GROUPS:
-        rows = [m for m in metric_names if any(_mc(r, m) for r in results)]
+    for group in GROUPS:
+        rows = [m for m, i in METRICS.items() if i.group == group and i.kind != "count"
+                and any(_mc(r, m) for r in results)]
         if rows:
             lines.append(f"{group}:")
         for m in rows:

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from ..core.io import atomic_write_json
 from ..datasets.store import Store
-from .hoi import EMBED_BATCH, EvaluationRefused, _finite_rows, format_result  # noqa: F401  (public names of 0.6)
+from .pipeline import EvaluationRefused
+from .report import format_result
 
 
 def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, protocol: str | None = None,
@@ -52,6 +53,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     scorer_cls.check_fit(store, proto, peek_card(evaluator, track.evaluator_kind), options)
     ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options)
     scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
+    scorer.timings["load_s"] = time.perf_counter() - started      # store, protocol, evaluator
     scorer.prepare()
     with scorer.open_submission() as sub:
         ids = scorer.validate(sub)
@@ -59,12 +61,6 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
         for out in map_units(scorer.unit, units, executor, **scorer.map_options):
             scorer.update(out)
     return scorer.summary(scorer.replications())
-
-
-def format_any(result: dict) -> str:
-    """A result of any track as text (its scorer's format)."""
-    from .pipeline import get_scorer
-    return get_scorer("multibody" if result.get("kind") == "multibody" else "hoi").format_result(result)
 
 
 def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str | Path,
@@ -127,10 +123,10 @@ def main_evaluate(submission, data, evaluator, out=None, protocol=None, executor
                       allow_evaluator_mismatch=allow_evaluator_mismatch)
     if out is not None:
         atomic_write_json(out, result)
-    print(format_any(result))
+    print(format_result(result))
     print(f"wrote {out}" if out is not None else "not written: pass --out result.json to keep it")
     return 0 if result["complete"] else 1
 
 
-__all__ = ["evaluate", "format_result", "format_any", "main_evaluate", "check_evaluate_args", "check_result_free",
+__all__ = ["evaluate", "format_result", "main_evaluate", "check_evaluate_args", "check_result_free",
            "foreign_submission_line", "EvaluationRefused"]

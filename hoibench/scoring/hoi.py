@@ -43,15 +43,12 @@ import numpy as np
 
 from .. import __version__
 from ..datasets.store import Store
-from .pipeline import Scorer
+from .pipeline import EvaluationRefused, Scorer
+from .report import format_result
+from .results import RESULT_FORMAT, metric_entry
 
 #: motions embedded per batch while streaming
 EMBED_BATCH = 64
-
-
-class EvaluationRefused(ValueError):
-    """The evaluation cannot be run as asked (mismatched protocol or evaluator, failed gate,
-    nothing valid to score); the message says which override exists."""
 
 
 def _caption_lines(data: Path, clip_id: str) -> list:
@@ -277,7 +274,9 @@ class HOIScorer(Scorer):
         slots = range(proto.replications) if self.windowed else self.ks_physical
         self.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
         self.gen = np.zeros((self.K, len(ids), self.ev.embed_dim), np.float32)
-        self.unit = partial(_unit, config=cfg)
+        from ..metrics.catalog import METRICS
+        extra = tuple(n for n in proto.metrics if n in METRICS and METRICS[n].clip_fn)
+        self.unit = partial(_unit, config=cfg, extra=extra) if extra else partial(_unit, config=cfg)
         windows = None
         if self.windowed:
             reps = {k: [r for r in range(proto.replications) if proto.sample_index(r, K) == k]
@@ -391,12 +390,12 @@ class HOIScorer(Scorer):
         per_rep, undefined = _finite_rows(rows)
         human_store = not any(self.rows[cid].get("object") for cid in ids)
         if human_store or self.human_only:      # no object to measure against, or none generated
-            from ..metrics.physical import OBJECT_OUTPUTS
+            from ..metrics.catalog import object_metrics
             why = ("not applicable: the scored clips have no object (human-only store, e.g. RICH's static scenes); "
                    "object metrics need an object mesh and pose" if human_store else
                    "not applicable: human-only submission (flags.human_only: the method generates no object "
                    "motion); the embedding metrics, FSR and jitter are scored on the human")
-            for name in OBJECT_OUTPUTS:
+            for name in object_metrics():
                 if name in undefined:
                     undefined[name] = why
         notes = self.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
@@ -413,7 +412,10 @@ class HOIScorer(Scorer):
         timings["total_s"] = time.perf_counter() - self.started
         flags = meta.get("flags") if isinstance(meta.get("flags"), dict) else {}
         overrides = self.overrides
+        listed = set(proto.metrics) | {"clips", "clips_with_contact"}
+        summary = summarize_replications(per_rep, proto.replications)
         return {
+            "format": RESULT_FORMAT, "kind": "hoi", "track": self.track.name,
             **proto.result_header(),
             "complete": bool(report.complete) and not overrides,
             "submission_complete": bool(report.complete),
@@ -435,16 +437,15 @@ class HOIScorer(Scorer):
             "numerics": {"fid": self.fid_method},
             "metric_variants": {"embedding_loop": proto.embedding_loop,
                                 "physical": proto.physical_config().to_dict()},
-            "metrics": summarize_replications(per_rep, proto.replications),
+            "metrics": {k: metric_entry(k, v["mean"], v["ci95"], v["n"], "replications", std=v["std"])
+                        for k, v in summary.items() if k in listed},
             "undefined_metrics": undefined,
             "per_replication": per_rep, "per_clip": getattr(self, "per_clip", None), "notes": notes,
             "timings_s": {k: round(v, 3) for k, v in timings.items()},
             "platform": {"python": platform.python_version(), "numpy": np.__version__},
         }
 
-    @staticmethod
-    def format_result(result: dict) -> str:
-        return format_result(result)
+    format_result = staticmethod(format_result)
 
 
 def _real_features(store: Store, cid: str, ev=None) -> np.ndarray:
@@ -456,72 +457,4 @@ def _real_features(store: Store, cid: str, ev=None) -> np.ndarray:
     return clip["hoi269"] if "hoi269" in clip else clip["hml263"]
 
 
-#: printed groups: the papers' semantic columns, their physical columns, hoibench's extras
-GROUPS = (("semantic", ("r_precision_top1", "r_precision_top2", "r_precision_top3", "fid", "mm_dist", "diversity",
-                        "multimodality")),
-          ("physical", ("cd", "ocd", "ps", "fsr")),
-          ("extras", ("penetration_depth_max_m", "penetration_depth_mean_m", "fsr_gmd", "contact_iou",
-                      "hand_contact_ratio", "object_floating_ratio", "jitter_mps3")))
-COUNTS = ("clips", "clips_with_contact")
-
-
-def shown_mean(name: str, mean: float) -> float:
-    """A metric's mean as printed: a tiny negative FID (the reference numerics' rounding
-    below zero) shows as 0; the JSON keeps the raw value."""
-    return 0.0 if name == "fid" and -1e-6 < mean < 0 else mean
-
-
-def format_result(result: dict) -> str:
-    """The result as a reader wants it: metrics grouped (semantic / physical / extras) with
-    the direction (↑ higher is better, ↓ lower, ≈GT closest to the ground truth) and units,
-    counts apart, undefined metrics named; a tiny negative FID from the reference numerics
-    shows as 0 (the JSON keeps the raw value)."""
-    from ..metrics import METRICS
-    state = "complete" if result["complete"] else "INCOMPLETE"
-    c = result["counts"]
-    lines = [f"{result['protocol']}@{result['protocol_version']}  evaluator {str(result['evaluator_id'])[:12]}  "
-             f"{state}  ({c['scored_ids']}/{c['test_ids']} ids, K={c['samples_per_prompt']})"]
-    metrics = result["metrics"]
-    shown = set()
-    for group, names in GROUPS:
-        rows = [n for n in names if n in metrics]
-        if not rows:
-            continue
-        lines.append(f"{group}:")
-        for name in rows:
-            mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
-            if isinstance(mean, list):
-                mean, ci = mean[0], ci[0]
-            mean = shown_mean(name, mean)
-            info = METRICS.get(name)
-            arrow = {True: "↑", False: "↓", None: "≈GT"}[info.higher_is_better] if info else ""
-            units = info.units if info else ""
-            lines.append(f"  {name:26s} {arrow:>3s} {mean:12.5g} ± {ci:<10.3g} {units}")
-            shown.add(name)
-    rest = [n for n in metrics if n not in shown and n not in COUNTS]
-    for name in rest:
-        mean, ci = metrics[name]["mean"], metrics[name]["ci95"]
-        mean, ci = (mean[0], ci[0]) if isinstance(mean, list) else (mean, ci)
-        lines.append(f"  {name:26s}     {mean:12.5g} ± {ci:<10.3g}")
-    counts = ", ".join(f"{n} {metrics[n]['mean']:g}" for n in COUNTS if n in metrics)
-    if counts:
-        lines.append(f"counts: {counts}")
-    by_reason: dict[str, list[str]] = {}
-    for n, why in sorted(result.get("undefined_metrics", {}).items()):
-        by_reason.setdefault(str(why), []).append(n)
-    lines += [f"undefined: {', '.join(names)}: {why}" for why, names in by_reason.items()]
-    lines += [f"override: {o['override']}: {'; '.join(o['reasons'])}" for o in result.get("overrides", [])]
-    lines += [f"note: {n}" for n in result["notes"] if not any(n.startswith(u + ":") for u in
-                                                              result.get("undefined_metrics", {}))]
-    table = result.get("per_clip")
-    if isinstance(table, dict) and table.get("rows"):
-        from .per_clip import worst
-        w = worst(result, 1, "mm_dist")
-        lines.append(f"per-clip table: {len(table['rows'])} test clips (sample {table.get('sample', 0)})"
-                     + (f"; farthest from its text: {w[0]['id']} (mm_dist {w[0]['mm_dist']:.3g})" if w else "")
-                     + "; draw the worst: hoibench render RESULT --worst 5 --by mm_dist --data DATA --out DIR")
-    return "\n".join(lines)
-
-
-
-__all__ = ["HOIScorer", "format_result", "shown_mean", "EvaluationRefused", "EMBED_BATCH"]
+__all__ = ["HOIScorer", "EMBED_BATCH"]

@@ -41,17 +41,13 @@ from ..bodies.multibody import MultiBodyClip
 from ..bodies.capsules import object_fields, pair_contact_frames, pair_penetration
 from .multibody_samples import (clip_from_sample, multibody_limits, sample_arrays,  # noqa: F401
                                sample_values_per_frame)
-from .pipeline import Scorer
+from .pipeline import EvaluationRefused, Scorer
+from .report import format_result
+from .results import RESULT_FORMAT, half_width_95, metric_entry
 
-__all__ = ["sample_arrays", "clip_from_sample", "evaluate", "write_multibody_submission", "MultiBodyScorer",
-           "format_result", "is_multibody_store", "REFERENCE_KINDS"]
+__all__ = ["sample_arrays", "clip_from_sample", "write_multibody_submission", "MultiBodyScorer", "REFERENCE_KINDS"]
 
 REFERENCE_KINDS = ("gt", "gt-noise", "desync", "lost_contact", "interpenetration", "static")
-
-
-def is_multibody_store(store) -> bool:
-    """Whether ``store`` holds multi-body clips (:attr:`hoibench.datasets.store.Store.is_multibody`)."""
-    return store.is_multibody
 
 
 # --------------------------------------------------------------------------- submissions
@@ -188,11 +184,11 @@ class MultiBodyScorer(Scorer):
         """A multi-body result is scored complete only: every test id must have samples."""
         ids = self.ids
         if sub.problems:
-            raise ValueError(f"{self.submission}: {sub.problems[0]}")
+            raise EvaluationRefused(f"{self.submission}: {sub.problems[0]}")
         self.meta = sub.meta or {}
         missing = [i for i in ids if i not in set(sub.ids)]
         if missing:
-            raise ValueError(f"{self.submission}: samples/{missing[0]}.npz: missing ({len(missing)} of {len(ids)} "
+            raise EvaluationRefused(f"{self.submission}: samples/{missing[0]}.npz: missing ({len(missing)} of {len(ids)} "
                              f"test ids missing); a multi-body result is scored complete only")
         return ids
 
@@ -229,25 +225,30 @@ class MultiBodyScorer(Scorer):
         metrics = dict(rows[0])
         ci = metrics.pop("ci95", {})
         proto, store, rec, meta = self.proto, self.store, self.ev, self.meta
+        listed = set(proto.metrics)
         undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
                          "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
-                     for k, v in metrics.items() if v is None}
+                     for k, v in metrics.items() if v is None and k in listed}
+        n = len(self.ids)
         return {
-            "toolkit": "hoibench", "toolkit_version": __version__, "kind": "multibody",
+            "format": RESULT_FORMAT, "kind": "multibody", "track": self.track.name,
+            "toolkit": "hoibench", "toolkit_version": __version__,
             "protocol": proto.id, "protocol_version": proto.version, "protocol_sha256": proto.sha256,
             "protocol_settings": proto.to_dict(),
-            "recognizer_id": rec.id, "recognizer_trained_on_split": rec.card.get("trained_on_split"),
+            "evaluator_id": rec.id, "evaluator_backend": self.options.get("evaluator_backend", "recognizer"),
+            "evaluator_trained_on_split": rec.card.get("trained_on_split"),
             "store": str(store.manifest.get("dataset", "")), "store_manifest_sha256": store.manifest_sha256(),
             "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version")},
-            "counts": {"clips": len(self.ids), "samples": self.counts}, "complete": True,
-            "metrics": {k: v for k, v in metrics.items() if v is not None},
-            "ci95": ci,
-            "ground_truth": self.reference, "undefined_metrics": undefined, "notes": self.notes,
+            "counts": {"test_ids": n, "scored_ids": n, "samples_per_prompt": int(proto.samples_per_prompt),
+                       "samples": self.counts, "missing_ids": []},
+            "complete": True,
+            "metrics": {k: metric_entry(k, v, ci.get(k), self.counts, "samples")
+                        for k, v in metrics.items() if v is not None and k in listed},
+            "ground_truth": {k: v for k, v in self.reference.items() if k in listed},
+            "undefined_metrics": undefined, "notes": self.notes,
         }
 
-    @staticmethod
-    def format_result(result: dict) -> str:
-        return format_result(result)
+    format_result = staticmethod(format_result)
 
 
 def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tuple[dict, dict, int]:
@@ -300,8 +301,8 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
     # the recognizer on every generated sample and on the ground truth (one pass each)
     gen_feats, pred = rec.run([c for _, c in gens])
     gt_feats, gt_pred = rec.run(gts)
-    ra = float(np.mean([p == g.action for p, (g, _) in zip(pred, gens)]))
-    gt_ra = float(np.mean([p == g.action for p, g in zip(gt_pred, gts)]))
+    ra = mbm.recognition_accuracy(pred, [g.action for g, _ in gens])
+    gt_ra = mbm.recognition_accuracy(gt_pred, [g.action for g in gts])
 
     def computed(m):
         try:
@@ -325,53 +326,10 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
     correct = [float(p == g.action) for p, (g, _) in zip(pred, gens)]
     per = {"csr": _values(csr), "crr": _values(crr), "csiou": _values(csiou), "iv_cm3": iv, "id_mm": idm,
            "ra": correct}
-    metrics["ci95"] = {k: _half_width(v) for k, v in per.items() if _half_width(v) is not None}
+    metrics["ci95"] = {k: half_width_95(v) for k, v in per.items() if half_width_95(v) is not None}
     return metrics, reference, len(gens)
 
 
 def _values(metric) -> list[float]:
     v = [x for x in metric.per_clip().values() if not np.isnan(x)] if metric.clips else []
     return [float(x) for x in v]
-
-
-def _half_width(values) -> float | None:
-    """Half-width of the 95% normal confidence interval of a mean over per-sample (or
-    per-clip) values, ``1.96 * std / sqrt(n)`` (population std, as the hoi tracks' CIs over
-    replications); None for fewer than 2 values."""
-    v = np.asarray(values, np.float64)
-    return float(1.96 * v.std() / np.sqrt(len(v))) if len(v) >= 2 else None
-
-
-def evaluate(submission, data, recognizer, protocol=None, executor: str = "serial") -> dict:
-    """Score a multi-body submission (:func:`hoibench.scoring.evaluate.evaluate`, kept here
-    for the callers of 0.6)."""
-    from .evaluate import evaluate as evaluate_any
-    return evaluate_any(submission, data, recognizer, protocol=protocol, executor=executor)
-
-
-_ROWS = (("csr", "CSR", "fraction of frames, hands", "~GT"), ("crr", "CRR", "fraction of frames, humans", "~GT"),
-         ("csiou", "CSIoU", "IoU with GT contact frames", "higher"), ("iv_cm3", "IV", "cm^3 per frame", "lower"),
-         ("id_mm", "ID", "mm per frame", "lower"), ("sd", "SD", "m, between samples", "higher"),
-         ("od", "OD", "m, across the split", "~GT"), ("ra", "RA", "recognizer accuracy", "higher"),
-         ("fid", "FID", "recognizer features", "lower"))
-
-
-def format_result(result: dict) -> str:
-    lines = [f"{result['submission'].get('method') or result['submission']['path']}  on {result['store']}  "
-             f"({result['protocol']}@{result['protocol_version']}, recognizer {result['recognizer_id']} trained on "
-             f"{result['recognizer_trained_on_split']})",
-             f"{'metric':8s} {'value':>10s} {'GT':>10s}  better   unit"]
-    for key, name, unit, better in _ROWS:
-        v = result["metrics"].get(key)
-        g = result["ground_truth"].get(key)
-        if v is None:
-            lines.append(f"{name:8s} {'--':>10s} {'' if g is None else f'{g:10.4f}':>10s}  {better:7s}  "
-                         f"{result['undefined_metrics'].get(key, '')}")
-            continue
-        if key == "fid" and -1e-2 < v < 0:          # rounding below zero (the JSON keeps the raw value)
-            v = 0.0
-        lines.append(f"{name:8s} {v:10.4f} {'' if g is None else f'{g:10.4f}':>10s}  {better:7s}  {unit}")
-    lines.append(f"clips {result['counts']['clips']}, samples {result['counts']['samples']}")
-    for n in result.get("notes", []):
-        lines.append(f"note: {n}")
-    return "\n".join(lines)

@@ -22,13 +22,19 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-#: the physical columns copied from the per-clip physical statistics
-PHYSICAL_COLUMNS = ("cd", "ocd", "ps", "fsr", "fsr_gmd", "jitter_mps3", "penetration_depth_max_m",
-                    "penetration_depth_mean_m", "contact_iou", "hand_contact_ratio", "object_floating_ratio")
-#: which end of each column is the failure end (``--worst`` sorts that end first)
-WORSE_WHEN_HIGH = {"mm_dist": True, "text_rank": True, "cd": True, "ocd": True, "ps": True, "fsr": True,
-                   "fsr_gmd": True, "jitter_mps3": True, "penetration_depth_max_m": True,
-                   "penetration_depth_mean_m": True, "object_floating_ratio": True, "contact_iou": False}
+from ..metrics.catalog import METRICS
+
+
+def physical_columns(present: set[str] = frozenset()) -> tuple[str, ...]:
+    """The physical per-clip columns of the catalogue (``per_clip``): every built-in one, and
+    those computed by a per-clip function (``clip_fn``) when ``present``."""
+    return tuple(n for n, i in METRICS.items() if i.per_clip and i.kind == "physical"
+                 and (not i.clip_fn or n in present))
+
+
+def sortable_columns() -> dict[str, bool]:
+    """``{column: worse when high}`` for the per-clip columns with a failure end."""
+    return {n: i.failure_end == "high" for n, i in METRICS.items() if i.per_clip and i.failure_end}
 
 
 def _clean(v) -> float | None:
@@ -49,25 +55,26 @@ def caption_distances(motions: np.ndarray, text_sets: Sequence[np.ndarray]) -> n
 def per_clip_table(ids: Sequence[str], motions: np.ndarray, real: np.ndarray, text_sets: Sequence[np.ndarray],
                    physical: Mapping[str, Mapping[str, float]], sample: int) -> dict:
     """The ``per_clip`` block: ``{"sample", "rows": [{"id", "mm_dist", "gt_mm_dist",
-    "text_rank", <PHYSICAL_COLUMNS>}, ...]}`` in ``ids`` order (``motions``, ``real``,
+    "text_rank", <physical columns>}, ...]}`` in ``ids`` order (``motions``, ``real``,
     ``text_sets``: aligned with ``ids``; ``physical``: per-clip physical values by id)."""
     d = caption_distances(motions, text_sets)
     d_gt = caption_distances(real, text_sets)
     own = np.diag(d)
     ranks = 1 + (d < own[:, None]).sum(1)
     rows = []
+    columns = physical_columns({c for row in physical.values() for c in row})
     for i, cid in enumerate(ids):
         row = {"id": cid, "mm_dist": _clean(own[i]), "gt_mm_dist": _clean(d_gt[i, i]), "text_rank": int(ranks[i])}
         phys = physical.get(cid, {})
-        row.update({c: (_clean(phys[c]) if c in phys else None) for c in PHYSICAL_COLUMNS})
+        row.update({c: (_clean(phys[c]) if c in phys else None) for c in columns})
         rows.append(row)
     return {"sample": int(sample), "clips": len(rows), "rows": rows}
 
 
 def check_worst_args(k: int, by: str) -> None:
     """ValueError for a ``--by`` that is no per-clip column or a ``--worst`` below 1."""
-    if by not in WORSE_WHEN_HIGH:
-        raise ValueError(f"--by {by!r}: expected one of {', '.join(sorted(WORSE_WHEN_HIGH))}")
+    if by not in sortable_columns():
+        raise ValueError(f"--by {by!r}: expected one of {', '.join(sorted(sortable_columns()))}")
     if k < 1:
         raise ValueError(f"--worst {k}: expected a positive number of clips")
 
@@ -81,8 +88,8 @@ def worst(result: dict, k: int, by: str = "mm_dist", where: str = "result") -> l
         raise ValueError(f"{where}: field per_clip: absent (a result written before per-clip tables, or by "
                          f"another scorer); evaluate the submission again to get one")
     rows = [r for r in table["rows"] if isinstance(r, dict) and isinstance(r.get(by), (int, float))]
-    sign = -1.0 if WORSE_WHEN_HIGH[by] else 1.0
+    sign = -1.0 if sortable_columns()[by] else 1.0
     return sorted(rows, key=lambda r: (sign * float(r[by]), str(r.get("id"))))[:k]
 
 
-__all__ = ["PHYSICAL_COLUMNS", "WORSE_WHEN_HIGH", "caption_distances", "per_clip_table", "check_worst_args", "worst"]
+__all__ = ["physical_columns", "sortable_columns", "caption_distances", "per_clip_table", "check_worst_args", "worst"]

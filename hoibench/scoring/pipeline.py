@@ -24,6 +24,12 @@ from typing import Any, Callable, Iterable
 from ..core.registry import Registry, load_object
 
 
+class EvaluationRefused(ValueError):
+    """The evaluation cannot be run as asked (a protocol or evaluator that does not fit the
+    store, a failed gate, nothing valid to score, an incomplete multi-body submission); the
+    message names the file and field, and which override exists. Every scorer raises it."""
+
+
 class Scorer:
     """The stages of one evaluation (see the module docstring). Subclasses set ``name``,
     ``evaluator_options`` (passed to the evaluator's loader) and ``map_options`` (passed to
@@ -93,4 +99,4 @@ def get_scorer(name: str) -> type[Scorer]:
     return load_object(_SCORERS.get(name), __package__)
 
 
-__all__ = ["Scorer", "register_scorer", "get_scorer"]
+__all__ = ["Scorer", "EvaluationRefused", "register_scorer", "get_scorer"]

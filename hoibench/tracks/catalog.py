@@ -4,21 +4,17 @@ from __future__ import annotations
 
 from .track import Track, register_track
 
-#: what every single-body (and human-only) track scores
-HOI_METRICS = ("r_precision_top1", "r_precision_top2", "r_precision_top3", "fid", "mm_dist", "diversity",
-               "multimodality", "cd", "ocd", "ps", "penetration_depth_max_m", "penetration_depth_mean_m", "fsr",
-               "fsr_gmd", "contact_iou", "hand_contact_ratio", "object_floating_ratio", "jitter_mps3")
 #: the leaderboard columns of single-body tracks (every other metric stays in the CSV)
 HOI_COLUMNS = ("r_precision_top1", "r_precision_top3", "fid", "mm_dist", "diversity", "multimodality",
                "cd", "ocd", "ps", "fsr")
-#: what multi-body tracks score, and their columns
-MULTIBODY_METRICS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
+#: the leaderboard columns of multi-body tracks
+MULTIBODY_COLUMNS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
 
 
 def _hoi(name: str, datasets: tuple[str, ...], protocols: tuple[str, ...], description: str,
          store_kind: str = "hoi", **extras) -> Track:
     return Track(name=name, datasets=datasets, store_kind=store_kind, representation="hoi269", submission="hoi",
-                 metrics=HOI_METRICS, evaluator_kind="contrastive", columns=HOI_COLUMNS, protocols=protocols,
+                 evaluator_kind="contrastive", columns=HOI_COLUMNS, protocols=protocols,
                  scorer="hoi", renderer="hoi", description=description, extras=extras)
 
 
@@ -34,15 +30,15 @@ register_track(_hoi("rich-cat", ("rich",), ("rich-cat-clean",),
                     store_kind="human"))
 register_track(Track(
     name="interact", datasets=("interact",), store_kind="hoi", representation="hoi269", submission="hoi",
-    metrics=HOI_METRICS, evaluator_kind="interact", columns=HOI_COLUMNS, protocols=("interact-clean",),
+    evaluator_kind="interact", columns=HOI_COLUMNS, protocols=("interact-clean",),
     scorer="hoi", renderer="hoi",
     description="InterAct's unified HOI data (BEHAVE, GRAB, OMOMO, InterCap, NeuralDome, IMHD, CHAIRS; "
                 "hoibench prepare interact), 30 fps, scored with InterAct's evaluator (markers + object BPS).",
     extras={"submission_arrays": ("markers",)}))
 register_track(Track(
     name="multibody-synthetic", datasets=("multibody-synthetic",), store_kind="multibody",
-    representation="multibody-syncdiff", submission="multibody", metrics=MULTIBODY_METRICS,
-    evaluator_kind="recognizer", columns=MULTIBODY_METRICS, protocols=("multibody-synthetic",),
+    representation="multibody-syncdiff", submission="multibody",
+    evaluator_kind="recognizer", columns=MULTIBODY_COLUMNS, headline=("csiou", "iv_cm3", "ra", "fid"), protocols=("multibody-synthetic",),
     scorer="multibody", renderer="multibody",
     description="hoibench's generated multi-body data: hands, people and several objects (SyncDiff's metrics).",
     extras={"generic_for": "multibody"}))

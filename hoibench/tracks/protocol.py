@@ -32,7 +32,8 @@ from typing import Hashable, Iterable, Sequence
 
 import numpy as np
 
-from ..metrics import METRICS, make_pools
+from ..metrics import make_pools
+from ..metrics.catalog import metrics_for
 from ..metrics import legacy_rules
 from ..metrics.physical import CD_EDGES, PS_SIGNS, PhysicalConfig
 
@@ -291,7 +292,7 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
     _check_reference_rules(phys, f"{w}: physical")
     for key, kind in (("height_m", float), ("speed_mps", float), ("window_frames", int)):
         _need(phys["fsr_gmd"], key, kind, f"{w}: physical.fsr_gmd")
-    metrics = _listed_metrics(d, sorted(METRICS), w)
+    metrics = _listed_metrics(d, sorted(metrics_for("hoi")), w)
     proto = Protocol(
         id=_need(d, "id", str, w), version=_need(d, "version", str, w), dataset=_need(d, "dataset", str, w),
         split=_need(d, "split", str, w), mode=mode, fps=_positive(_need(d, "fps", float, w), "fps", w),
@@ -327,15 +328,11 @@ def _check_reference_rules(phys: dict, where: str) -> None:
         raise ValueError(f"{where}: field 'contact_gt_threshold_m' must be a positive number or null, got {v!r}")
 
 
-#: metrics a multi-body protocol may list
-MULTIBODY_METRICS = ("csr", "crr", "csiou", "iv_cm3", "id_mm", "sd", "od", "ra", "fid")
-
-
 def _parse_multibody(d: dict, w: str, track: str) -> Protocol:
     """The ``multibody`` kind's settings, validated."""
     need = _need
     c, p, dv, r = (need(d, k, dict, w) for k in ("contact", "penetration", "diversity", "recognizer"))
-    metrics = _listed_metrics(d, list(MULTIBODY_METRICS), w)
+    metrics = _listed_metrics(d, list(metrics_for("multibody")), w)
     proto = Protocol(
         id=need(d, "id", str, w), version=need(d, "version", str, w), dataset=need(d, "dataset", str, w),
         split=need(d, "split", str, w), fps=need(d, "fps", float, w),
@@ -525,5 +522,5 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
         return 2
 
 
-__all__ = ["format_multibody_table", "MULTIBODY_METRICS", "KIND_FIELDS", "default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
+__all__ = ["format_multibody_table", "KIND_FIELDS", "default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
            "summarize", "summarize_replications", "format_table", "main_protocols"]

@@ -19,29 +19,36 @@ class Track:
     ``hoi`` (one human, one object), ``human`` (human-only clips: object metrics are not
     applicable) or ``multibody``; ``representation``: the store representation submissions are
     encoded with; ``submission``: the submission schema (``hoi``: hml263/hoi269 features or
-    joints per sample; ``multibody``: per-body joints or poses); ``metrics``: what it scores
-    (the protocol may list fewer); ``evaluator_kind``: the evaluator backend it needs;
-    ``columns``: leaderboard columns in order; ``protocols``: its shipped protocol ids, the
-    default first."""
+    joints per sample; ``multibody``: per-body joints or poses); ``evaluator_kind``: the
+    evaluator backend it needs; ``columns``: leaderboard columns in order; ``headline``: the
+    metrics its page plots; ``protocols``: its shipped protocol ids, the default first. What
+    it may score is its scorer's metrics in the catalogue (:attr:`metrics`); a protocol lists
+    which of them it computes."""
 
     name: str
     datasets: tuple[str, ...]
     store_kind: str
     representation: str
     submission: str
-    metrics: tuple[str, ...]
     evaluator_kind: str
     columns: tuple[str, ...]
     protocols: tuple[str, ...]
     scorer: str
     renderer: str
     description: str = ""
+    headline: tuple[str, ...] = ("fid", "r_precision_top1", "cd", "fsr")
     extras: dict = field(default_factory=dict, compare=False)
 
     @property
     def protocol_kind(self) -> str:
         """The kind of protocol this track's YAML files hold (``hoi`` or ``multibody``)."""
         return "multibody" if self.store_kind == "multibody" else "hoi"
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        """What its scorer can compute (:func:`hoibench.metrics.catalog.metrics_for`)."""
+        from ..metrics.catalog import metrics_for
+        return metrics_for(self.scorer)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "datasets": list(self.datasets), "store_kind": self.store_kind,

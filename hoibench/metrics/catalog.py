@@ -1,0 +1,263 @@
+"""The metric catalogue: the one place that says what every reported number is.
+
+Each :class:`MetricInfo` gives a metric's name, kind, unit, direction, display group,
+column title and format, whether it has a per-clip column and which end of that column is
+a failure, the paper column it reproduces, its thresholds, a one-line summary and the
+implementation (a lazy ``"module:attr"`` reference). Scorers, result files, per-clip
+tables, ``format_result``, leaderboard pages and CSV, ``compare`` and the Codabench bundle
+read it; no other module defines metric metadata (``tests/test_metric_catalog.py``).
+
+Directions: ``higher`` (higher is better), ``lower``, ``gt`` (best when closest to the
+ground truth's value, e.g. Diversity). Adding a metric is one :func:`register` call here
+plus its implementation module.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+DIRECTIONS = ("higher", "lower", "gt")
+#: display groups, in the order a result prints them
+GROUPS = ("semantic", "physical", "extras", "counts", "reported", "clip")
+ARROWS = {"higher": "↑", "lower": "↓", "gt": "≈GT"}
+#: the scorers that compute a metric of each kind (``scorers`` of an entry overrides it)
+_SCORERS_OF_KIND = {"embedding": ("hoi",), "physical": ("hoi",), "multibody": ("multibody",)}
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    """What a reported metric (or a per-clip column) is.
+
+    ``kind``: ``embedding`` | ``physical`` | ``multibody`` | ``count`` (a count the scorer
+    reports beside the metrics) | ``reported`` (only in rows copied from papers) | ``clip``
+    (a per-clip column that is no metric of the whole split). ``per_clip``: the metric has a
+    column in a result's per-clip table; ``failure_end``: ``high`` or ``low``, the end of that
+    column ``render --worst`` shows first (None: not sortable). ``needs_object``: undefined
+    ("not applicable") when the scored clips have no object. ``digits``: decimals shown in
+    tables (five under 0.01). ``scorers``: the scorers that compute it (a protocol of that
+    scorer may list it; default by kind). ``clip_fn``: for a physical metric that is no
+    part of :func:`hoibench.metrics.physical.clip_physical_stats`, the ``"module:attr"`` of a
+    function ``(ClipInput) -> float`` giving one clip's value (NaN: undefined); the scorer
+    computes it per clip when the protocol lists it and reports the mean over clips. A new
+    metric of this kind is one entry plus its function: nothing else changes. ``set_level``:
+    a value of the whole set of clips (a distance between distributions or pairs), with no
+    per-clip values to average."""
+
+    name: str
+    kind: str
+    direction: str
+    unit: str
+    group: str
+    summary: str
+    thresholds: str = ""
+    paper_column: str | None = None
+    impl: str = ""
+    short: str = ""
+    digits: int = 3
+    per_clip: bool = False
+    failure_end: str | None = None
+    needs_object: bool = False
+    scorers: tuple[str, ...] = ()
+    clip_fn: str = ""
+    set_level: bool = False
+
+    def __post_init__(self):
+        if not self.scorers and self.kind in _SCORERS_OF_KIND:
+            object.__setattr__(self, "scorers", _SCORERS_OF_KIND[self.kind])
+        if self.direction not in DIRECTIONS:
+            raise ValueError(f"metric {self.name}: direction {self.direction!r} is not one of {DIRECTIONS}")
+        if self.group not in GROUPS:
+            raise ValueError(f"metric {self.name}: group {self.group!r} is not one of {GROUPS}")
+        if self.failure_end not in (None, "high", "low"):
+            raise ValueError(f"metric {self.name}: failure_end {self.failure_end!r} is not 'high', 'low' or None")
+
+    @property
+    def higher_is_better(self) -> bool | None:
+        """True / False, or None when best is the ground truth's value."""
+        return {"higher": True, "lower": False, "gt": None}[self.direction]
+
+    @property
+    def arrow(self) -> str:
+        return ARROWS[self.direction]
+
+    @property
+    def title(self) -> str:
+        """The column title of tables (``short``, else the name)."""
+        return self.short or self.name
+
+    @property
+    def units(self) -> str:
+        return self.unit
+
+    def load(self):
+        """Import and return the implementation named by ``impl``."""
+        from ..core.registry import load_object
+        return load_object(self.impl)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+METRICS: dict[str, MetricInfo] = {}
+
+
+def register(info: MetricInfo) -> MetricInfo:
+    """Add a metric to :data:`METRICS` (``ValueError`` if the name is taken)."""
+    if info.name in METRICS:
+        raise ValueError(f"metric {info.name!r} is already registered")
+    METRICS[info.name] = info
+    return info
+
+
+def get_metric_info(name: str) -> MetricInfo:
+    try:
+        return METRICS[name]
+    except KeyError:
+        raise KeyError(f"unknown metric {name!r}; known: {', '.join(sorted(METRICS))}") from None
+
+
+def metric_names(*kinds: str, group: str | None = None) -> tuple[str, ...]:
+    """The registered names of the given kinds (all result metrics when none), in
+    registration order, optionally of one display group."""
+    want = kinds or ("embedding", "physical", "multibody")
+    return tuple(n for n, i in METRICS.items() if i.kind in want and (group is None or i.group == group))
+
+
+def metrics_for(scorer: str) -> tuple[str, ...]:
+    """The metrics a protocol of ``scorer`` (``hoi``, ``multibody``) may list, in
+    registration order."""
+    return tuple(n for n, i in METRICS.items() if scorer in i.scorers)
+
+
+def per_clip_columns() -> tuple[str, ...]:
+    """The per-clip table's metric columns (registration order)."""
+    return tuple(n for n, i in METRICS.items() if i.per_clip and i.kind in ("embedding", "physical", "clip"))
+
+
+def object_metrics() -> tuple[str, ...]:
+    """The metrics that need an object ("not applicable" on human-only clips)."""
+    return tuple(n for n, i in METRICS.items() if i.needs_object)
+
+
+def direction_of(name: str) -> str | None:
+    info = METRICS.get(name)
+    return info.direction if info else None
+
+
+def unit_of(name: str) -> str | None:
+    info = METRICS.get(name)
+    return info.unit if info else None
+
+
+#: a negative FID above this is the sqrtm numerics' rounding below zero (FID is a squared
+#: distance): shown as 0, the JSON keeps the raw value. One rule for every track.
+FID_ROUNDING = 1e-2
+
+
+def shown_value(name: str, mean: float) -> float:
+    """A metric's mean as displayed: a tiny negative FID (:data:`FID_ROUNDING`) shows as 0."""
+    return 0.0 if name == "fid" and -FID_ROUNDING < mean < 0 else mean
+
+
+_E = "hoibench.metrics.embedding"
+_C = "hoibench.metrics.contact_metrics"
+_M = "hoibench.metrics.motion"
+_MB = "hoibench.metrics.multibody"
+_EMB = "embedding distance"
+
+for _k in (1, 2, 3):
+    register(MetricInfo(f"r_precision_top{_k}", "embedding", "higher", "fraction", "semantic",
+                        f"text i retrieves its own motion among the {_k} nearest of its pool",
+                        "pools of 32 (protocol), drop the incomplete last pool", f"R Precision Top {_k}",
+                        f"{_E}:r_precision", short=f"R@{_k}"))
+register(MetricInfo("fid", "embedding", "lower", "squared embedding distance", "semantic",
+                    "Frechet distance between real and generated motion embeddings", "sqrtm retried with 1e-6 on the diagonal; |imag| <= 1e-3 dropped", "FID",
+                    f"{_E}:fid", short="FID", scorers=("hoi", "multibody"), set_level=True))
+register(MetricInfo("mm_dist", "embedding", "lower", _EMB, "semantic", "mean distance between a text and its motion",
+                    "pools as R-precision", "MM Dist", f"{_E}:mm_dist", short="MM-Dist", per_clip=True,
+                    failure_end="high"))
+register(MetricInfo("diversity", "embedding", "gt", _EMB, "semantic", "mean distance between random pairs of motions",
+                    "300 pairs (200 on BEHAVE)", "Diversity", f"{_E}:diversity", short="Diversity", set_level=True))
+register(MetricInfo("multimodality", "embedding", "higher", _EMB, "semantic",
+                    "mean distance between samples of one text", "100 texts x 30 samples x 10 pairs",
+                    "MultiModality", f"{_E}:multimodality", short="MModality", set_level=True))
+register(MetricInfo("cd", "physical", "lower", "m^2", "physical",
+                    "mean squared signed distance of the 22 joints to the object where GT touches",
+                    "mask: ground-truth joint contact labels", "CD (ChainHOI)", f"{_C}:contact_distance", short="CD",
+                    per_clip=True, failure_end="high", needs_object=True))
+register(MetricInfo("ocd", "physical", "lower", "m^2", "physical",
+                    "CD minimised over the contact maps of the clip's semantic group",
+                    "group members within +-8 frames of the generated length", "OCD (ChainHOI)",
+                    f"{_C}:optimal_contact_distance", short="OCD", per_clip=True, failure_end="high",
+                    needs_object=True))
+register(MetricInfo("ps", "physical", "lower", "fraction", "physical",
+                    "penetrating body-surface vertex-frames / all vertex-frames (proxy body by default)",
+                    "vertex penetrates when its signed distance < 0", "PS (ChainHOI)", f"{_C}:penetration_counts",
+                    short="PS", per_clip=True, failure_end="high", needs_object=True))
+register(MetricInfo("fsr", "physical", "lower", "fraction", "physical",
+                    "skating foot-frames / ground-contact foot-frames",
+                    "feet 10, 11; height < 0.05 m at t+1; step > 0.025 m (legacy: |dx|; clean: xz, 0.5 m/s)",
+                    "FSR (ChainHOI)", f"{_M}:foot_skating_counts", short="FSR", per_clip=True, failure_end="high"))
+register(MetricInfo("penetration_depth_max_m", "physical", "lower", "m", "extras",
+                    "deepest penetration of any frame (max over vertices of -d)", "signed distance < 0",
+                    impl=f"{_C}:penetration_depth_stats", per_clip=True, failure_end="high", needs_object=True))
+register(MetricInfo("penetration_depth_mean_m", "physical", "lower", "m", "extras",
+                    "mean over penetrating frames of the frame's deepest penetration", "signed distance < 0",
+                    impl=f"{_C}:penetration_depth_stats", per_clip=True, failure_end="high", needs_object=True))
+register(MetricInfo("fsr_gmd", "physical", "lower", "fraction", "extras",
+                    "skating frames / (T - 1) per clip, averaged over clips",
+                    "feet 10, 11; height < 0.05 m at t and t+1; xz speed and its 5-frame mean > 0.5 m/s",
+                    "Foot skating ratio (GMD, HOI-Diff)", f"{_M}:gmd_skating_counts", per_clip=True,
+                    failure_end="high"))
+register(MetricInfo("contact_iou", "physical", "higher", "fraction", "extras",
+                    "IoU of generated vs ground-truth joint contact labels",
+                    "predicted label: d < per-object threshold (protocol contact mode)",
+                    impl=f"{_C}:contact_iou_counts", per_clip=True, failure_end="low", needs_object=True))
+register(MetricInfo("hand_contact_ratio", "physical", "gt", "fraction", "extras", "frames where a hand touches the object",
+                    "wrist 20/21 label on (protocol contact mode)", impl=f"{_C}:hand_contact_frames", per_clip=True,
+                    needs_object=True))
+register(MetricInfo("object_floating_ratio", "physical", "lower", "fraction", "extras",
+                    "frames where the object is off the floor and untouched",
+                    "lowest object point > 0.02 m, no body vertex within 0.02 m", impl=f"{_C}:floating_frames",
+                    per_clip=True, failure_end="high", needs_object=True))
+register(MetricInfo("jitter_mps3", "physical", "lower", "m/s^3", "extras", "mean jerk magnitude of the joints",
+                    "third finite difference x fps^3", impl=f"{_M}:jitter_sums", per_clip=True, failure_end="high"))
+# multi-body tracks (SyncDiff, paper 004 section 4.2; docs/multibody_metrics.md)
+register(MetricInfo("csr", "multibody", "gt", "fraction", "physical",
+                    "frames where a hand touches an object, mean over hands then clips",
+                    "hand surface within 5 mm of an object", "CSR (SyncDiff)", f"{_MB}:CSR", short="CSR"))
+register(MetricInfo("crr", "multibody", "gt", "fraction", "physical",
+                    "frames where a human holds an object with both hands",
+                    "both hand roots within 5 cm of one object", "CRR (SyncDiff)", f"{_MB}:CRR", short="CRR"))
+register(MetricInfo("csiou", "multibody", "higher", "fraction", "physical",
+                    "IoU of generated vs ground-truth contact frames", "contact frames by the CSR/CRR rules",
+                    "CSIoU (SyncDiff)", f"{_MB}:CSIoU", short="CSIoU"))
+register(MetricInfo("iv_cm3", "multibody", "lower", "cm^3", "physical",
+                    "interpenetration volume per frame, summed over body pairs", "5 mm voxels inside both bodies",
+                    "IV (SyncDiff)", f"{_MB}:interpenetration_volume", short="IV"))
+register(MetricInfo("id_mm", "multibody", "lower", "mm", "physical",
+                    "interpenetration depth per frame, summed over body pairs", "deepest probe inside the other body",
+                    "ID (SyncDiff)", f"{_MB}:interpenetration_depth", short="ID"))
+register(MetricInfo("sd", "multibody", "higher", "m", "semantic",
+                    "wrist-trajectory diversity between the samples of a prompt", "wrists at 15 frames (DiffH2O)",
+                    "SD (SyncDiff)", f"{_MB}:SampleDiversity", short="SD", set_level=True))
+register(MetricInfo("od", "multibody", "gt", "m", "semantic", "wrist-trajectory diversity across the split",
+                    "wrists at 15 frames (DiffH2O)", "OD (SyncDiff)", f"{_MB}:OverallDiversity", short="OD", set_level=True))
+register(MetricInfo("ra", "multibody", "higher", "fraction", "semantic",
+                    "recognition accuracy of the generated clips' actions", "the track's action recognizer",
+                    "RA (SyncDiff)", f"{_MB}:recognition_accuracy", short="RA"))
+# counts the single-body scorer reports beside its metrics
+register(MetricInfo("clips", "count", "gt", "clips", "counts", "test clips the physical metrics scored"))
+register(MetricInfo("clips_with_contact", "count", "gt", "clips", "counts",
+                    "test clips whose ground truth has joint-object contact (CD's denominator)"))
+# only in rows copied from papers
+register(MetricInfo("ait_s", "reported", "lower", "s", "reported", "average inference time per sample, as reported"))
+# per-clip columns that are no metric of the whole split
+register(MetricInfo("gt_mm_dist", "clip", "gt", _EMB, "clip", "the real motion's distance to its own captions",
+                    per_clip=True))
+register(MetricInfo("text_rank", "clip", "lower", "rank", "clip",
+                    "1 + the scored clips whose captions are nearer to the sample than its own", per_clip=True,
+                    failure_end="high"))
+del _k
+
+__all__ = ["MetricInfo", "METRICS", "DIRECTIONS", "GROUPS", "ARROWS", "FID_ROUNDING", "register", "get_metric_info",
+           "metric_names", "metrics_for", "per_clip_columns", "object_metrics", "direction_of", "unit_of", "shown_value"]
