@@ -57,7 +57,7 @@ class _StorageRef:
 
 
 def _numpy_globals() -> dict:
-    from .grab import _numpy_globals as g
+    from .grab_npz import _numpy_globals as g
     return g()
 
 
