@@ -179,11 +179,4 @@ def read_humanml3d(root: str | Path) -> dict[str, dict]:
     return out
 
 
-def main_export(data: str | Path, out: str | Path, fmt: str, overwrite: bool = False) -> int:
-    report = export(data, out, fmt, overwrite)
-    print(f"exported {report['clips']} clips to {out} ({fmt}); "
-          f"{len(report['missing_texts'])} without texts")
-    return 0
-
-
-__all__ = ["FORMATS", "export", "read_humanml3d", "main_export"]
+__all__ = ["FORMATS", "export", "read_humanml3d"]

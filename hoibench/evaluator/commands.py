@@ -103,19 +103,3 @@ def _show_imported(dir, backend, as_json: bool) -> int:
         print(f"hoibench evaluator: error: {err}", file=sys.stderr)
         return 1
     return 0
-
-
-def main_import(kind: str | None, out, files: dict) -> int:
-    """``hoibench evaluator import KIND ... --out EV``: write the folder, print its summary."""
-    from pathlib import Path
-
-    from .backends import import_evaluator
-    if not kind:
-        raise ValueError("evaluator import: name the backend (hoibench evaluator ls lists them)")
-    if out is None:
-        raise ValueError(f"evaluator import {kind}: --out is required (the evaluator folder to write)")
-    if Path(out).exists() and (not Path(out).is_dir() or any(Path(out).iterdir())):
-        raise ValueError(f"--out {out}: exists and is not an empty folder; choose a new folder")
-    eid = import_evaluator(kind, out, **files)
-    print(f"wrote {kind} evaluator {eid} to {out}")
-    return 0

@@ -53,19 +53,4 @@ def track_for_store(store) -> Track:
     return track_for_dataset(str(store.manifest.get("dataset", "")), multibody=store.is_multibody)
 
 
-def main_tracks(action: str = "ls", name: str | None = None) -> int:
-    """``hoibench tracks ls`` (one line per track) or ``hoibench tracks show NAME`` (its
-    registry entry as JSON). Returns an exit status."""
-    import json
-    if action == "show":
-        if not name:
-            raise ValueError("tracks show: name a track, e.g. hoibench tracks show rich-cat")
-        print(json.dumps(get_track(name).to_dict(), indent=1))
-        return 0
-    print(f"{'track':20s} {'store':9s} {'evaluator':11s} {'scorer':9s} protocols")
-    for t in list_tracks():
-        print(f"{t.name:20s} {t.store_kind:9s} {t.evaluator_kind:11s} {t.scorer:9s} {', '.join(t.protocols)}")
-    return 0
-
-
-__all__ = ["main_tracks", "track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "track_for_dataset"]
+__all__ = ["track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "track_for_dataset"]
