@@ -209,7 +209,15 @@ def load_interact(folder: str | Path, *, threads: int | None = None, device: str
     motion = build_motion_encoder(pos)
     text.load_state_dict(text_sd, strict=True)
     motion.load_state_dict(motion_sd, strict=True)
-    tokenizer = AutoTokenizer.from_pretrained(str(folder / TOKENIZER_DIR), local_files_only=True)
+    tok_class = card["text_model"].get("tokenizer_class")
+    if isinstance(tok_class, str):
+        from .text import load_tokenizer
+        try:
+            tokenizer = load_tokenizer(folder / TOKENIZER_DIR, tok_class)
+        except ValueError as exc:
+            raise EvaluatorIntegrityError(str(exc)) from None
+    else:                  # folders imported before the class was recorded
+        tokenizer = AutoTokenizer.from_pretrained(str(folder / TOKENIZER_DIR), local_files_only=True)
     return InteractEvaluator(card, text, motion, tokenizer, rest["normalization.mean"].numpy(),
                              rest["normalization.std"].numpy(), rest["bps.basis"].numpy(), threads=threads,
                              device=device)

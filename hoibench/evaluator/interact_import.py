@@ -7,7 +7,12 @@ Inputs (nothing is downloaded):
   (including the DistilBERT ``textencoder.text_model.*``) and ``motionencoder.*``; other
   prefixes are ignored.
 * ``--distilbert DIR``: a local ``distilbert-base-uncased`` folder (``config.json`` and the
-  tokenizer files); its weights are not read, the checkpoint carries them.
+  tokenizer files: ``vocab.txt`` or ``tokenizer.json``, with ``tokenizer_config.json`` and
+  ``special_tokens_map.json`` when present); its weights are not read, the checkpoint carries
+  them. The tokenizer class is ``tokenizer_config.json``'s ``tokenizer_class`` or, as in the
+  hub's folder which names none, the one ``config.json``'s ``model_type`` maps to (what
+  ``AutoTokenizer`` does); it is recorded in the card (so in the evaluator id) and the copied
+  files must load with it and pad a batch at import.
 * ``--mean`` / ``--std``: ``mean_train_markersbps.npy`` / ``std_train_markersbps.npy`` (615,).
 * ``--bps-basis``: ``bps_basis_set_128_1.npy`` (128, 3).
 
@@ -102,8 +107,12 @@ def _array(path: Path, shape: tuple, what: str) -> np.ndarray:
     return a.astype(np.float64)
 
 
-def _distilbert(folder: Path) -> tuple[dict, dict[str, Path]]:
+def _distilbert(folder: Path) -> tuple[dict, dict[str, Path], str]:
+    """(config, tokenizer files, tokenizer class) of a local DistilBERT folder whose tokenizer
+    loads from the copied files alone and pads a batch (checked in a scratch folder)."""
+    import tempfile
     from ..core.io import read_json_file
+    from .text import load_tokenizer, tokenizer_class
     if not folder.is_dir():
         raise EvaluatorError(f"{folder}: DistilBERT folder not found (a local distilbert-base-uncased download)")
     cfg_path = folder / "config.json"
@@ -115,8 +124,17 @@ def _distilbert(folder: Path) -> tuple[dict, dict[str, Path]]:
                              f"{config.get('model_type') if isinstance(config, dict) else config!r}")
     files = {n: folder / n for n in TOKENIZER_FILES if (folder / n).is_file()}
     if "vocab.txt" not in files and "tokenizer.json" not in files:
-        raise EvaluatorError(f"{folder}: no tokenizer (vocab.txt or tokenizer.json)")
-    return config, files
+        raise EvaluatorError(f"{folder}: vocab.txt is missing (the DistilBERT tokenizer reads vocab.txt or "
+                             f"tokenizer.json)")
+    try:
+        name = tokenizer_class(folder, config.get("model_type", "distilbert"))
+        with tempfile.TemporaryDirectory(prefix="hoibench-tokenizer-") as scratch:
+            for n, p in files.items():
+                shutil.copyfile(p, Path(scratch) / n)
+            load_tokenizer(Path(scratch), name, named=folder)
+    except ValueError as exc:
+        raise EvaluatorError(str(exc)) from None
+    return config, files, name
 
 
 def import_interact(out: Path, checkpoint: Path, distilbert: Path, mean: Path, std: Path, bps_basis: Path) -> str:
@@ -126,7 +144,7 @@ def import_interact(out: Path, checkpoint: Path, distilbert: Path, mean: Path, s
     out = Path(out)
     if out.exists() and any(out.iterdir()):
         raise EvaluatorFolderExists(f"{out}: exists and is not empty; choose a new --out folder")
-    config, tok_files = _distilbert(Path(distilbert))
+    config, tok_files, tok_class = _distilbert(Path(distilbert))
     m = _array(Path(mean), (ROW_WIDTH,), "mean")
     s = _array(Path(std), (ROW_WIDTH,), "std")
     if np.any(s <= 0):
@@ -151,7 +169,8 @@ def import_interact(out: Path, checkpoint: Path, distilbert: Path, mean: Path, s
             "source": {"checkpoint": Path(checkpoint).name, "checkpoint_sha256": _sha(Path(checkpoint)),
                        "mean_sha256": _sha(Path(mean)), "std_sha256": _sha(Path(std)),
                        "bps_basis_sha256": _sha(Path(bps_basis))},
-            "text_model": {"config": config, "tokenizer_files": {n: _sha(p) for n, p in sorted(tok_files.items())}},
+            "text_model": {"config": config, "tokenizer_class": tok_class,
+                           "tokenizer_files": {n: _sha(p) for n, p in sorted(tok_files.items())}},
             "motion": {"nfeats": ROW_WIDTH, "markers": 77, "bps_points": BPS_POINTS, "latent": LATENT,
                        "ff_size": FF_SIZE, "layers": LAYERS, "heads": HEADS, "pos_len": pos_len,
                        "embedding": "loc"},

@@ -145,7 +145,23 @@ def _text_model(folder: Path):
         raise ChainHOIImportError(f"{folder / 'config.json'}: field model_type: {config.model_type!r}, ChainHOI's "
                                   f"evaluator uses RoBERTa ('roberta')")
     files = {n: folder / n for n in TEXT_FILES_REQUIRED + TEXT_FILES_OPTIONAL if (folder / n).is_file()}
+    _check_tokenizer(folder, files)
     return config, files
+
+
+def _check_tokenizer(folder: Path, files: dict[str, Path]) -> None:
+    """The copied files alone must give the ``RobertaTokenizer`` the loader builds, and it must
+    pad a batch: checked in a scratch folder at import, not when text is first embedded."""
+    import shutil
+    import tempfile
+    from .text import load_tokenizer
+    with tempfile.TemporaryDirectory(prefix="hoibench-tokenizer-") as scratch:
+        for n, p in files.items():
+            shutil.copyfile(p, Path(scratch) / n)
+        try:
+            load_tokenizer(Path(scratch), "RobertaTokenizer", named=folder)
+        except ValueError as exc:
+            raise ChainHOIImportError(f"--text-model {exc}") from None
 
 
 def _roberta_shapes(config) -> dict[str, tuple[int, ...]]:

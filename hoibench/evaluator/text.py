@@ -173,6 +173,70 @@ def load_pretrained(folder: str | Path):
     return tok, model
 
 
+#: a batch of two lengths: loading a tokenizer is not enough, it must also pad
+_PROBE = ["a person lifts the box", "a person sits"]
+
+
+def tokenizer_class(folder: Path, model_type: str | None) -> str:
+    """The transformers tokenizer class a local text-model folder asks for:
+    ``tokenizer_config.json``'s ``tokenizer_class`` when it names one, else the class
+    ``AutoTokenizer`` maps ``config.json``'s ``model_type`` to (the fast one when there are two).
+    ``ValueError`` naming the folder and the file/field when neither says."""
+    from ..core.io import read_json_file
+    folder = Path(folder)
+    tc = folder / "tokenizer_config.json"
+    if tc.is_file():
+        cfg = read_json_file(tc, 16 << 20, "tokenizer config")
+        name = cfg.get("tokenizer_class") if isinstance(cfg, dict) else None
+        if name is not None:
+            if not isinstance(name, str):
+                raise ValueError(f"{tc}: field tokenizer_class: expected a class name, got {name!r:.40}")
+            return name
+    if not model_type:
+        raise ValueError(f"{folder}: no tokenizer class: config.json (field model_type) is missing and "
+                         f"tokenizer_config.json names no tokenizer_class")
+    from transformers.models.auto.tokenization_auto import TOKENIZER_MAPPING_NAMES
+    names = TOKENIZER_MAPPING_NAMES.get(model_type)
+    names = [names] if isinstance(names, str) else [n for n in (names or ()) if n]
+    if not names:
+        raise ValueError(f"{folder / 'config.json'}: field model_type: {model_type!r} has no tokenizer in "
+                         f"transformers; name one in tokenizer_config.json's tokenizer_class")
+    return names[-1]
+
+
+def load_tokenizer(folder: Path, class_name: str, named: Path | None = None):
+    """``class_name``'s tokenizer from ``folder``, offline; ``ValueError`` naming the folder and what
+    it lacks when it cannot load or cannot pad a batch (the files each class reads:
+    ``vocab.txt`` or ``tokenizer.json`` for WordPiece, ``vocab.json`` + ``merges.txt`` or
+    ``tokenizer.json`` for byte-level BPE). ``named``: the folder messages name (default ``folder``)."""
+    import transformers
+    from transformers.utils import logging as hf_logging
+    folder = Path(folder)
+    shown = Path(named) if named is not None else folder
+    cls = getattr(transformers, class_name, None)
+    if cls is None or not hasattr(cls, "from_pretrained"):
+        where = shown / "tokenizer_config.json" if (folder / "tokenizer_config.json").is_file() else shown
+        raise ValueError(f"{where}: field tokenizer_class: {class_name!r} is not a tokenizer of transformers "
+                         f"{transformers.__version__}")
+    have = sorted(p.name for p in folder.iterdir() if p.is_file()) if folder.is_dir() else []
+    vocab_files = [f for k, f in getattr(cls, "vocab_files_names", {}).items() if k != "tokenizer_file"]
+    if "tokenizer.json" not in have and any(f not in have for f in vocab_files):
+        missing = next(f for f in vocab_files if f not in have)
+        raise ValueError(f"{shown}: {missing} is missing ({class_name} reads {' + '.join(vocab_files)} or "
+                         f"tokenizer.json; the folder has {', '.join(have) or 'nothing'})")
+    verbosity = hf_logging.get_verbosity()
+    hf_logging.set_verbosity_error()
+    try:
+        tok = cls.from_pretrained(str(folder), local_files_only=True)
+        tok(_PROBE, padding=True, truncation=True)
+    except Exception as exc:          # transformers raises many types for an unusable folder
+        raise ValueError(f"{shown}: {class_name} cannot tokenize with the folder's files "
+                         f"({' '.join(str(exc).split())[:160]})") from None
+    finally:
+        hf_logging.set_verbosity(verbosity)
+    return tok
+
+
 def package_versions() -> dict[str, str]:
     """Versions of the packages the text branch runs on (for the card)."""
     from importlib import metadata
