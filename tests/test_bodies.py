@@ -213,5 +213,5 @@ def test_body_forward_rejects_bad_poses(proxy_dir):
     model = load_body_model(proxy_dir, "smplh", "female")
     with pytest.raises(ValueError, match="poses"):
         body_forward(model, np.zeros((3, 72)))
-    with pytest.raises(ValueError, match="num_betas"):
+    with pytest.raises(ValueError, match="its file must hold 16 shape components"):
         body_forward(model, np.zeros((3, 156)), betas=np.ones(16))

@@ -102,8 +102,32 @@ def load_body_model(model_dir, model_type: str = "smplh", gender: str = "neutral
         opts["ext"] = path.suffix[1:]
     import contextlib
     import io
+    want = int(opts.get("num_betas") or 10)
     with contextlib.redirect_stdout(io.StringIO()):  # smplx prints a notice about 10 betas
-        return smplx.create(str(Path(model_dir).expanduser()), model_type=mt, gender=str(gender).lower(), **opts)
+        if mt in _WIDE_BETAS and want > 10:
+            model = _wide_betas_class(smplx, mt, want)(str(Path(model_dir).expanduser() / mt),
+                                                       gender=str(gender).lower(), **opts)
+        else:
+            model = smplx.create(str(Path(model_dir).expanduser()), model_type=mt, gender=str(gender).lower(), **opts)
+    if int(model.num_betas) < want and mt in _WIDE_BETAS:
+        raise ValueError(f"{path}: the {mt.upper()} model file has fewer than {want} shape components (shapedirs "
+                         f"columns): the data's {want} betas need a model file that holds them (SMPL-H's "
+                         f"model.npz has 16)")
+    return model
+
+
+#: model types whose files may hold 11..299 shape components that ``smplx`` would cut to 10
+_WIDE_BETAS = {"smpl": "SMPL", "smplh": "SMPLH"}
+
+
+def _wide_betas_class(smplx, mt: str, num_betas: int):
+    """``smplx``'s SMPL / SMPL-H class keeping ``num_betas`` shape components of a file that has
+    them. ``smplx`` keeps ``min(num_betas, 10)`` when the file's ``shapedirs`` has fewer than
+    ``SHAPE_SPACE_DIM`` (300) columns; with ``SHAPE_SPACE_DIM = num_betas`` it keeps all
+    ``num_betas`` (as human_body_prior's ``BodyModel`` does with SMPL-H's 16), and a file with
+    fewer columns still falls back to 10, which the caller refuses."""
+    base = getattr(smplx, _WIDE_BETAS[mt])
+    return type(base.__name__, (base,), {"SHAPE_SPACE_DIM": int(num_betas), "__module__": __name__})
 
 
 def _model_type_of(model) -> str:
@@ -159,8 +183,8 @@ def body_forward(model, poses, betas=None, trans=None, batch_size: int = 512,
         raise ValueError(f"betas: expected (k,) or (T, k), got {betas.shape}")
     if betas.shape[-1] > nb:
         if np.any(betas[..., nb:] != 0):
-            raise ValueError(f"betas: {betas.shape[-1]} coefficients given but the model uses {nb}; "
-                             f"create it with num_betas={betas.shape[-1]} (if the file has them)")
+            raise ValueError(f"betas: {betas.shape[-1]} coefficients given (non-zero past the {nb}th) but the "
+                             f"body model poses {nb}: its file must hold {betas.shape[-1]} shape components")
         betas = betas[..., :nb]
     betas = np.concatenate([betas, np.zeros(betas.shape[:-1] + (nb - betas.shape[-1],))], -1)
     betas = np.broadcast_to(betas, (T, nb))

@@ -180,7 +180,7 @@ def load_sequence(seq_dir: str, objects_root: str, body_models: str, source: str
                   ) -> HOISequence:
     """One InterAct sequence folder -> :class:`HOISequence` at ``fps`` (SequenceError naming
     the sequence, file and field for bad input)."""
-    from ..bodies.smpl import body_forward, load_body_model
+    from ..bodies.smpl import body_forward, load_body_model, model_path
     seq_dir = Path(seq_dir)
     name = seq_dir.name
     spec = SOURCES[source]
@@ -206,7 +206,10 @@ def load_sequence(seq_dir: str, objects_root: str, body_models: str, source: str
         betas = None
     else:
         betas = _float(h, "betas", (None,), name, "human.npz")[:spec.num_betas]
-        model = _model(body_models, spec.model_type, gender, spec.num_betas, spec.flat_hand_mean)
+        try:
+            model = _model(body_models, spec.model_type, gender, spec.num_betas, spec.flat_hand_mean)
+        except ValueError as exc:                       # a model file with fewer shape components
+            raise SequenceError(f"{name}: {exc}") from None
     joints, verts = body_forward(model, aa, betas, trans)
     markers_src = "computed from the posed body"
     markers = markers_from_vertices(verts).astype(np.float64)
@@ -235,6 +238,8 @@ def load_sequence(seq_dir: str, objects_root: str, body_models: str, source: str
             "resampled_to_fps": float(fps), "source_frames": T, "template": f"{obj}.obj",
             "template_mean_subtracted": mean.tolist(), "markers": markers_src,
             "object_origin": "InterAct's object frame origin in the centred template (-mean): its BPS anchor",
+            "body_model_file": str(model_path(body_models, "smplx" if spec.vtemp else spec.model_type, gender)),
+            "body_model_betas": int(model.num_betas),
             "body": (f"{spec.model_type}, subject template vtemp (body parameters not stored)" if spec.vtemp else
                      f"{spec.model_type}, {spec.num_betas} betas, flat_hand_mean={spec.flat_hand_mean}"
                      + (f", {spec.pca} PCA hand components converted to axis-angle" if spec.pca else "")),
