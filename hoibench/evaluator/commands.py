@@ -1,4 +1,4 @@
-"""Command-line entry points (wired into ``hoibench`` by :mod:`hoibench.cli`).
+"""Evaluator functions behind the command line (called by :mod:`hoibench.commands.evaluators`).
 
 Examples::
 
