@@ -36,6 +36,39 @@ def check_ints(cfg, names: tuple[str, ...], section: str, lo: int = 1, hi: int =
             raise ValueError(f"{section}.{name}: expected an integer in [{lo}, {hi}], got {v!r}")
 
 
+def check_interval(cfg, names: tuple[str, ...], section: str, interval: str) -> None:
+    """ValueError naming ``section.field`` unless every field in ``names`` lies in ``interval``,
+    written ``"[lo, hi)"``, ``"(lo, hi]"``, ... (a square bracket includes its end)."""
+    lo_mark, body, hi_mark = interval[0], interval[1:-1], interval[-1]
+    lo, hi = (float(x) for x in body.split(","))
+    for name in names:
+        v = getattr(cfg, name)
+        above = v >= lo if lo_mark == "[" else v > lo
+        below = v <= hi if hi_mark == "]" else v < hi
+        if not (above and below):
+            raise ValueError(f"{section}.{name}: expected {interval}, got {v!r}")
+
+
+def check_nonnegative(cfg, names: tuple[str, ...], section: str) -> None:
+    """ValueError naming ``section.field`` for a field of ``names`` that is not ``>= 0`` (NaN included)."""
+    for name in names:
+        if not getattr(cfg, name) >= 0:
+            raise ValueError(f"{section}.{name}: expected >= 0, got {getattr(cfg, name)!r}")
+
+
+def check_choice(cfg, name: str, section: str, choices: tuple[str, ...]) -> None:
+    """ValueError naming ``section.field`` unless the field is one of ``choices``."""
+    if getattr(cfg, name) not in choices:
+        raise ValueError(f"{section}.{name}: expected one of {choices}, got {getattr(cfg, name)!r}")
+
+
+def check_divisible(cfg, name: str, by: str, section: str) -> None:
+    """ValueError naming both fields unless ``section.name`` is a multiple of ``section.by``."""
+    if getattr(cfg, name) % getattr(cfg, by):
+        raise ValueError(f"{section}.{name} ({getattr(cfg, name)}) must be divisible by {section}.{by} "
+                         f"({getattr(cfg, by)})")
+
+
 def check_architecture(cfg, section: str) -> None:
     """ValueError naming ``section.field`` for a field of :data:`ARCH_LIMITS` over its bound."""
     for f in fields(cfg):
@@ -94,12 +127,15 @@ def _flat_ints(d: dict, prefix: str = "") -> dict[str, int]:
 
 def check_conditioning(cfg) -> None:
     """The fields every baseline model config shares: text encoder, object points, dropout."""
+    check_object_sampling(cfg, "model")
+    check_interval(cfg, ("dropout",), "model", "[0, 1)")
+    check_choice(cfg, "text_encoder", "model", TEXT_ENCODERS)
+
+
+def check_object_sampling(cfg, section: str) -> None:
+    """ValueError unless ``object_tokens`` and ``object_knn`` are at most ``object_points``."""
     if cfg.object_tokens > cfg.object_points or cfg.object_knn > cfg.object_points:
-        raise ValueError("model.object_tokens and model.object_knn must not exceed model.object_points")
-    if not 0 <= cfg.dropout < 1:
-        raise ValueError(f"model.dropout: expected [0, 1), got {cfg.dropout!r}")
-    if cfg.text_encoder not in TEXT_ENCODERS:
-        raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {cfg.text_encoder!r}")
+        raise ValueError(f"{section}.object_tokens and {section}.object_knn must not exceed {section}.object_points")
 
 
 def section_from_dict(cls: type, block, where: str, outer: str = "config"):
@@ -118,6 +154,23 @@ def section_from_dict(cls: type, block, where: str, outer: str = "config"):
         raise ValueError(f"{where}: {exc}") from None
     except ValueError as exc:
         raise ValueError(f"{outer}: {exc}") from None
+
+
+def sections_from_dict(d, kinds: dict[str, type], where: str = "config", strict: bool = True) -> dict:
+    """``name`` and one section object per key of ``kinds`` (each read by :func:`section_from_dict`)
+    from a config dict; ``strict`` refuses a top-level key that is neither ``name`` nor a section."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{where}: expected an object")
+    unknown = sorted(set(d) - set(kinds) - {"name"})
+    if strict and unknown:
+        raise ValueError(f"{where}: unknown section(s) {', '.join(unknown)}")
+    parts = {key: section_from_dict(kind, d.get(key, {}), f"{where}.{key}", where) for key, kind in kinds.items()}
+    return {"name": str(d.get("name", "custom")), **parts}
+
+
+def sections_to_dict(cfg, sections: tuple[str, ...]) -> dict:
+    """``{"name": cfg.name, section: asdict(cfg.<section>), ...}``."""
+    return {"name": cfg.name, **{s: asdict(getattr(cfg, s)) for s in sections}}
 
 
 def dotted_replace(d: dict, sections: tuple[str, ...], changes: dict) -> dict:
@@ -162,15 +215,10 @@ class TrainConfig:
         check_ints(self, ("batch_size", "max_frames", "min_frames", "contact_points", "checkpoint_every", "log_every"),
                    "train")
         check_architecture(self, "train")
-        if not 0 < self.lr < 1:
-            raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
-        if not 0 <= self.ema_decay < 1:
-            raise ValueError(f"train.ema_decay: expected [0, 1), got {self.ema_decay!r}")
-        if self.contact_distance not in CONTACT_DISTANCES:
-            raise ValueError(f"train.contact_distance: expected one of {CONTACT_DISTANCES}, got {self.contact_distance!r}")
-        for name in ("lambda_contact", "lambda_object", "lambda_smooth"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"train.{name}: expected >= 0, got {getattr(self, name)!r}")
+        check_interval(self, ("lr",), "train", "(0, 1)")
+        check_interval(self, ("ema_decay",), "train", "[0, 1)")
+        check_choice(self, "contact_distance", "train", CONTACT_DISTANCES)
+        check_nonnegative(self, ("lambda_contact", "lambda_object", "lambda_smooth"), "train")
 
 
 @dataclass(frozen=True)
@@ -186,8 +234,7 @@ class RunConfig:
         check_architecture(self.model, "model")
 
     def to_dict(self) -> dict:
-        d = {"name": self.name, "model": asdict(self.model), "train": asdict(self.train),
-             "diffusion": asdict(self.diffusion)}
+        d = sections_to_dict(self, ("model", "train", "diffusion"))
         for k, v in d["model"].items():
             if isinstance(v, tuple):
                 d["model"][k] = list(v)
@@ -195,11 +242,8 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, d: dict, model_cls: type, where: str = "config") -> "RunConfig":
-        if not isinstance(d, dict):
-            raise ValueError(f"{where}: expected an object")
-        parts = {key: section_from_dict(sub, d.get(key, {}), f"{where}.{key}", where)
-                 for key, sub in (("model", model_cls), ("train", TrainConfig), ("diffusion", DiffusionConfig))}
-        return cls(name=str(d.get("name", "custom")), **parts)
+        kinds = {"model": model_cls, "train": TrainConfig, "diffusion": DiffusionConfig}
+        return cls(**sections_from_dict(d, kinds, where, strict=False))
 
     def replace(self, **changes) -> "RunConfig":
         """A copy with dotted overrides, e.g. ``replace(**{"train.steps": 10, "model.mask": "released"})``."""

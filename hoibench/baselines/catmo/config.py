@@ -28,9 +28,10 @@ and text encoder's sizes and steps, the alignment-loss weight and its differenti
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
-from ..config import check_architecture, check_ints, dotted_replace, section_from_dict, TEXT_ENCODERS
+from ..config import (TEXT_ENCODERS, check_architecture, check_choice, check_divisible, check_interval, check_ints,
+                      check_nonnegative, check_object_sampling, dotted_replace, sections_from_dict, sections_to_dict)
 
 CORRUPTION_MODES = ("token", "unit")
 SECTIONS = ("vq", "text", "gpt", "object", "train")
@@ -57,11 +58,8 @@ class VQConfig:
         check_ints(self, ("down_t",), "vq", lo=0, hi=6)
         if self.motion_codes < 2 or self.contact_codes < 2:
             raise ValueError("vq.motion_codes and vq.contact_codes: expected at least 2 codes")
-        if not 0 < self.ema_mu < 1:
-            raise ValueError(f"vq.ema_mu: expected (0, 1), got {self.ema_mu!r}")
-        for name in ("beta", "lambda_velocity"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"vq.{name}: expected >= 0, got {getattr(self, name)!r}")
+        check_interval(self, ("ema_mu",), "vq", "(0, 1)")
+        check_nonnegative(self, ("beta", "lambda_velocity"), "vq")
         if self.window % (2 ** self.down_t):
             raise ValueError(f"vq.window ({self.window}) must be a multiple of 2^vq.down_t ({2 ** self.down_t})")
 
@@ -85,8 +83,7 @@ class TextMatchConfig:
     def __post_init__(self) -> None:
         check_ints(self, ("max_tokens", "width", "hidden"), "text", hi=100_000)
         check_ints(self, ("movement_ae_steps", "match_steps"), "text", lo=0)
-        if self.encoder not in TEXT_ENCODERS:
-            raise ValueError(f"text.encoder: expected one of {TEXT_ENCODERS}, got {self.encoder!r}")
+        check_choice(self, "encoder", "text", TEXT_ENCODERS)
         if not self.margin > 0:
             raise ValueError(f"text.margin: expected > 0, got {self.margin!r}")
 
@@ -110,20 +107,12 @@ class GPTConfig:
     def __post_init__(self) -> None:
         check_ints(self, ("width", "layers", "heads", "ff_mult", "max_units", "object_points", "object_tokens",
                           "object_knn"), "gpt", hi=100_000)
-        if self.width % self.heads:
-            raise ValueError(f"gpt.width ({self.width}) must be divisible by gpt.heads ({self.heads})")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"gpt.dropout: expected [0, 1), got {self.dropout!r}")
-        if not 0 <= self.corrupt_rate < 1:
-            raise ValueError(f"gpt.corrupt_rate: expected [0, 1), got {self.corrupt_rate!r}")
-        if self.corruption not in CORRUPTION_MODES:
-            raise ValueError(f"gpt.corruption: expected one of {CORRUPTION_MODES}, got {self.corruption!r}")
-        if not self.lambda_align >= 0:
-            raise ValueError(f"gpt.lambda_align: expected >= 0, got {self.lambda_align!r}")
-        if not 0 < self.temperature <= 100:
-            raise ValueError(f"gpt.temperature: expected (0, 100], got {self.temperature!r}")
-        if self.object_tokens > self.object_points or self.object_knn > self.object_points:
-            raise ValueError("gpt.object_tokens and gpt.object_knn must not exceed gpt.object_points")
+        check_divisible(self, "width", "heads", "gpt")
+        check_interval(self, ("dropout", "corrupt_rate"), "gpt", "[0, 1)")
+        check_choice(self, "corruption", "gpt", CORRUPTION_MODES)
+        check_nonnegative(self, ("lambda_align",), "gpt")
+        check_interval(self, ("temperature",), "gpt", "(0, 100]")
+        check_object_sampling(self, "gpt")
 
 
 @dataclass(frozen=True)
@@ -156,10 +145,8 @@ class CatmoTrainConfig:
     def __post_init__(self) -> None:
         check_ints(self, ("vq_steps", "contact_steps", "gpt_steps"), "train", lo=0)
         check_ints(self, ("batch_size", "min_frames", "checkpoint_every", "log_every"), "train")
-        if not 0 < self.lr < 1:
-            raise ValueError(f"train.lr: expected (0, 1), got {self.lr!r}")
-        if not 0 <= self.weight_decay < 1:
-            raise ValueError(f"train.weight_decay: expected [0, 1), got {self.weight_decay!r}")
+        check_interval(self, ("lr",), "train", "(0, 1)")
+        check_interval(self, ("weight_decay",), "train", "[0, 1)")
 
 
 @dataclass(frozen=True)
@@ -176,19 +163,13 @@ class CatmoConfig:
             check_architecture(getattr(self, s), s)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, **{s: asdict(getattr(self, s)) for s in SECTIONS}}
+        return sections_to_dict(self, SECTIONS)
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "config") -> "CatmoConfig":
-        if not isinstance(d, dict):
-            raise ValueError(f"{where}: expected an object")
-        unknown = sorted(set(d) - set(SECTIONS) - {"name"})
-        if unknown:
-            raise ValueError(f"{where}: unknown section(s) {', '.join(unknown)}")
         kinds = {"vq": VQConfig, "text": TextMatchConfig, "gpt": GPTConfig, "object": ObjectHeadConfig,
                  "train": CatmoTrainConfig}
-        parts = {s: section_from_dict(kinds[s], d.get(s, {}), f"{where}.{s}", where) for s in SECTIONS}
-        return cls(name=str(d.get("name", "custom")), **parts)
+        return cls(**sections_from_dict(d, kinds, where))
 
     def replace(self, **changes) -> "CatmoConfig":
         """A copy with dotted overrides, e.g. ``replace(**{"train.gpt_steps": 10})``."""

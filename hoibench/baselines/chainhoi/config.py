@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import RunConfig, TrainConfig, check_conditioning, check_ints
+from ..config import RunConfig, TrainConfig, check_choice, check_conditioning, check_divisible, check_ints
 
 MASK_MODES = ("paper", "released")
 
@@ -55,14 +55,12 @@ class ModelConfig:
         check_ints(self, ("blocks", "d_model", "d_text", "heads", "ff_mult", "temporal_kernel", "object_points",
                           "object_tokens", "object_knn", "text_max_tokens", "text_layers"), "model", hi=100_000)
         check_conditioning(self)
-        if self.d_text % self.heads:
-            raise ValueError(f"model.d_text ({self.d_text}) must be divisible by model.heads ({self.heads})")
+        check_divisible(self, "d_text", "heads", "model")
+        check_choice(self, "mask", "model", MASK_MODES)
         if self.temporal_kernel % 2 == 0:
             raise ValueError(f"model.temporal_kernel: expected an odd integer, got {self.temporal_kernel}")
         if not self.temporal_dilations or any(not isinstance(d, int) or d < 1 for d in self.temporal_dilations):
             raise ValueError(f"model.temporal_dilations: expected positive integers, got {self.temporal_dilations!r}")
-        if self.mask not in MASK_MODES:
-            raise ValueError(f"model.mask: expected one of {MASK_MODES}, got {self.mask!r}")
 
 
 def preset(name: str = "tiny") -> RunConfig:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import RunConfig, TrainConfig, check_conditioning, check_ints
+from ..config import RunConfig, TrainConfig, check_conditioning, check_divisible, check_ints
 
 
 @dataclass(frozen=True)
@@ -54,8 +54,7 @@ class ModelConfig:
                           "object_tokens", "object_knn", "text_max_tokens", "text_layers"), "model", hi=100_000)
         check_ints(self, ("mask_k",), "model", lo=0, hi=22)
         check_conditioning(self)
-        if self.d_model % self.heads:
-            raise ValueError(f"model.d_model ({self.d_model}) must be divisible by model.heads ({self.heads})")
+        check_divisible(self, "d_model", "heads", "model")
 
 
 def preset(name: str = "tiny") -> RunConfig:

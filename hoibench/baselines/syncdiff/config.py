@@ -33,9 +33,10 @@ steps, no classifier-free guidance (the paper names none).
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
-from ..config import TEXT_ENCODERS, TrainConfig, check_ints, dotted_replace, section_from_dict
+from ..config import (TEXT_ENCODERS, TrainConfig, check_choice, check_divisible, check_interval, check_ints,
+                      dotted_replace, sections_from_dict, sections_to_dict)
 from ..diffusion import DiffusionConfig
 
 SECTIONS = ("model", "syncdiff", "train", "diffusion")
@@ -62,12 +63,9 @@ class ModelConfig:
         check_ints(self, ("latent", "layers", "heads", "ff_mult", "cond_width", "time_width", "text_max_tokens",
                           "bps_points", "surface_points"), "model", hi=100_000)
         check_ints(self, ("bps_seed",), "model", lo=0)
-        if self.latent % self.heads:
-            raise ValueError(f"model.latent ({self.latent}) must be divisible by model.heads ({self.heads})")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"model.dropout: expected [0, 1), got {self.dropout!r}")
-        if self.text_encoder not in TEXT_ENCODERS:
-            raise ValueError(f"model.text_encoder: expected one of {TEXT_ENCODERS}, got {self.text_encoder!r}")
+        check_divisible(self, "latent", "heads", "model")
+        check_interval(self, ("dropout",), "model", "[0, 1)")
+        check_choice(self, "text_encoder", "model", TEXT_ENCODERS)
         if not 0 < self.bps_radius < 100:
             raise ValueError(f"model.bps_radius: expected (0, 100) metres, got {self.bps_radius!r}")
 
@@ -92,8 +90,7 @@ class SyncConfig:
     high_groups: int = 1
 
     def __post_init__(self) -> None:
-        if self.freq_position not in FREQ_POSITIONS:
-            raise ValueError(f"syncdiff.freq_position: expected one of {FREQ_POSITIONS}, got {self.freq_position!r}")
+        check_choice(self, "freq_position", "syncdiff", FREQ_POSITIONS)
         for name in ("decompose", "align_loss", "explicit_sync"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"syncdiff.{name}: expected true or false, got {getattr(self, name)!r}")
@@ -116,20 +113,12 @@ class SyncRunConfig:
     diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "model": asdict(self.model), "syncdiff": asdict(self.syncdiff),
-                "train": asdict(self.train), "diffusion": asdict(self.diffusion)}
+        return sections_to_dict(self, SECTIONS)
 
     @classmethod
     def from_dict(cls, d: dict, model_cls: type = ModelConfig, where: str = "config") -> "SyncRunConfig":
-        if not isinstance(d, dict):
-            raise ValueError(f"{where}: expected an object")
-        unknown = sorted(set(d) - {"name", *SECTIONS})
-        if unknown:
-            raise ValueError(f"{where}: unknown section(s) {', '.join(unknown)}")
-        parts = {key: section_from_dict(sub, d.get(key, {}), f"{where}.{key}", where)
-                 for key, sub in (("model", model_cls), ("syncdiff", SyncConfig), ("train", TrainConfig),
-                                  ("diffusion", DiffusionConfig))}
-        return cls(name=str(d.get("name", "custom")), **parts)
+        kinds = {"model": model_cls, "syncdiff": SyncConfig, "train": TrainConfig, "diffusion": DiffusionConfig}
+        return cls(**sections_from_dict(d, kinds, where))
 
     def replace(self, **changes) -> "SyncRunConfig":
         """A copy with dotted overrides, e.g. ``replace(**{"syncdiff.decompose": False})``."""
