@@ -222,7 +222,7 @@ def test_wrong_truncated_or_mismatched_checkpoints_are_one_line_errors(imported,
         assert "\n" not in str(exc.value) and not (tmp_path / "ev").exists()
 
     bad.write_text("not a checkpoint")
-    refused(r"finest.tar: not a readable torch checkpoint")
+    refused(r"finest.tar: not a PyTorch checkpoint \(looks like a text file")
     raw = files["checkpoint"].read_bytes()
     bad.write_bytes(raw[: len(raw) // 2])
     refused(r"finest.tar: not a readable torch checkpoint")

@@ -115,3 +115,34 @@ def test_chainhois_roberta_folder_as_downloaded_is_checked_at_import(tmp_path):
     with pytest.raises(ChainHOIImportError) as exc:
         _text_model(folder)
     assert str(folder) in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_a_baseline_run_folder_given_as_evaluator_is_named_as_one(tmp_path):
+    from hoibench.evaluator.backends import load_evaluator, peek_card
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "card.json").write_text(json.dumps({"baseline": "chainhoi", "checkpoint_id": "0" * 64,
+                                               "dataset": {"representation": "hoi269-clean-1.0"}}))
+    assert peek_card(run) == {}
+    with pytest.raises(ValueError) as exc:
+        load_evaluator(run)
+    msg = str(exc.value)
+    assert "baseline run folder" in msg and "chainhoi" in msg and "evaluator_id" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("content,needle", [
+    (b"<!DOCTYPE html>\n<html><head><title>Sign in</title></head><body>...</body></html>", "HTML page"),
+    (b"\n  <html lang='en'>" + b"x" * 5000, "HTML page"),
+    (b"Not Found\n", "text file")])
+def test_a_web_page_saved_as_a_checkpoint_is_named_as_one(tmp_path, content, needle):
+    from hoibench.evaluator.errors import EvaluatorError
+    from hoibench.evaluator.published_t2m import read_checkpoint
+    from hoibench.evaluator.safe_checkpoint import CheckpointReadError, load_checkpoint
+    path = tmp_path / "finest.tar"
+    path.write_bytes(content)
+    for read, error in ((load_checkpoint, CheckpointReadError), (read_checkpoint, EvaluatorError)):
+        with pytest.raises(error) as exc:
+            read(path)
+        msg = str(exc.value)
+        assert f"not a PyTorch checkpoint (looks like an {needle}" in msg or f"(looks like a {needle}" in msg, msg
+        assert str(path) in msg and "\n" not in msg

@@ -118,6 +118,26 @@ def _declared_backend(folder: Path) -> Backend | None:
     return None
 
 
+def baseline_run_refusal(folder: str | Path) -> str | None:
+    """The one-line refusal of a baseline run folder given where an evaluator folder is needed
+    (its ``card.json`` has ``checkpoint_id`` and ``baseline``, no ``evaluator_id``); None otherwise."""
+    from ..core.io import read_json_file
+    folder = Path(folder)
+    if not (folder / "card.json").is_file():
+        return None
+    try:
+        card = read_json_file(folder / "card.json", 8 << 20, "card.json")
+    except (ValueError, OSError, RecursionError):
+        return None
+    if not isinstance(card, dict) or "evaluator_id" in card or "checkpoint_id" not in card:
+        return None
+    name = str(card.get("baseline", "?"))[:40]
+    return (f"{folder}: a baseline run folder (the trained {name} generator: card.json with checkpoint_id), not an "
+            f"evaluator folder; --evaluator takes a folder whose card.json has evaluator_id (made by `hoibench "
+            f"train-evaluator DATA --out EV` or `hoibench evaluator import ...`, or a track's "
+            f"leaderboards/<track>/evaluator)")
+
+
 def backend_of(folder: str | Path) -> Backend | None:
     """The backend of ``folder``: the one its ``card.json`` names in ``backend``, else the
     one whose marker file it holds (None when none does)."""
@@ -138,7 +158,7 @@ def peek_card(folder: str | Path, kind: str | None = None) -> dict:
     ``kind`` or it cannot be read (:func:`load_evaluator` then names the problem)."""
     from ..core.io import read_json_file
     backend = backend_of(folder)
-    if backend is None or (kind is not None and backend.kind != kind):
+    if backend is None or (kind is not None and backend.kind != kind) or baseline_run_refusal(folder):
         return {}
     try:
         card = read_json_file(Path(folder) / backend.marker, 8 << 20, backend.marker)
@@ -154,6 +174,9 @@ def load_evaluator(folder: str | Path, kind: str | None = None, **options) -> An
     another kind is refused with a one-line error saying which command makes the right one.
     ``options`` go to the backend's loader (contrastive: ``allow_failed_gate``,
     ``text_encoder``, ``threads``, ``device``)."""
+    refusal = baseline_run_refusal(folder)
+    if refusal:
+        raise ValueError(refusal)
     backend = backend_of(folder)
     if backend is None:
         backend = get_backend(kind or "contrastive")     # its loader names the missing file

@@ -180,6 +180,10 @@ def read_checkpoint(path: str | Path, dims: T2MDims = T2MDims()) -> tuple[dict[s
         raw = read_regular_file(path, MAX_CHECKPOINT_BYTES, "checkpoint")
     except ValueError as exc:
         raise EvaluatorError(str(exc)) from None
+    from .safe_checkpoint import not_a_checkpoint
+    why = not_a_checkpoint(raw[:4096])
+    if why:
+        raise EvaluatorError(f"{path}: {why}")
     try:
         ckpt = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
     except Exception as exc:                    # truncated zip, not a torch file, a refused global

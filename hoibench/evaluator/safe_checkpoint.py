@@ -64,6 +64,23 @@ def _one_line(exc: BaseException) -> str:
     return (m.group(1) if m else text)[:240]
 
 
+def not_a_checkpoint(head: bytes) -> str | None:
+    """Why the first bytes of a file are not a ``torch.save`` file (a zip archive, ``PK\\x03\\x04``,
+    or a legacy pickle, ``\\x80``), or None when they may be one: an HTML page (a failed
+    download saved under the checkpoint's name), other text, or an unknown format."""
+    if head.startswith(b"PK\x03\x04") or head.startswith(b"\x80"):
+        return None
+    text = head.lstrip(b"\xef\xbb\xbf \t\r\n").lower()
+    if text.startswith((b"<!doctype html", b"<html", b"<head", b"<?xml", b"<!--")) or b"<html" in text[:512]:
+        return "not a PyTorch checkpoint (looks like an HTML page: the download failed?)"
+    if not head:
+        return "not a PyTorch checkpoint (the file is empty)"
+    printable = sum(32 <= b < 127 or b in (9, 10, 13) for b in head[:512])
+    if printable >= 0.95 * len(head[:512]):
+        return "not a PyTorch checkpoint (looks like a text file: the download failed?)"
+    return None
+
+
 def load_checkpoint(path: str | Path, what: str = "checkpoint") -> dict:
     """The dictionary stored in the ``torch.save`` file ``path`` (tensors on the CPU).
 
@@ -79,6 +96,13 @@ def load_checkpoint(path: str | Path, what: str = "checkpoint") -> dict:
         raise CheckpointReadError(f"{what} {path}: no such file")
     if not path.is_file():
         raise CheckpointReadError(f"{what} {path}: not a regular file")
+    try:
+        with open(path, "rb") as f:
+            why = not_a_checkpoint(f.read(4096))
+    except OSError as exc:
+        raise CheckpointReadError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None
+    if why:
+        raise CheckpointReadError(f"{what} {path}: {why}")
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)  # read-ok: weights-only unpickler (tensors, plain containers)
     except pickle.UnpicklingError as exc:
