@@ -98,7 +98,7 @@ def sample_baseline(name: str, run: str | Path | None, data: str | Path, out: st
         if unused:
             raise ValueError(f"{', '.join(unused)}: mean-pose is deterministic and has no model; it writes one sample "
                              f"per prompt and takes none of these")
-        from ..baselines.trivial import write_mean_pose_submission
+        from ..scoring.mean_pose import write_mean_pose_submission
         path = write_mean_pose_submission(data, out, as_zip=as_zip)
         print(f"[mean-pose] wrote {path}")
         return 0
