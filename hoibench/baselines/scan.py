@@ -1,25 +1,131 @@
-"""Selective scan (Mamba's S6 recurrence) in pure PyTorch, parallel over time.
+"""Selective scan (Mamba's S6 recurrence) in pure PyTorch.
 
-The recurrence ``h_t = a_t * h_{t-1} + b_t`` (``h_{-1} = 0``, elementwise) is an associative
-scan over pairs ``(a, b)`` with ``(a1, b1) . (a2, b2) = (a1 a2, a2 b1 + b2)``.
-:func:`linear_scan` evaluates it with Blelloch's work-efficient parallel scan: ``2 log2 L``
-vectorised steps over strided views (an up-sweep and a down-sweep), O(L) work, in place; no
-Python loop over time. Only products of factors ``a`` in (0, 1] occur (``a = exp(delta * A)``
-with ``A < 0``), so it is stable in float32 for any length, unlike the log-space
-cumulative-sum form, whose ``exp(-cumsum(log a))`` overflows on long sequences. Measured on
-CPU (docs/baselines.md), it is 3.6x faster than recursive doubling and 1.3x faster than the
-``mambapy`` package's pure-PyTorch scan, so hoibench keeps its own.
+:func:`selective_scan` is Mamba-1's S6 with zero-order-hold ``A`` and the simplified (Euler)
+``B``: ``h_t = exp(delta_t A) h_{t-1} + delta_t B_t u_t`` (``h_{-1} = 0``, per channel ``d`` and
+state ``n``), ``y_t = C_t . h_t + D u_t``. It runs as a loop over time on one (sequences,
+state, width) slice at a time, with the ``C`` contraction fused into the loop, so the
+(sequences, frames, width, state) tensors of ``exp(delta A)`` and ``delta B u`` are never
+built; the state sits as (state, width) with the width contiguous, so every broadcast in the
+loop runs over the contiguous width; sequences are taken in tiles of about
+``TILE_ELEMENTS`` state entries, so a step's operands stay in the CPU's cache.
 
-The backward pass is the adjoint recurrence, itself a scan in reverse time:
-``g_t = dL/dh_t + a_{t+1} g_{t+1}``, ``dL/db_t = g_t``, ``dL/da_t = g_t h_{t-1}``; autograd
-therefore saves only ``a`` and ``h`` (not the log L intermediate levels).
+Its backward is written out (:class:`_S6`): the adjoint ``g_t = dL/dh_t`` runs backwards in
+time, ``g_t = C_t dy_t + exp(delta_{t+1} A) g_{t+1}``, and with ``q_t = g_t h_{t-1}
+exp(delta_t A)``: ``dL/dA = sum_t delta_t q_t``, ``dL/ddelta_t = sum_n A q_t + u_t sum_n B_t
+g_t``, ``dL/du_t = delta_t sum_n B_t g_t``, ``dL/dB_t = sum_d delta_t u_t g_t``, ``dL/dC_t =
+sum_d dy_t h_t``. Training keeps the states h (frames, sequences, state, width) for it;
+``exp(delta A)`` is recomputed.
 
-:func:`selective_scan` is Mamba's S6 with zero-order-hold ``A`` and the simplified (Euler)
-``B`` of Mamba-1: ``a = exp(delta A)``, ``b = delta B u``, ``y_t = C_t . h_t + D u_t``.
+:func:`linear_scan` is the general ``h_t = a_t h_{t-1} + b_t`` over given tensors by
+Blelloch's work-efficient parallel scan (``2 log2 L`` vectorised steps over strided views,
+up-sweep and down-sweep, an adjoint reverse scan as its backward); :func:`linear_scan_reference`
+is the same recurrence as a plain loop, the tests' reference. ``benchmarks/scan.py`` compares
+them; EJIM used ``linear_scan`` under S6 before :func:`selective_scan` fused it.
 """
 from __future__ import annotations
 
 import torch
+
+#: state entries (sequences x state x width) per tile of the time loop: 128 Ki floats, 512 KiB
+TILE_ELEMENTS = 1 << 17
+
+
+def _tiles(b: int, per: int) -> list[slice]:
+    step = max(1, TILE_ELEMENTS // max(per, 1))
+    return [slice(i, min(b, i + step)) for i in range(0, b, step)]
+
+
+def _s6_forward(u, delta, At, B, C, keep: bool):
+    """Time-major S6 without ``D``: u, delta (L, b, d); At (n, d) = A transposed; B, C (L, b, n).
+    Returns y (L, b, d) and, with ``keep``, the states H (L, b, n, d)."""
+    L, b, d = u.shape
+    n = At.shape[0]
+    du = delta * u
+    y = u.new_empty(L, b, d)
+    H = u.new_empty(L, b, n, d) if keep else None
+    for s in _tiles(b, n * d):
+        bt = s.stop - s.start
+        h = u.new_zeros(bt, n, d)
+        dA = u.new_empty(bt, n, d)
+        for t in range(L):
+            torch.mul(delta[t, s, None, :], At, out=dA)
+            dA.exp_()
+            if keep:
+                ht = H[t, s]
+                torch.mul(h, dA, out=ht)
+                h = ht
+            else:
+                h.mul_(dA)
+            h.addcmul_(B[t, s, :, None], du[t, s, None, :])
+            torch.bmm(C[t, s, None, :], h, out=y[t, s, None, :])
+    return y, H
+
+
+def _s6_backward(u, delta, At, B, C, H, dy):
+    """Gradients of :func:`_s6_forward`'s y (time-major) for u, delta, At, B, C."""
+    L, b, d = u.shape
+    n = At.shape[0]
+    du = delta * u
+    gdecay = u.new_zeros(L, b, d)             # sum_n A q_t
+    GB = u.new_empty(L, b, d)                 # sum_n B_t g_t
+    gB, gC = u.new_empty(L, b, n), u.new_empty(L, b, n)
+    acc = None
+    for s in _tiles(b, n * d):
+        bt = s.stop - s.start
+        if acc is None:
+            acc = u.new_zeros(bt, n, d)           # sum_t delta_t q_t per sequence
+        g = u.new_zeros(bt, n, d)
+        dA, dA_next, q = u.new_empty(bt, n, d), u.new_empty(bt, n, d), u.new_empty(bt, n, d)
+        for t in range(L - 1, -1, -1):
+            if t < L - 1:
+                g.mul_(dA_next)
+            g.addcmul_(C[t, s, :, None], dy[t, s, None, :])
+            torch.bmm(H[t, s], dy[t, s, :, None], out=gC[t, s, :, None])
+            torch.bmm(B[t, s, None, :], g, out=GB[t, s, None, :])
+            torch.bmm(g, du[t, s, :, None], out=gB[t, s, :, None])
+            if t > 0:
+                torch.mul(delta[t, s, None, :], At, out=dA)
+                dA.exp_()
+                torch.mul(g, H[t - 1, s], out=q)
+                q.mul_(dA)
+                acc[:bt].addcmul_(q, delta[t, s, None, :])
+                q.mul_(At)
+                torch.sum(q, 1, out=gdecay[t, s])
+                dA, dA_next = dA_next, dA
+    gAt = acc.sum(0)
+    return delta * GB, gdecay + u * GB, gAt, gB, gC
+
+
+class _S6(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, u, delta, At, B, C):
+        y, H = _s6_forward(u, delta, At, B, C, keep=True)
+        ctx.save_for_backward(u, delta, At, B, C, H)
+        return y
+
+    @staticmethod
+    def backward(ctx, dy):
+        u, delta, At, B, C, H = ctx.saved_tensors
+        return _s6_backward(u, delta, At, B, C, H, dy.contiguous())
+
+
+def selective_scan_tm(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,
+                      D: torch.Tensor | None = None) -> torch.Tensor:
+    """:func:`selective_scan` time-major: u, delta (L, b, d); B, C (L, b, n); returns y (L, b, d)."""
+    args = (u.contiguous(), delta.contiguous(), A.t().contiguous(), B.contiguous(), C.contiguous())
+    if torch.is_grad_enabled() and any(x.requires_grad for x in args):
+        y = _S6.apply(*args)
+    else:
+        y = _s6_forward(*args, keep=False)[0]
+    return y if D is None else y + u * D
+
+
+def selective_scan(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,
+                   D: torch.Tensor | None = None) -> torch.Tensor:
+    """Mamba-1 S6. u, delta: (b, L, d); A: (d, n) (negative); B, C: (b, L, n); D: (d,).
+    Returns y (b, L, d): ``h_t = exp(delta_t A) h_{t-1} + delta_t B_t u_t``, ``y_t = C_t h_t + D u_t``."""
+    tm = lambda x: x.transpose(0, 1)            # noqa: E731  (time-major)
+    return tm(selective_scan_tm(tm(u), tm(delta), A, tm(B), tm(C), D))
 
 
 def _blelloch_scan(a: torch.Tensor, b: torch.Tensor, reverse: bool = False) -> torch.Tensor:
@@ -93,14 +199,3 @@ def linear_scan_reference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         h = a[:, t] * h + b[:, t]
         out.append(h)
     return torch.stack(out, 1)
-
-
-def selective_scan(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,
-                   D: torch.Tensor | None = None, scan=linear_scan) -> torch.Tensor:
-    """Mamba-1 S6. u, delta: (b, L, d); A: (d, n) (negative); B, C: (b, L, n); D: (d,).
-    Returns y (b, L, d): ``h_t = exp(delta_t A) h_{t-1} + delta_t B_t u_t``, ``y_t = C_t h_t + D u_t``."""
-    dA = torch.exp(delta[..., None] * A)                          # (b, L, d, n)
-    dBu = (delta * u)[..., None] * B[:, :, None, :]               # (b, L, d, n)
-    h = scan(dA, dBu)
-    y = (h * C[:, :, None, :]).sum(-1)
-    return y if D is None else y + u * D

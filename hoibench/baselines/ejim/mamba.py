@@ -2,14 +2,21 @@
 
 ``x -> LayerNorm -> in_proj -> (u, z)``; ``u -> depthwise causal conv (width d_conv) -> SiLU``;
 ``delta = softplus(dt_proj(x_proj(u)))``, ``B, C = x_proj(u)``; ``y = S6(u, delta, A, B, C, D)``
-(:func:`hoibench.baselines.scan.selective_scan`, parallel over time); ``out = out_proj(y *
-SiLU(z))``; residual. ``A = -exp(A_log)`` with ``A_log = log(1..d_state)`` (S4D-real),
-``dt`` bias initialised so that ``softplus(bias)`` is log-uniform in [1e-3, 1e-1].
+(:func:`hoibench.baselines.scan.selective_scan_tm`); ``out = out_proj(y * SiLU(z))``;
+residual. ``A = -exp(A_log)`` with ``A_log = log(1..d_state)`` (S4D-real), ``dt`` bias
+initialised so that ``softplus(bias)`` is log-uniform in [1e-3, 1e-1].
+
+The block computes time-major (:meth:`MambaBlock.forward_tm`, x (L, b, d)): every
+projection is row-wise, the causal convolution is ``d_conv`` shifted multiply-adds along
+the leading (time) axis (:class:`_CausalConv`, the same sum as ``nn.Conv1d`` with
+``padding = d_conv - 1`` cut to L), and the scan reads one time step's rows at a time.
+:meth:`MambaBlock.forward` takes (b, L, d).
 
 Exactness with padding and direction:
 
-- ``valid`` (b, L): padded positions are zeroed after ``in_proj`` and get ``delta = 0``, so
-  they neither feed the convolution nor change the state (``exp(0 A) = 1``, input 0).
+- ``valid`` (b, L): padded positions of ``u`` are zeroed after ``in_proj`` and get
+  ``delta = 0``, so they neither feed the convolution nor change the state
+  (``exp(0 A) = 1``, input 0); the block's output is zeroed there (``z`` needs no mask).
 - ``reverse``: each sequence's valid part is reversed in place (padding stays at the end),
   so the backward scan of a padded sequence equals that of the unpadded one.
 - ``prefix``: the first ``prefix`` positions (condition tokens) are never reversed, so in
@@ -23,7 +30,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..scan import selective_scan
+from ..scan import selective_scan_tm
 
 
 def reversal_index(valid: torch.Tensor, prefix: int = 0) -> torch.Tensor:
@@ -38,8 +45,57 @@ def reversal_index(valid: torch.Tensor, prefix: int = 0) -> torch.Tensor:
     return torch.where(inside, 2 * prefix + n - 1 - pos, pos)
 
 
-def _gather(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-    return torch.gather(x, 1, index[..., None].expand_as(x))
+class _Rows(torch.autograd.Function):
+    """``x.view(N, d)[rows]`` for a permutation ``rows`` that is its own inverse: the backward
+    is the same row gather."""
+
+    @staticmethod
+    def forward(ctx, x, rows):
+        ctx.save_for_backward(rows)
+        return x.reshape(-1, x.shape[-1]).index_select(0, rows).view(x.shape)
+
+    @staticmethod
+    def backward(ctx, grad):
+        rows, = ctx.saved_tensors
+        return grad.reshape(-1, grad.shape[-1]).index_select(0, rows).view(grad.shape), None
+
+
+def reversal_rows(valid_tm: torch.Tensor, prefix: int = 0) -> torch.Tensor:
+    """Flat row index into a time-major (L, b, ...) tensor viewed as (L b, ...) that applies
+    :func:`reversal_index` to every sequence; its own inverse."""
+    L, b = valid_tm.shape
+    src = reversal_index(valid_tm.t(), prefix).t()                              # (L, b) source time
+    return (src * b + torch.arange(b, device=valid_tm.device)).reshape(-1)
+
+
+class _CausalConv(torch.autograd.Function):
+    """Depthwise causal convolution along dim 0 of x (L, b, c) with weight (c, K), bias (c):
+    ``out_t = bias + sum_k w_k x_{t - (K - 1 - k)}`` (x before 0 reads as 0)."""
+
+    @staticmethod
+    def forward(ctx, x, weight, bias):
+        L, K = x.shape[0], weight.shape[1]
+        out = bias.expand_as(x).clone()
+        for k in range(K):
+            s = K - 1 - k
+            if s < L:
+                out[s:].addcmul_(x[:L - s], weight[:, k])
+        ctx.save_for_backward(x, weight)
+        return out
+
+    @staticmethod
+    def backward(ctx, grad):
+        x, weight = ctx.saved_tensors
+        L, K = x.shape[0], weight.shape[1]
+        grad = grad.contiguous()
+        gx = torch.zeros_like(x)
+        gw = weight.new_zeros(weight.shape)
+        for k in range(K):
+            s = K - 1 - k
+            if s < L:
+                gx[:L - s].addcmul_(grad[s:], weight[:, k])
+                gw[:, k] = (grad[s:] * x[:L - s]).reshape(-1, x.shape[-1]).sum(0)
+        return gx, gw, grad.reshape(-1, grad.shape[-1]).sum(0)
 
 
 class MambaBlock(nn.Module):
@@ -64,21 +120,28 @@ class MambaBlock(nn.Module):
     def forward(self, x: torch.Tensor, valid: torch.Tensor | None = None, reverse: bool = False,
                 prefix: int = 0) -> torch.Tensor:
         """x (b, L, d) -> (b, L, d); ``valid`` (b, L) bool (True = real position)."""
-        b, L, _ = x.shape
+        vt = None if valid is None else valid.t()
+        return self.forward_tm(x.transpose(0, 1), vt, reverse, prefix).transpose(0, 1)
+
+    def forward_tm(self, x: torch.Tensor, valid: torch.Tensor | None = None, reverse: bool = False,
+                   prefix: int = 0, rows: torch.Tensor | None = None) -> torch.Tensor:
+        """Time-major: x (L, b, d) -> (L, b, d); ``valid`` (L, b) bool; ``rows``: the
+        :func:`reversal_rows` of ``valid`` and ``prefix`` when the caller has them."""
+        L, b, _ = x.shape
         if valid is None:
-            valid = torch.ones(b, L, dtype=torch.bool, device=x.device)
-        index = reversal_index(valid, prefix) if reverse else None
-        h = self.norm(_gather(x, index) if reverse else x)
+            valid = torch.ones(L, b, dtype=torch.bool, device=x.device)
+        if reverse and rows is None:
+            rows = reversal_rows(valid, prefix)
+        h = self.norm(_Rows.apply(x, rows) if reverse else x)
         m = valid[..., None].to(h.dtype)
-        u, z = (self.in_proj(h) * m).chunk(2, dim=-1)
-        u = F.silu(self.conv(u.transpose(1, 2))[..., :L].transpose(1, 2)) * m
-        dbc = self.x_proj(u)
-        dt, B, C = dbc.split([self.dt_rank, self.d_state, self.d_state], dim=-1)
+        u, z = self.in_proj(h).chunk(2, dim=-1)
+        u = F.silu(_CausalConv.apply(u * m, self.conv.weight[:, 0], self.conv.bias)) * m
+        dt, B, C = self.x_proj(u).split([self.dt_rank, self.d_state, self.d_state], dim=-1)
         delta = F.softplus(self.dt_proj(dt)) * m
-        y = selective_scan(u, delta, -torch.exp(self.A_log), B, C, self.D)
+        y = selective_scan_tm(u, delta, -torch.exp(self.A_log), B, C, self.D)
         out = self.drop(self.out_proj(y * F.silu(z))) * m
         if reverse:
-            out = _gather(out, index)
+            out = _Rows.apply(out, rows)
         return x + out
 
 
@@ -92,4 +155,10 @@ class BiMamba(nn.Module):
         self.bwd = MambaBlock(d_model, d_state, expand, d_conv, dropout)
 
     def forward(self, x, valid=None, prefix: int = 0):
-        return self.bwd(self.fwd(x, valid, prefix=prefix), valid, reverse=True, prefix=prefix)
+        """x (b, L, d), valid (b, L)."""
+        vt = None if valid is None else valid.t()
+        return self.forward_tm(x.transpose(0, 1), vt, prefix).transpose(0, 1)
+
+    def forward_tm(self, x, valid=None, prefix: int = 0):
+        """Time-major: x (L, b, d), valid (L, b)."""
+        return self.bwd.forward_tm(self.fwd.forward_tm(x, valid, prefix=prefix), valid, reverse=True, prefix=prefix)

@@ -131,38 +131,40 @@ class Module(nn.Module):
         self.human_cond, self.object_cond = mk(), mk()
         seq, seps = limb_order()
         self.register_buffer("seq", torch.tensor([max(i, 0) for i in seq]), persistent=False)
-        self.register_buffer("is_sep", torch.tensor([i < 0 for i in seq]), persistent=False)
         self.register_buffer("sep_pos", torch.tensor(seps), persistent=False)
-        # back from the 29-token order to the 23 tokens: each joint's positions (22 appears twice)
-        back = torch.zeros(HUMAN, len(seq))
-        for p, j in enumerate(seq):
-            if j >= 0:
-                back[j, p] = 1.0
-        self.register_buffer("back", back / back.sum(1, keepdim=True), persistent=False)
+        # back from the 29-token order to the 23 tokens: each joint's first position; the
+        # foot-ground node's two outputs are averaged
+        first = [seq.index(j) for j in range(HUMAN)]
+        self.register_buffer("first", torch.tensor(first), persistent=False)
+        self.foot_pos = tuple(p for p, j in enumerate(seq) if j == HUMAN - 1)
 
     def spatial(self, h: torch.Tensor) -> torch.Tensor:
-        B, L, J, d = h.shape
-        x = h.reshape(B * L, J, d)[:, self.seq]                            # (BL, 29, d)
-        sep = torch.zeros_like(x)
-        sep[:, self.sep_pos] = self.separators
-        x = torch.where(self.is_sep[None, :, None], sep, x)
-        y = self.limb_space(x)
-        return torch.einsum("jp,npd->njd", self.back, y).reshape(B, L, J, d)
+        """h (L, B, 23, d) -> (L, B, 23, d): the limb-guided scan over each frame's 29 tokens."""
+        L, B, J, d = h.shape
+        x = h.reshape(L * B, J, d).transpose(0, 1)[self.seq]               # (29, LB, d): token-major
+        x[self.sep_pos] = self.separators[:, None, :].to(x.dtype)
+        y = self.limb_space.forward_tm(x).transpose(0, 1)                 # (LB, 29, d)
+        out = y[:, self.first]
+        p, q = self.foot_pos
+        out[:, HUMAN - 1] = y[:, p] * 0.5 + y[:, q] * 0.5
+        return out.reshape(L, B, J, d)
 
     def forward(self, h, o, cond, valid, masked, k: int):
-        B, L, J, d = h.shape
-        vj = valid[:, None].expand(B, J, L).reshape(B * J, L)
-        h = self.human_time(h.permute(0, 2, 1, 3).reshape(B * J, L, d), vj).reshape(B, J, L, d).permute(0, 2, 1, 3)
-        o = self.object_time(o, valid)
+        """Time-major: h (L, B, 23, d), o (L, B, d), cond (B, nc, d), valid (L, B), masked
+        (L, B, 23) -> (h, o, new mask)."""
+        L, B, J, d = h.shape
+        vj = valid[:, :, None].expand(L, B, J).reshape(L, B * J)
+        h = self.human_time.forward_tm(h.reshape(L, B * J, d), vj).reshape(L, B, J, d)
+        o = self.object_time.forward_tm(o, valid)
         h = self.spatial(h)
         h, o, _ = self.dib1(h, o, masked)
         nc = cond.shape[1]
-        ones = torch.ones(B, nc, dtype=torch.bool, device=h.device)
-        hc = torch.cat([cond[:, None].expand(B, J, nc, d).reshape(B * J, nc, d),
-                        h.permute(0, 2, 1, 3).reshape(B * J, L, d)], 1)
-        vjc = torch.cat([ones[:, None].expand(B, J, nc).reshape(B * J, nc), vj], 1)
-        h = self.human_cond(hc, vjc, prefix=nc)[:, nc:].reshape(B, J, L, d).permute(0, 2, 1, 3)
-        o = self.object_cond(torch.cat([cond, o], 1), torch.cat([ones, valid], 1), prefix=nc)[:, nc:]
+        ones = torch.ones(nc, B, dtype=torch.bool, device=h.device)
+        ct = cond.transpose(0, 1)                                          # (nc, B, d)
+        hc = torch.cat([ct[:, :, None].expand(nc, B, J, d).reshape(nc, B * J, d), h.reshape(L, B * J, d)], 0)
+        vjc = torch.cat([ones[:, :, None].expand(nc, B, J).reshape(nc, B * J), vj], 0)
+        h = self.human_cond.forward_tm(hc, vjc, prefix=nc)[nc:].reshape(L, B, J, d)
+        o = self.object_cond.forward_tm(torch.cat([ct, o], 0), torch.cat([ones, valid], 0), prefix=nc)[nc:]
         h, o, scores = self.dib2(h, o, masked)
         with torch.no_grad():
             new_mask = update_mask(masked, scores.detach(), k)
@@ -194,12 +196,13 @@ class EJIM(ConditionEncoders):
         pooled = (text_tokens * w).sum(1) / w.sum(1).clamp(min=1.0)
         text = torch.where(keep[:, None], pooled, self.null_text.expand_as(pooled))
         cond = torch.cat([self.time(sinusoidal(t, self.cfg.d_model))[:, None], text[:, None], obj_tokens], 1)
-        h = (self.enc_h(x[:, :, :HUMAN]) + self.joint_embed) * valid[..., None, None]
-        o = self.enc_o(x[:, :, HUMAN]) * valid[..., None]
-        masked = torch.zeros(B, L, HUMAN, dtype=torch.bool, device=x.device)
+        xt, vt = x.transpose(0, 1), valid.t()                              # time-major: (L, B, ...)
+        h = (self.enc_h(xt[:, :, :HUMAN]) + self.joint_embed) * vt[..., None, None]
+        o = self.enc_o(xt[:, :, HUMAN]) * vt[..., None]
+        masked = torch.zeros(L, B, HUMAN, dtype=torch.bool, device=x.device)
         self.last_masks = []
         for mod in self.modules_:
-            h, o, masked = mod(h, o, cond, valid, masked, self.cfg.mask_k)
-            self.last_masks.append(masked)
-        out = torch.cat([self.dec_h(h), self.dec_o(o)[:, :, None]], 2)
-        return out * valid[..., None, None]
+            h, o, masked = mod(h, o, cond, vt, masked, self.cfg.mask_k)
+            self.last_masks.append(masked.transpose(0, 1))
+        out = torch.cat([self.dec_h(h), self.dec_o(o)[:, :, None]], 2).transpose(0, 1)
+        return (out * valid[..., None, None]).contiguous()
