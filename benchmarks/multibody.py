@@ -47,7 +47,7 @@ def main() -> None:
         sub = write_multibody_submission(args.out / "data", args.out / f"sub_{kind}", kind=kind, samples=k)
         t = time.perf_counter()
         res = evaluate(sub, args.out / "data", args.out / "rec", executor=args.executor)
-        vals = " ".join(f"{res['metrics'][x]:8.3f}" if x in res["metrics"] else f"{'--':>8s}" for x in KEYS)
+        vals = " ".join(f"{res['metrics'][x]['mean']:8.3f}" if x in res["metrics"] else f"{'--':>8s}" for x in KEYS)
         print(f"{kind:18s} {time.perf_counter() - t:6.1f} {vals}")
 
 

@@ -40,11 +40,11 @@ ROWS = (("SyncDiff tiny", "full", {}), ("w/o decompose", "no_decompose", {}), ("
 
 
 def _fmt(res: dict, k: str) -> str:
-    v = res["metrics"].get(k)
-    if v is None:
+    m = res["metrics"].get(k)
+    if m is None:
         return "-"
-    ci = res.get("ci95", {}).get(k)
-    return f"{v:.4g}" + (f" ± {ci:.2g}" if ci is not None else "")
+    ci = m.get("ci95")
+    return f"{m['mean']:.4g}" + (f" ± {ci:.2g}" if ci is not None else "")
 
 
 def _test_clips(sub: Path, data: Path, family: str | None = None):

@@ -94,7 +94,9 @@ def test_a_broken_entry_is_named_by_file_and_field(track):
 
 
 def test_fmt_shows_tiny_negative_fid_as_zero():
-    assert fmt({"mean": -3e-7, "ci95": 0.0}) == "0.000 ± 0.000" and fmt(None) == "-"
+    assert fmt({"mean": -3e-7, "ci95": 0.0}, name="fid") == "0.000 ± 0.000" and fmt(None) == "-"
+    assert fmt({"mean": -4.6e-4, "ci95": None}, name="fid") == "0.000"      # one rule for every track
+    assert fmt({"mean": -3e-7, "ci95": 0.0}, name="cd") == "-0.00000 ± 0.00000"
     assert fmt({"mean": 0.00125, "ci95": 0.0}) == "0.00125 ± 0.00000"
 
 

@@ -20,7 +20,8 @@ RESULT = {
 def test_entry_copies_versions_counts_and_completeness(tmp_path):
     e = entry_from_result(RESULT, method="ChainHOI (tiny)", track="synthetic",
                           submission_meta={"source": {"checkpoint_id": "c" * 64}})
-    assert e["metrics"]["fid"] == {"mean": 0.2, "ci95": 0.0, "n": 20}
+    assert e["metrics"]["fid"] == {"mean": 0.2, "ci95": 0.0, "n": 20, "unit": "squared embedding distance",
+                                   "direction": "lower", "interval": "replications"}
     assert e["missing_ids"] == ["clip_x"] and e["complete"] is False and e["scored_ids"] == 33
     assert e["evaluator_id"] == "e" * 64 and e["protocol_version"] == "1.1" and e["toolkit_version"] == "0.4.0"
     assert e["submission_source"]["checkpoint_id"] == "c" * 64 and e["undefined_metrics"]["fsr"]
@@ -147,7 +148,9 @@ def test_a_multibody_result_file_is_read_and_becomes_an_entry(tmp_path):
     path = tmp_path / "mb.json"
     path.write_text(json.dumps(res))
     e = entry_from_result(read_result(path), method="SyncDiff tiny", track="multibody-synthetic")
-    assert e["metrics"] == {"csiou": {"mean": 0.85, "ci95": 0.06, "n": 54}, "ra": {"mean": 0.39, "ci95": 0.13, "n": 54}}
+    over = {"unit": "fraction", "interval": "samples"}
+    assert e["metrics"] == {"csiou": {"mean": 0.85, "ci95": 0.06, "n": 54, "direction": "higher", **over},
+                            "ra": {"mean": 0.39, "ci95": 0.13, "n": 54, "direction": "higher", **over}}
     assert e["evaluator_id"] == "f831072f3a33" and e["scored_ids"] == 54 and e["samples_per_prompt"] == 1
     path.write_text(json.dumps({**res, "metrics": {**res["metrics"], "ra": "0.39"}}))
     with pytest.raises(ResultError, match=r"mb.json: field metrics.ra: expected a number or null"):
@@ -177,5 +180,5 @@ def test_add_reads_the_scored_submissions_training_budget(tmp_path):
     # another recognizer than the track's: refused naming the multi-body result's field
     from hoibench.publish.leaderboard import LeaderboardError
     (tmp_path / "other.json").write_text(json.dumps({**res, "recognizer_id": "c0ca5e7a1536"}))
-    with pytest.raises(LeaderboardError, match=r"other.json: field recognizer_id: c0ca5e7a1536 is not the evaluator"):
+    with pytest.raises(LeaderboardError, match=r"other.json: field evaluator_id: c0ca5e7a1536 is not the evaluator"):
         add_result(tmp_path / "other.json", tmp_path / "lb" / "multibody-synthetic", method="Other", role="method")
