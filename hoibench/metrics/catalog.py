@@ -40,7 +40,15 @@ class MetricInfo:
     computes it per clip when the protocol lists it and reports the mean over clips. A new
     metric of this kind is one entry plus its function: nothing else changes. ``set_level``:
     a value of the whole set of clips (a distance between distributions or pairs), with no
-    per-clip values to average."""
+    per-clip values to average.
+
+    A per-clip function is called as ``clip_fn(inp, settings)``: ``settings`` is the
+    protocol's mapping named ``settings_key`` (a top-level protocol key such as ``physics``;
+    ``{}`` when the entry names none), checked when the protocol is parsed by the
+    ``settings_check`` function (``"module:attr"``, ``(mapping, where) -> None``). It returns
+    one number, or ``{name: number}`` for several entries that share the function (computed
+    once per clip). ``requires``: a module the function needs (an optional extra); when it
+    cannot be imported the metric is "not computed: <install_hint>", never zero."""
 
     name: str
     kind: str
@@ -59,6 +67,10 @@ class MetricInfo:
     scorers: tuple[str, ...] = ()
     clip_fn: str = ""
     set_level: bool = False
+    settings_key: str = ""
+    settings_check: str = ""
+    requires: str = ""
+    install_hint: str = ""
 
     def __post_init__(self):
         if not self.scorers and self.kind in _SCORERS_OF_KIND:
@@ -126,6 +138,32 @@ def metrics_for(scorer: str) -> tuple[str, ...]:
     """The metrics a protocol of ``scorer`` (``hoi``, ``multibody``) may list, in
     registration order."""
     return tuple(n for n, i in METRICS.items() if scorer in i.scorers)
+
+
+def settings_keys() -> tuple[str, ...]:
+    """The optional top-level protocol keys that metrics read their settings from."""
+    return tuple(sorted({i.settings_key for i in METRICS.values() if i.settings_key}))
+
+
+def check_settings(key: str, mapping, where: str) -> None:
+    """Check a protocol's ``key`` mapping with the check its metrics name (ValueError naming
+    ``where`` and the field)."""
+    if not isinstance(mapping, dict):
+        raise ValueError(f"{where}: field '{key}' must be a mapping, got {type(mapping).__name__}")
+    from ..core.registry import load_object
+    for check in sorted({i.settings_check for i in METRICS.values() if i.settings_key == key and i.settings_check}):
+        load_object(check)(mapping, f"{where}: {key}")
+
+
+def unavailable(name: str) -> str | None:
+    """Why metric ``name`` cannot be computed here ("not computed: ..."), or None."""
+    info = METRICS[name]
+    if not info.requires:
+        return None
+    import importlib.util
+    if importlib.util.find_spec(info.requires) is None:
+        return f"not computed: {info.install_hint or f'install {info.requires}'}"
+    return None
 
 
 def per_clip_columns() -> tuple[str, ...]:
@@ -260,4 +298,4 @@ register(MetricInfo("text_rank", "clip", "lower", "rank", "clip",
 del _k
 
 __all__ = ["MetricInfo", "METRICS", "DIRECTIONS", "GROUPS", "ARROWS", "FID_ROUNDING", "register", "get_metric_info",
-           "metric_names", "metrics_for", "per_clip_columns", "object_metrics", "direction_of", "unit_of", "shown_value"]
+           "metric_names", "metrics_for", "settings_keys", "check_settings", "unavailable", "per_clip_columns", "object_metrics", "direction_of", "unit_of", "shown_value"]

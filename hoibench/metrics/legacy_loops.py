@@ -124,8 +124,10 @@ import numpy as np
 __all__ = ["METRIC_NAMES", "TORCH_SAMPLERS", "LoopResult", "LoopSpec", "LOOPS", "reference_ci", "run_loop",
            "t2m_loop", "mdm_loop", "chainhoi_loop", "interact_loop"]
 
-METRIC_NAMES = ("r_precision_top1", "r_precision_top2", "r_precision_top3", "mm_dist", "fid", "diversity",
-                "multimodality")
+from .catalog import metric_names
+
+#: what the loops report: the catalogue's embedding metrics
+METRIC_NAMES = metric_names("embedding")
 TORCH_SAMPLERS = ("torch<1.9", "torch>=1.9")
 
 

@@ -182,25 +182,33 @@ def _body_fn(config: PhysicalConfig) -> Callable:
     return load_object(config.body_surface)
 
 
-def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(), extra: Sequence[str] = ()) -> dict:
+def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(), extra: Sequence = ()) -> dict:
     """Sufficient statistics of every physical metric for one clip (pure; see the module);
-    ``extra``: catalogue metrics with a per-clip function (``clip_fn``), each one value."""
+    ``extra``: ``((name, settings), ...)`` of catalogue metrics with a per-clip function
+    (``clip_fn``), each one value (:func:`extra_clip_values`)."""
     st = _core_stats(inp, config)
     if extra:
         st["extra"] = extra_clip_values(inp, extra)
     return st
 
 
-def extra_clip_values(inp: ClipInput, names: Sequence[str]) -> dict[str, float]:
-    """``{name: clip_fn(inp)}`` for catalogue metrics defined by a per-clip function
-    (:attr:`hoibench.metrics.catalog.MetricInfo.clip_fn`); NaN where a clip has no value."""
+def extra_clip_values(inp: ClipInput, extra: Sequence) -> dict[str, float]:
+    """``{name: value}`` for catalogue metrics defined by a per-clip function
+    (:attr:`hoibench.metrics.catalog.MetricInfo.clip_fn`, called once per function with the
+    protocol's settings; ``extra``: ``((name, settings), ...)``); NaN where a clip has no value."""
     from .catalog import get_metric_info
-    out = {}
-    for name in names:
+    calls: dict[str, tuple[dict, list[str]]] = {}
+    for name, settings in extra:
         info = get_metric_info(name)
         if not info.clip_fn:
             raise ValueError(f"metric {name!r}: the catalogue gives it no per-clip function (clip_fn)")
-        out[name] = float(load_object(info.clip_fn)(inp))
+        calls.setdefault(info.clip_fn, (dict(settings or {}), []))[1].append(name)
+    out = {}
+    for fn, (settings, names) in sorted(calls.items()):
+        got = load_object(fn)(inp, settings)
+        for name in names:
+            v = got.get(name, float("nan")) if isinstance(got, Mapping) else got
+            out[name] = float(v)
     return out
 
 
@@ -299,7 +307,7 @@ def window_input(inp: ClipInput, start: int, length: int) -> ClipInput:
 
 
 def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(),
-                      extra: Sequence[str] = ()) -> dict[int, dict]:
+                      extra: Sequence = ()) -> dict[int, dict]:
     """``{replication: stats}``: :func:`clip_physical_stats` of each window of
     ``inp.windows`` (:func:`window_input`); a window drawn twice is computed once."""
     done: dict[tuple[int, int], dict] = {}
@@ -311,7 +319,7 @@ def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(),
     return out
 
 
-def _unit(inp: ClipInput, config: PhysicalConfig, extra: Sequence[str] = ()) -> tuple:
+def _unit(inp: ClipInput, config: PhysicalConfig, extra: Sequence = ()) -> tuple:
     """``(key, stats)``; with windows ``(key, {"replications": {r: stats}})``."""
     if inp.windows:
         return inp.key, {"replications": clip_window_stats(inp, config, extra)}

@@ -274,9 +274,16 @@ class HOIScorer(Scorer):
         slots = range(proto.replications) if self.windowed else self.ks_physical
         self.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
         self.gen = np.zeros((self.K, len(ids), self.ev.embed_dim), np.float32)
-        from ..metrics.catalog import METRICS
-        extra = tuple(n for n in proto.metrics if n in METRICS and METRICS[n].clip_fn)
-        self.unit = partial(_unit, config=cfg, extra=extra) if extra else partial(_unit, config=cfg)
+        from ..metrics.catalog import METRICS, unavailable
+        extra, self.not_computed = [], {}
+        for n in proto.metrics:
+            if n in METRICS and METRICS[n].clip_fn:
+                why = unavailable(n)
+                if why:
+                    self.not_computed[n] = why
+                else:
+                    extra.append((n, proto.settings_for(METRICS[n].settings_key)))
+        self.unit = partial(_unit, config=cfg, extra=tuple(extra)) if extra else partial(_unit, config=cfg)
         windows = None
         if self.windowed:
             reps = {k: [r for r in range(proto.replications) if proto.sample_index(r, K) == k]
@@ -388,6 +395,7 @@ class HOIScorer(Scorer):
         from ..tracks.protocol import summarize_replications
         proto, ids, report, ev, store, meta = self.proto, self.ids, self.report, self.ev, self.store, self.meta
         per_rep, undefined = _finite_rows(rows)
+        undefined.update(getattr(self, "not_computed", {}))
         human_store = not any(self.rows[cid].get("object") for cid in ids)
         if human_store or self.human_only:      # no object to measure against, or none generated
             from ..metrics.catalog import object_metrics

@@ -26,7 +26,7 @@ import hashlib
 import json
 import sys
 import copy
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Hashable, Iterable, Sequence
 
@@ -87,6 +87,8 @@ class Protocol:
     mm_pairs: int | None = None
     physical: dict | None = None
     embedding_loop: str = "hoibench"
+    #: optional top-level mappings metrics read (``physics``: :func:`hoibench.metrics.catalog.settings_keys`)
+    settings: dict = field(default_factory=dict, compare=False)
     # --- multibody
     samples_per_prompt: int | None = None
     surfaces: str | None = None
@@ -105,6 +107,8 @@ class Protocol:
         d = {k: getattr(self, k) for k in KIND_FIELDS[self.kind]}
         if self.kind == "hoi" and self.embedding_loop != "hoibench":
             d["embedding_loop"] = self.embedding_loop    # absent = hoibench's loop (older hashes unchanged)
+        for key, mapping in sorted(self.settings.items()):   # absent = none (older hashes unchanged)
+            d[key] = copy.deepcopy(mapping)
         d["metrics"] = list(self.metrics)
         if "changelog" in d:
             d["changelog"] = list(self.changelog)
@@ -115,8 +119,15 @@ class Protocol:
     @classmethod
     def from_plain(cls, d: dict, kind: str, track: str = "") -> "Protocol":
         """The protocol from its :meth:`to_dict` (what a worker process receives)."""
+        from ..metrics.catalog import settings_keys
         extra = {"changelog": tuple(d["changelog"])} if "changelog" in d else {}
-        return cls(**{**d, "metrics": tuple(d["metrics"]), **extra}, kind=kind, track=track)
+        settings = {k: d[k] for k in settings_keys() if k in d}
+        plain = {k: v for k, v in d.items() if k not in settings}
+        return cls(**{**plain, "metrics": tuple(d["metrics"]), **extra}, kind=kind, track=track, settings=settings)
+
+    def settings_for(self, key: str) -> dict:
+        """The protocol's optional ``key`` mapping (``{}`` when absent or ``key`` is empty)."""
+        return copy.deepcopy(self.settings.get(key, {})) if key else {}
 
     @property
     def sha256(self) -> str:
@@ -270,7 +281,14 @@ def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
     else:
         kind = "multibody" if "contact" in d and "r_precision" not in d else "hoi"
     parse = _parse_multibody if kind == "multibody" else _parse_hoi
-    return parse(d, w, track)
+    proto = parse(d, w, track)
+    from ..metrics.catalog import check_settings, settings_keys
+    settings = {}
+    for key in settings_keys():
+        if key in d:
+            check_settings(key, d[key], w)
+            settings[key] = copy.deepcopy(d[key])
+    return replace(proto, settings=settings) if settings else proto
 
 
 def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
