@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "hoibench"
 
 #: the stages in import order: a module may import its own stage and earlier ones
 STAGES = ("core", "bodies", "representations", "datasets", "text", "metrics", "tracks", "evaluator", "scoring",
-          "baselines", "publish", "challenge", "commands")
+          "audit", "baselines", "publish", "challenge", "commands")
 #: modules at the top of the package: the version and entry points (cli, the command modules it
 #: dispatches to, the demo), above every stage
 TOP_MODULES = {"hoibench", "hoibench.cli", "hoibench.demo", "hoibench.commands"} | {
