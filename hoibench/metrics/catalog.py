@@ -283,6 +283,25 @@ register(MetricInfo("od", "multibody", "gt", "m", "semantic", "wrist-trajectory 
 register(MetricInfo("ra", "multibody", "higher", "fraction", "semantic",
                     "recognition accuracy of the generated clips' actions", "the track's action recognizer",
                     "RA (SyncDiff)", f"{_MB}:recognition_accuracy", short="RA"))
+# physics tier (MuJoCo; hoibench.metrics.physics, docs/metrics.md "Physics")
+_PH_FN = "hoibench.metrics.physics:physics_clip_values"
+_PH = dict(impl=_PH_FN, clip_fn=_PH_FN, per_clip=True, needs_object=True,
+           settings_key="physics", settings_check="hoibench.metrics.physics:check_settings", requires="mujoco",
+           install_hint="install hoibench[physics]")
+register(MetricInfo("phys_support_err_m", "physical", "lower", "m", "extras",
+                    "object simulated from its generated pose and velocity with body and floor as colliders: "
+                    "distance to the generated centre after h, mean over windows",
+                    "h = 0.5 s windows every 0.25 s (protocol physics)", failure_end="high", **_PH))
+register(MetricInfo("phys_unsupported_ratio", "physical", "lower", "fraction", "extras",
+                    "support windows whose simulated object ends farther than 5 cm from the generated one",
+                    "error > unsupported_m (protocol physics)", failure_end="high", **_PH))
+register(MetricInfo("phys_settle_m", "physical", "lower", "m", "extras",
+                    "object released at rest (last frame, frames without body contact): displacement after "
+                    "35 frames at 30 fps, mean over releases (HUMOTO)", "contact: capsule surface < 2 cm from the mesh",
+                    failure_end="high", **_PH))
+register(MetricInfo("phys_balance_ratio", "physical", "higher", "fraction", "extras",
+                    "releases after which the object moved < 5 cm and turned < 10 deg (rests stably)",
+                    "unsupported_m, balance_turn_deg (protocol physics)", failure_end="low", **_PH))
 # counts the single-body scorer reports beside its metrics
 register(MetricInfo("clips", "count", "gt", "clips", "counts", "test clips the physical metrics scored"))
 register(MetricInfo("clips_with_contact", "count", "gt", "clips", "counts",
