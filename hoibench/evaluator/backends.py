@@ -96,6 +96,15 @@ register_backend(Backend("t2m", "contrastive", "card.json", ".published_t2m:load
                                                            "our_vab_idx.pkl)"),
                                        ImportFile("meta", "the evaluator's meta/ folder (mean.npy, std.npy)"))))
 
+register_backend(Backend("chois", "contrastive", "card.json", ".chois_t2m:load_chois",
+                         "CHOIS's text-motion matching evaluator (t2m architecture on OMOMO joints24, 120 frames)",
+                         importer=".chois_t2m:import_chois",
+                         import_files=(ImportFile("checkpoint", "CHOIS: text_motion_features/model/finest.tar"),
+                                       ImportFile("glove", "CHOIS: the glove_840B/ folder (our_vab_data.npy, "
+                                                           "our_vab_words.pkl, our_vab_idx.pkl)"),
+                                       ImportFile("meta", "CHOIS: a folder with mean.npy and std.npy (72,) from "
+                                                          "t2m_mean_std_jpos.p (docs/evaluator.md)"))))
+
 
 def list_backends() -> list[Backend]:
     return _BACKENDS.values()

@@ -49,7 +49,7 @@ from torch.nn.utils.rnn import pack_padded_sequence
 
 from .embed import EMBED_THREADS, CardBacked, as_clip_list, deterministic
 from .errors import CorruptEvaluatorFile, EvaluatorError, EvaluatorIntegrityError
-from .t2m_text import POS_SLOTS, SEQ_LEN, WORD_DIM, Vocabulary, read_glove
+from .t2m_text import MAX_TOKENS, POS_SLOTS, SEQ_LEN, WORD_DIM, Vocabulary, read_glove
 
 BACKEND = "t2m"
 PARTS = ("movement_encoder", "motion_encoder", "text_encoder")
@@ -86,9 +86,9 @@ def _head(width: int, out: int) -> nn.Sequential:
 class MovementEncoder(nn.Module):
     """(B, T, pose - 4) -> (B, T // 4, latent): two strided convolutions and a linear map."""
 
-    def __init__(self, d: T2MDims):
+    def __init__(self, d: T2MDims, contacts: int = FOOT_CONTACTS):
         super().__init__()
-        self.main = nn.Sequential(nn.Conv1d(d.pose - FOOT_CONTACTS, d.movement_hidden, 4, 2, 1), nn.Dropout(0.2),
+        self.main = nn.Sequential(nn.Conv1d(d.pose - contacts, d.movement_hidden, 4, 2, 1), nn.Dropout(0.2),
                                   nn.LeakyReLU(0.2), nn.Conv1d(d.movement_hidden, d.movement_latent, 4, 2, 1),
                                   nn.Dropout(0.2), nn.LeakyReLU(0.2))
         self.out_net = nn.Linear(d.movement_latent, d.movement_latent)
@@ -131,15 +131,17 @@ class TextEncoder(_BiGRUEncoder):
         return self.encode(words + self.pos_emb(onehot), lengths)
 
 
-def build_parts(dims: T2MDims) -> dict[str, nn.Module]:
-    return {"movement_encoder": MovementEncoder(dims), "motion_encoder": MotionEncoder(dims),
+def build_parts(dims: T2MDims, contacts: int = FOOT_CONTACTS) -> dict[str, nn.Module]:
+    """The three encoders; ``contacts``: trailing pose columns the movement encoder does not
+    read (4 foot contacts of hml263; 0 for CHOIS's joints24 evaluator)."""
+    return {"movement_encoder": MovementEncoder(dims, contacts), "motion_encoder": MotionEncoder(dims),
             "text_encoder": TextEncoder(dims)}
 
 
-def expected_shapes(dims: T2MDims) -> dict[str, dict[str, tuple[int, ...]]]:
+def expected_shapes(dims: T2MDims, contacts: int = FOOT_CONTACTS) -> dict[str, dict[str, tuple[int, ...]]]:
     """Per part, every state-dict name and its shape (modules built without storage)."""
     with torch.device("meta"):
-        parts = build_parts(dims)
+        parts = build_parts(dims, contacts)
     return {name: {k: tuple(v.shape) for k, v in m.state_dict().items()} for name, m in parts.items()}
 
 
@@ -168,7 +170,8 @@ def _sha256_file(path: Path) -> str:
     return sha256_regular_file(path, what="t2m evaluator file").hexdigest()
 
 
-def read_checkpoint(path: str | Path, dims: T2MDims = T2MDims()) -> tuple[dict[str, torch.Tensor], dict]:
+def read_checkpoint(path: str | Path, dims: T2MDims = T2MDims(),
+                    contacts: int = FOOT_CONTACTS) -> tuple[dict[str, torch.Tensor], dict]:
     """The three encoders' tensors of a ``finest.tar`` (prefixed ``part.``) and its
     ``epoch``/``iter``; read with ``torch.load(weights_only=True)``, every shape checked."""
     from ..core.io import read_regular_file
@@ -192,7 +195,7 @@ def read_checkpoint(path: str | Path, dims: T2MDims = T2MDims()) -> tuple[dict[s
     if not isinstance(ckpt, dict):
         raise EvaluatorError(f"{path}: holds a {type(ckpt).__name__}, expected the dict of "
                              f"TextMotionMatchTrainer.save")
-    shapes = expected_shapes(dims)
+    shapes = expected_shapes(dims, contacts)
     tensors: dict[str, torch.Tensor] = {}
     for part in PARTS:
         if part not in ckpt:
@@ -258,9 +261,9 @@ def import_t2m(out: Path, checkpoint: Path, glove: Path, meta: Path, dims: T2MDi
 
 
 # ============================================================================ load
-def verify_t2m_folder(folder: str | Path) -> tuple[dict, bytes]:
-    """(card, weights bytes) of a t2m evaluator folder whose id checks out; one-line errors
-    naming the file (and field) otherwise."""
+def verify_t2m_folder(folder: str | Path, backend: str = BACKEND) -> tuple[dict, bytes]:
+    """(card, weights bytes) of a t2m-architecture evaluator folder of ``backend`` whose id
+    checks out; one-line errors naming the file (and field) otherwise."""
     from ..core.io import load_json_bytes, read_regular_file
     from .card import CARD, FORMAT, MAX_CARD_BYTES, MAX_WEIGHTS_BYTES, WEIGHTS, changed_parts, check_safetensors, \
         compute_id
@@ -277,9 +280,9 @@ def verify_t2m_folder(folder: str | Path) -> tuple[dict, bytes]:
     for key, t in (("backend", str), ("format", str), ("evaluator_id", str), ("dims", dict), ("vocabulary", list)):
         if not isinstance(card, dict) or not isinstance(card.get(key), t):
             raise CorruptEvaluatorFile(f"{cpath}: field {key}: missing or not a {t.__name__}")
-    if card["backend"] != BACKEND or card["format"] != FORMAT:
+    if card["backend"] != backend or card["format"] != FORMAT:
         raise EvaluatorIntegrityError(f"{cpath}: field backend/format: {card['backend']!r}/{card['format']!r} is not "
-                                      f"a {BACKEND!r} evaluator of {FORMAT!r}")
+                                      f"a {backend!r} evaluator of {FORMAT!r}")
     check_safetensors(data, wpath)
     actual = compute_id(data, card)
     if actual != card["evaluator_id"]:
@@ -345,6 +348,10 @@ class T2MEvaluator(CardBacked):
     :class:`hoibench.evaluator.embed.Evaluator`: ``embed_motion``, ``embed_text``, ``id``, ``card``)."""
 
     variant = "human"
+    #: trailing pose columns left out of the movement encoder's input, frames per step, caption tokens kept
+    foot_contacts = FOOT_CONTACTS
+    unit_length = UNIT_LENGTH
+    max_tokens = MAX_TOKENS
 
     def __init__(self, parts: dict[str, nn.Module], vocab: Vocabulary, stats: tuple[np.ndarray, np.ndarray],
                  card: dict, dims: T2MDims, threads: int | None = None, device: str = "cpu"):
@@ -389,8 +396,8 @@ class T2MEvaluator(CardBacked):
                 prepared = [self.motion_inputs(c, f"features[{s + i}]") for i, c in enumerate(clips[s:s + batch_size])]
                 order = _order([n for _, n in prepared])
                 x = torch.from_numpy(np.stack([prepared[i][0] for i in order])).to(self.device)
-                steps = torch.tensor([prepared[i][1] // UNIT_LENGTH for i in order])
-                movements = self.parts["movement_encoder"](x[..., :-FOOT_CONTACTS])
+                steps = torch.tensor([prepared[i][1] // self.unit_length for i in order])
+                movements = self.parts["movement_encoder"](x[..., :x.shape[-1] - self.foot_contacts])
                 emb = self.parts["motion_encoder"](movements, steps).float().cpu().numpy()
                 out[s + order] = emb
         return out
@@ -419,7 +426,8 @@ class T2MEvaluator(CardBacked):
         out = np.zeros((len(captions), self.embed_dim), np.float32)
         with deterministic(self.threads), torch.inference_mode():
             for s in range(0, len(captions), batch_size):
-                enc = [self.vocab.encode(t, f"tokens[{s + i}]") for i, t in enumerate(toks[s:s + batch_size])]
+                enc = [self.vocab.encode(t, f"tokens[{s + i}]", self.max_tokens)
+                       for i, t in enumerate(toks[s:s + batch_size])]
                 order = np.argsort([-n for _, _, n in enc], kind="stable")
                 words = torch.from_numpy(np.stack([enc[i][0] for i in order])).float().to(self.device)
                 onehot = torch.from_numpy(np.stack([enc[i][1] for i in order])).float().to(self.device)

@@ -159,12 +159,13 @@ def pos_slot(word: str, pos: str) -> int:
     return POS_SLOTS.index(pos) if pos in POS_SLOTS else POS_SLOTS.index("OTHER")
 
 
-def sequence(tokens: Sequence[str]) -> tuple[list[str], int]:
+def sequence(tokens: Sequence[str], max_tokens: int = MAX_TOKENS) -> tuple[list[str], int]:
     """The padded token sequence of a caption's ``word/POS`` tokens and its length:
-    ``sos`` + the first 20 + ``eos``, then ``unk`` up to :data:`SEQ_LEN`."""
-    kept = list(tokens[:MAX_TOKENS])
+    ``sos`` + the first ``max_tokens`` (20; CHOIS's evaluator: 30) + ``eos``, then ``unk``
+    up to ``max_tokens + 2``."""
+    kept = list(tokens[:max_tokens])
     seq = ["sos/OTHER", *kept, "eos/OTHER"]
-    return seq + ["unk/OTHER"] * (SEQ_LEN - len(seq)), len(seq)
+    return seq + ["unk/OTHER"] * (max_tokens + 2 - len(seq)), len(seq)
 
 
 class Vocabulary:
@@ -177,11 +178,13 @@ class Vocabulary:
         self.vectors = np.asarray(vectors)
         self.unk = self.row["unk"]
 
-    def encode(self, tokens: Sequence[str], where: str = "tokens") -> tuple[np.ndarray, np.ndarray, int]:
-        """(word vectors (22, 300), POS one-hot (22, 15), length) of one caption's tokens."""
-        seq, length = sequence(tokens)
-        words = np.zeros((SEQ_LEN, self.vectors.shape[1]), self.vectors.dtype)
-        onehot = np.zeros((SEQ_LEN, len(POS_SLOTS)))
+    def encode(self, tokens: Sequence[str], where: str = "tokens",
+               max_tokens: int = MAX_TOKENS) -> tuple[np.ndarray, np.ndarray, int]:
+        """(word vectors (L, 300), POS one-hot (L, 15), length) of one caption's tokens,
+        ``L = max_tokens + 2`` (22 by default)."""
+        seq, length = sequence(tokens, max_tokens)
+        words = np.zeros((len(seq), self.vectors.shape[1]), self.vectors.dtype)
+        onehot = np.zeros((len(seq), len(POS_SLOTS)))
         for j, token in enumerate(seq):
             parts = str(token).split("/")
             if len(parts) != 2:
