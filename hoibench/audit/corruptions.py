@@ -38,9 +38,12 @@ class FamilySpec:
     scope: str
     description: str
 
+    #: how far a severity is from the identity (default: the severity itself)
+    distance: Callable[[float], float] | None = None
+
     def magnitude(self, severity: float) -> float:
         """How far ``severity`` is from the identity (``|log2 c|`` for a speed factor)."""
-        return abs(math.log2(severity)) if self.name == "speed" else float(severity)
+        return float(severity) if self.distance is None else float(self.distance(severity))
 
     @property
     def identity(self) -> float:
@@ -48,6 +51,13 @@ class FamilySpec:
 
 
 _FRACTIONS = (0.0, 0.1, 0.25, 0.5, 0.75, 1.0)
+
+
+def octaves(factor: float) -> float:
+    """``|log2 c|``: how far a speed factor is from 1 (0.5 and 2.0 are both 1)."""
+    return abs(math.log2(factor))
+
+
 _SPECS = (
     ("joint_noise", mo.joint_noise, (0.0, 0.005, 0.01, 0.02, 0.05, 0.1), "m (sigma)", "motion", "clip",
      "Gaussian noise on every joint coordinate"),
@@ -60,7 +70,7 @@ _SPECS = (
     ("reverse", mo.reverse, _FRACTIONS, "fraction of the clip", "motion", "clip",
      "the last fraction of the clip played backwards"),
     ("speed", mo.speed, (1.0, 0.8, 1.25, 0.625, 1.6, 0.5, 2.0, 0.4, 2.5), "factor (magnitude |log2 c|)",
-     "motion", "clip", "played c times as fast, resampled to the same length"),
+     "motion", "clip", "played c times as fast, resampled to the same length", octaves),
     ("mirror", mo.mirror, _FRACTIONS, "fraction of clips", "motion", "split",
      "left-right mirror (x -> -x, left/right joints swapped, object mirrored)"),
     ("object_float", ob.object_float, (0.0, 0.02, 0.05, 0.1, 0.2, 0.5), "m", "motion", "clip",

@@ -72,8 +72,8 @@ def planted_frames(joints: np.ndarray, fps: float) -> np.ndarray:
     """(..., T) bool: frame ``t >= 1`` where a foot (joints 10, 11) is planted (see
     :data:`PLANTED_HEIGHT_M`, :data:`PLANTED_SPEED_MPS`); frame 0 is never planted."""
     F = np.asarray(joints, dtype=np.float64)[..., list(FEET), :]                 # (..., T, 2, 3)
-    floor = F[..., 1].min(axis=(-2, -1), keepdims=True)[..., None]              # (..., 1, 1)
-    low = F[..., 1:, :, 1] - floor[..., 0] < PLANTED_HEIGHT_M
+    floor = F[..., 1].min(axis=(-2, -1))[..., None, None]                        # (..., 1, 1)
+    low = F[..., 1:, :, 1] - floor < PLANTED_HEIGHT_M
     speed = np.linalg.norm(np.diff(F[..., [0, 2]], axis=-3), axis=-1) * fps     # (..., T-1, 2)
     planted = (low & (speed < PLANTED_SPEED_MPS)).any(axis=-1)
     return np.concatenate([np.zeros(planted.shape[:-1] + (1,), bool), planted], axis=-1)

@@ -96,12 +96,12 @@ def object_swap(clips: Mapping[str, Arrays], severity: float, seed: int, ctx: Co
     selected clip becomes a name drawn uniformly from ``ctx.objects`` less its own (stream of
     (seed, family, ``severity_index``, clip)); the poses are kept, so the new template is
     placed by the same ``R, t``. ``severity`` = the fraction of clips swapped (nested across
-    severities). The clip's object name is ``arrays["object_name"]``, else
+    severities; clips without an object are never chosen). The clip's object name is ``arrays["object_name"]``, else
     ``ctx.clip_objects[clip id]``."""
     s = check_severity(severity, 0.0, 1.0, " (fraction of clips)")
     check_context(ctx)
     check_clips(clips)
-    chosen = selected(clips, s, check_seed(seed), "object_swap")
+    chosen = selected([c for c in clips if "obj_rot" in clips[c]], s, check_seed(seed), "object_swap")
     pool = sorted(set(ctx.objects))
     if chosen and len(pool) < 2:
         raise ValueError(f"ctx: objects must name at least two objects to swap between, got {pool}")
