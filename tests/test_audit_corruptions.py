@@ -250,6 +250,9 @@ def test_noun_swap_replaces_the_object_noun_with_another_objects():
             assert own in old.text and own not in new.text and any(n in new.text for n in names.values())
             assert new.text.split()[:3] == old.text.split()[:3]
         assert lines[0].tokens[:4] == caps[cid][0].tokens[:4] and lines[0].tokens != caps[cid][0].tokens
+    line = tx._noun_line(Caption("A box is lifted by a person"), (("box/NOUN",),), (), ("exercise/NOUN", "ball/NOUN"))
+    assert line.text == "An exercise ball is lifted by a person" and line.tokens[:3] == ("an/DET", "exercise/NOUN",
+                                                                                         "ball/NOUN")
 
 
 def test_verb_swap_replaces_the_main_verb_with_another_verb_of_the_split():

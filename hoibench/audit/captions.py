@@ -50,10 +50,16 @@ def caption_swap(captions: Captions, severity: float, seed: int, ctx: Context,
 
 def _edit(c: Caption, ws: list[Word], at: list[int], length: int, new_words: list[str],
           new_tokens: tuple[str, ...]) -> Caption:
+    """Replace the ``length`` words from each index of ``at`` by ``new_words`` (tokens by
+    ``new_tokens``); an article ``a``/``an`` just before follows the new first word."""
     text, toks = c.text, list(hml(ws))
     for i in reversed(at):
         text = replace_span(text, ws[i].start, ws[i + length - 1].end, " ".join(new_words))
         toks[i:i + length] = new_tokens
+        if i > 0 and ws[i - 1].word in ("a", "an"):
+            article = "an" if new_words[0][:1] in tuple("aeiou") else "a"
+            text = replace_span(text, ws[i - 1].start, ws[i - 1].end, article)
+            toks[i - 1] = f"{article}/{ws[i - 1].pos}"
     return dataclasses.replace(c, text=text, tokens=tuple(toks))
 
 
