@@ -153,3 +153,15 @@ def test_a_missing_engine_reads_not_computed(monkeypatch):
         assert info.requires == "mujoco" and info.settings_key == "physics"
         monkeypatch.setitem(catalog.METRICS, name, dataclasses.replace(info, requires="hoibench_no_such_engine"))
         assert catalog.unavailable(name) == "not computed: install hoibench[physics]"
+
+
+def test_clean_protocols_get_a_new_version_and_the_old_ones_still_load():
+    from hoibench.tracks.protocol import get_protocol
+    for pid, old, new in (("synthetic-clean", "1.1", "1.2"), ("behave-clean", "1.1", "1.2"),
+                          ("omomo-clean", "1.1", "1.2"), ("interact-clean", "1.0", "1.1")):
+        p, q = get_protocol(pid), get_protocol(f"{pid}@{old}")
+        assert p.version == new and set(P.NAMES) <= set(p.metrics)
+        assert p.settings_for("physics") == P.DEFAULTS
+        assert q.version == old and not set(P.NAMES) & set(q.metrics) and q.settings_for("physics") == {}
+    for pid in ("behave-legacy", "omomo-legacy", "synthetic-legacy", "t2m-legacy", "rich-cat-clean"):
+        assert not set(P.NAMES) & set(get_protocol(pid).metrics)
