@@ -89,7 +89,8 @@ def main() -> int:
         rows = [_one(j) for j in jobs]
     wall = time.perf_counter() - t1
     names = list(rows[0][5])
-    print(f"{'clip':40s} {'object':10s} {'s':>5s} {'cost':>6s} {'hull':>5s} " + " ".join(f"{n[5:]:>17s}" for n in names))
+    head = f"{'clip':40s} {'object':10s} {'s':>5s} {'cost':>6s} {'hull':>5s} "
+    print(head + " ".join(f"{n[5:]:>17s}" for n in names))
     by_action = defaultdict(list)
     for key, obj, secs, cost, hull, out in sorted(rows):
         print(f"{key:40s} {obj:10s} {secs:5.1f} {cost:6.2f} {hull:5.2f} " + " ".join(f"{out[n]:17.4f}" for n in names))

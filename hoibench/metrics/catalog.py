@@ -297,8 +297,8 @@ register(MetricInfo("phys_unsupported_ratio", "physical", "lower", "fraction", "
                     "error > unsupported_m (protocol physics)", failure_end="high", **_PH))
 register(MetricInfo("phys_settle_m", "physical", "lower", "m", "extras",
                     "object released at rest (last frame, frames without body contact): displacement after "
-                    "35 frames at 30 fps, mean over releases (HUMOTO)", "contact: capsule surface < 2 cm from the mesh",
-                    failure_end="high", **_PH))
+                    "35 frames at 30 fps, mean over releases (HUMOTO)",
+                    "contact: capsule surface < 2 cm from the mesh", failure_end="high", **_PH))
 register(MetricInfo("phys_balance_ratio", "physical", "higher", "fraction", "extras",
                     "releases after which the object moved < 5 cm and turned < 10 deg (rests stably)",
                     "unsupported_m, balance_turn_deg (protocol physics)", failure_end="low", **_PH))

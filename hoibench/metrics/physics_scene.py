@@ -91,6 +91,7 @@ def scene_xml(geom: ObjectGeometry, radii: np.ndarray, lengths: np.ndarray, *, d
     capsule ``part<i>`` (``kinematic``: ``free`` or ``mocap``)."""
     mass = density * geom.volume_m3
     common = f'friction="{friction:.9g} 0.005 0.0001" condim="3" solref="{solref[0]:.9g} {solref[1]:.9g}"'
+    faces = " ".join(map(str, geom.hull_faces.ravel()))
     parts = []
     for i, (r, length) in enumerate(zip(radii, lengths)):
         half = max(float(length) / 2.0, 1e-4)
@@ -102,7 +103,7 @@ def scene_xml(geom: ObjectGeometry, radii: np.ndarray, lengths: np.ndarray, *, d
             parts.append(f'<body name="part{i}" gravcomp="1"><freejoint/>{geom_xml}</body>')
     return f"""<mujoco model="hoibench-physics">
   <option timestep="{timestep:.9g}" gravity="0 -9.81 0"/>
-  <asset><mesh name="object" vertex="{_floats(geom.hull_vertices)}" face="{' '.join(map(str, geom.hull_faces.ravel()))}"/></asset>
+  <asset><mesh name="object" vertex="{_floats(geom.hull_vertices)}" face="{faces}"/></asset>
   <worldbody>
     <geom name="floor" type="plane" size="0 0 1" quat="{_floats(FLOOR_QUAT)}" contype="1" conaffinity="1" {common}/>
     <body name="object"><freejoint/>
