@@ -306,6 +306,45 @@ register(MetricInfo("phys_balance_ratio", "physical", "higher", "fraction", "ext
 register(MetricInfo("clips", "count", "gt", "clips", "counts", "test clips the physical metrics scored"))
 register(MetricInfo("clips_with_contact", "count", "gt", "clips", "counts",
                     "test clips whose ground truth has joint-object contact (CD's denominator)"))
+# CHOIS (Li et al., ECCV 2024): its released compute_metrics and penetration measures, per clip
+# against the test clip's ground truth (hoibench.metrics.chois*, docs/metrics.md "CHOIS")
+_CHOIS = "hoibench.metrics.chois_clip:chois_clip_metrics"
+for _name, _dir, _unit, _obj, _summary, _paper in (
+        ("lhand_jpe", "lower", "mm", False, "left hand joint error (joint 22 of joints24, 20 of 22)", "Hand JPE"),
+        ("rhand_jpe", "lower", "mm", False, "right hand joint error (joint 23 of joints24, 21 of 22)", "Hand JPE"),
+        ("hand_jpe", "lower", "mm", False, "mean of the two hand joint errors", "Hand JPE"),
+        ("mpvpe", "lower", "mm", False, "root-relative vertex error (needs body vertices)", "MPVPE"),
+        ("mpjpe", "lower", "mm", False, "root-relative joint error", "MPJPE"),
+        ("trans_err", "lower", "mm", False, "root translation error", "Root Err"),
+        ("rot_dist", "lower", "Frobenius", False, "root rotation error ||I - R_p R_g^-1||_F", "O (root)"),
+        ("foot_sliding", "lower", "m/1000 frames", False,
+         "CHOIS's weighted ankle/toe sliding over its DBSCAN floor (0.08 / 0.04 m)", "FS"),
+        ("gt_foot_sliding", "gt", "m/1000 frames", False, "the same of the ground truth", "FS (GT)"),
+        ("gt_contact_percent", "gt", "fraction", True, "GT frames with a hand joint near the object", "C%"),
+        ("pred_contact_percent", "gt", "fraction", True, "generated frames with a hand joint near the object", "C%"),
+        ("contact_precision", "higher", "fraction", True, "per-frame contact precision (0 without predicted contact)",
+         "Cprec"),
+        ("contact_recall", "higher", "fraction", True, "per-frame contact recall (0 without GT contact)", "Crec"),
+        ("contact_acc", "higher", "fraction", True, "per-frame contact accuracy", "Acc"),
+        ("contact_f1", "higher", "fraction", True, "per-frame contact F1 (0 when precision and recall are 0)", "F1"),
+        ("obj_rot_dist", "lower", "Frobenius", True, "object rotation error ||I - R_p R_g^-1||_F", "O"),
+        ("obj_com_pos_err", "lower", "mm", True, "object centre (vertex mean) error", "T_obj"),
+        ("start_obj_com_pos_err", "lower", "mm", True, "object centre error at the first frame", "Ts"),
+        ("end_obj_com_pos_err", "lower", "mm", True, "object centre error at the last frame", "Te"),
+        ("waypoints_xy_pos_err", "lower", "mm", True, "object centre xy error at frames 29, 59, 89", "Txy"),
+        ("hand_penetration", "lower", "m", True,
+         "mean |min(sdf, 0)| of the hand vertices (trainer_chois.py; rest frame per protocol)", "Pen (hand)"),
+        ("body_penetration", "lower", "m", True, "the same over all body vertices", "Pen"),
+        ("penetration", "lower", "sdf units", True,
+         "compute_collision's mean depth beyond 0.04 (normalised SDF units x obj_scale, not metres)", None),
+        ("penetration_percent", "lower", "fraction", True, "compute_collision's fraction of penetrating frames",
+         None)):
+    register(MetricInfo(_name, "physical", _dir, _unit, "physical", _summary, "CHOIS rules", _paper, _CHOIS,
+                        per_clip=True, failure_end={"lower": "high", "higher": "low"}.get(_dir),
+                        needs_object=_obj, clip_fn=_CHOIS, settings_key="chois",
+                        settings_check="hoibench.metrics.chois_clip:check_settings",
+                        requires="sklearn" if "foot_sliding" in _name else "",
+                        install_hint="pip install scikit-learn" if "foot_sliding" in _name else ""))
 # only in rows copied from papers
 register(MetricInfo("ait_s", "reported", "lower", "s", "reported", "average inference time per sample, as reported"))
 # per-clip columns that are no metric of the whole split
