@@ -26,98 +26,106 @@ from __future__ import annotations
 
 import torch
 
-#: state entries (sequences x state x width) per tile of the time loop: 128 Ki floats, 512 KiB
-TILE_ELEMENTS = 1 << 17
+#: state entries (frames x sequences x state x width) per time chunk: 128 Ki floats, 512 KiB
+CHUNK_ELEMENTS = 1 << 17
 
 
-def _tiles(b: int, per: int) -> list[slice]:
-    step = max(1, TILE_ELEMENTS // max(per, 1))
-    return [slice(i, min(b, i + step)) for i in range(0, b, step)]
+def _chunks(L: int, per_step: int) -> list[tuple[int, int]]:
+    step = max(1, CHUNK_ELEMENTS // max(per_step, 1))
+    return [(t, min(L, t + step)) for t in range(0, L, step)]
 
 
 def _s6_forward(u, delta, At, B, C, keep: bool):
     """Time-major S6 without ``D``: u, delta (L, b, d); At (n, d) = A transposed; B, C (L, b, n).
-    Returns y (L, b, d) and, with ``keep``, the states H (L, b, n, d)."""
+
+    Per time chunk: ``E = exp(delta A)`` and ``X = delta B u`` for the chunk (T, b, n, d), the
+    recurrence ``h_t = E_t h_{t-1} + X_t`` step by step in place of X, ``y = C . h`` for the
+    chunk. Returns y (L, b, d) and, with ``keep``, the chunks' (E, h) for the backward pass
+    (chunks of a few MB, so they are reused memory, not a fresh mapping per call)."""
     L, b, d = u.shape
     n = At.shape[0]
     du = delta * u
     y = u.new_empty(L, b, d)
-    H = u.new_empty(L, b, n, d) if keep else None
-    for s in _tiles(b, n * d):
-        bt = s.stop - s.start
-        h = u.new_zeros(bt, n, d)
-        dA = u.new_empty(bt, n, d)
-        for t in range(L):
-            torch.mul(delta[t, s, None, :], At, out=dA)
-            dA.exp_()
-            if keep:
-                ht = H[t, s]
-                torch.mul(h, dA, out=ht)
-                h = ht
-            else:
-                h.mul_(dA)
-            h.addcmul_(B[t, s, :, None], du[t, s, None, :])
-            torch.bmm(C[t, s, None, :], h, out=y[t, s, None, :])
-    return y, H
+    saved = []
+    h = None
+    for t0, t1 in _chunks(L, b * n * d):
+        T = t1 - t0
+        E = torch.mul(delta[t0:t1, :, None, :], At, out=u.new_empty(T, b, n, d)).exp_()
+        X = torch.mul(B[t0:t1, :, :, None], du[t0:t1, :, None, :], out=u.new_empty(T, b, n, d))
+        for i in range(T):
+            if h is not None:
+                X[i].addcmul_(E[i], h)
+            h = X[i]
+        torch.bmm(C[t0:t1].reshape(T * b, 1, n), X.view(T * b, n, d), out=y[t0:t1].view(T * b, 1, d))
+        if keep:
+            saved.append((E, X))
+    return y, saved
 
 
-def _s6_backward(u, delta, At, B, C, H, dy):
-    """Gradients of :func:`_s6_forward`'s y (time-major) for u, delta, At, B, C."""
+def _s6_backward(u, delta, At, B, C, saved, dy):
+    """Gradients of :func:`_s6_forward`'s y (time-major) for u, delta, At, B, C, chunk by
+    chunk backwards in time: the adjoint ``g_t = C_t dy_t + E_{t+1} g_{t+1}`` step by step,
+    the rest as products over the chunk."""
     L, b, d = u.shape
     n = At.shape[0]
     du = delta * u
-    gdecay = u.new_zeros(L, b, d)             # sum_n A q_t
+    gdecay = u.new_empty(L, b, d)             # sum_n A q_t
     GB = u.new_empty(L, b, d)                 # sum_n B_t g_t
     gB, gC = u.new_empty(L, b, n), u.new_empty(L, b, n)
-    acc = None
-    for s in _tiles(b, n * d):
-        bt = s.stop - s.start
-        if acc is None:
-            acc = u.new_zeros(bt, n, d)           # sum_t delta_t q_t per sequence
-        g = u.new_zeros(bt, n, d)
-        dA, dA_next, q = u.new_empty(bt, n, d), u.new_empty(bt, n, d), u.new_empty(bt, n, d)
-        for t in range(L - 1, -1, -1):
-            if t < L - 1:
-                g.mul_(dA_next)
-            g.addcmul_(C[t, s, :, None], dy[t, s, None, :])
-            torch.bmm(H[t, s], dy[t, s, :, None], out=gC[t, s, :, None])
-            torch.bmm(B[t, s, None, :], g, out=GB[t, s, None, :])
-            torch.bmm(g, du[t, s, :, None], out=gB[t, s, :, None])
-            if t > 0:
-                torch.mul(delta[t, s, None, :], At, out=dA)
-                dA.exp_()
-                torch.mul(g, H[t - 1, s], out=q)
-                q.mul_(dA)
-                acc[:bt].addcmul_(q, delta[t, s, None, :])
-                q.mul_(At)
-                torch.sum(q, 1, out=gdecay[t, s])
-                dA, dA_next = dA_next, dA
-    gAt = acc.sum(0)
-    return delta * GB, gdecay + u * GB, gAt, gB, gC
+    gAt = At.new_zeros(At.shape)
+    chunks = _chunks(L, b * n * d)
+    g_next = E_next = None
+    for k in range(len(chunks) - 1, -1, -1):
+        t0, t1 = chunks[k]
+        T = t1 - t0
+        E, H = saved[k]
+        G = torch.mul(C[t0:t1, :, :, None], dy[t0:t1, :, None, :], out=u.new_empty(T, b, n, d))
+        for i in range(T - 1, -1, -1):
+            if g_next is not None:
+                G[i].addcmul_(E_next, g_next)
+            g_next, E_next = G[i], E[i]
+        q = torch.mul(H, dy[t0:t1, :, None, :], out=u.new_empty(T, b, n, d))
+        torch.sum(q, -1, out=gC[t0:t1])
+        torch.bmm(B[t0:t1].reshape(T * b, 1, n), G.view(T * b, n, d), out=GB[t0:t1].view(T * b, 1, d))
+        torch.sum(torch.mul(G, du[t0:t1, :, None, :], out=q), -1, out=gB[t0:t1])
+        # q_t = g_t h_{t-1} E_t (h_{-1} = 0)
+        torch.mul(G[1:], H[:-1], out=q[1:])
+        if k > 0:
+            torch.mul(G[0], saved[k - 1][1][-1], out=q[0])
+        else:
+            q[0].zero_()
+        q.mul_(E)
+        gAt += (q * delta[t0:t1, :, None, :]).sum((0, 1))
+        torch.sum(q.mul_(At), 2, out=gdecay[t0:t1])
+    return delta * GB, gdecay.addcmul_(u, GB), gAt, gB, gC
 
 
 class _S6(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, u, delta, At, B, C):
-        y, H = _s6_forward(u, delta, At, B, C, keep=True)
-        ctx.save_for_backward(u, delta, At, B, C, H)
-        return y
+    def forward(ctx, u, delta, At, B, C, D):
+        y, saved = _s6_forward(u, delta, At, B, C, keep=True)
+        ctx.save_for_backward(u, delta, At, B, C, D)
+        ctx.states = saved
+        return y.addcmul_(u, D)
 
     @staticmethod
     def backward(ctx, dy):
-        u, delta, At, B, C, H = ctx.saved_tensors
-        return _s6_backward(u, delta, At, B, C, H, dy.contiguous())
+        u, delta, At, B, C, D = ctx.saved_tensors
+        saved = ctx.states
+        del ctx.states
+        dy = dy.contiguous()
+        gu, gdelta, gAt, gB, gC = _s6_backward(u, delta, At, B, C, saved, dy)
+        return gu.addcmul_(dy, D), gdelta, gAt, gB, gC, (dy * u).reshape(-1, u.shape[-1]).sum(0)
 
 
 def selective_scan_tm(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,
                       D: torch.Tensor | None = None) -> torch.Tensor:
     """:func:`selective_scan` time-major: u, delta (L, b, d); B, C (L, b, n); returns y (L, b, d)."""
-    args = (u.contiguous(), delta.contiguous(), A.t().contiguous(), B.contiguous(), C.contiguous())
+    args = (u.contiguous(), delta.contiguous(), A.t().contiguous(), B.contiguous(), C.contiguous(),
+            u.new_zeros(u.shape[-1]) if D is None else D)
     if torch.is_grad_enabled() and any(x.requires_grad for x in args):
-        y = _S6.apply(*args)
-    else:
-        y = _s6_forward(*args, keep=False)[0]
-    return y if D is None else y + u * D
+        return _S6.apply(*args)
+    return _s6_forward(*args[:5], keep=False)[0].addcmul_(args[0], args[5])
 
 
 def selective_scan(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,

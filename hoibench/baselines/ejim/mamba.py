@@ -14,9 +14,12 @@ the leading (time) axis (:class:`_CausalConv`, the same sum as ``nn.Conv1d`` wit
 
 Exactness with padding and direction:
 
-- ``valid`` (b, L): padded positions of ``u`` are zeroed after ``in_proj`` and get
-  ``delta = 0``, so they neither feed the convolution nor change the state
-  (``exp(0 A) = 1``, input 0); the block's output is zeroed there (``z`` needs no mask).
+- ``valid`` (b, L): padding sits at the end of every sequence (after the reversal below
+  too), and every step of the block is row-wise or causal (convolution, scan), so a valid
+  position never reads a padded one; the block's output is zeroed at padded positions, so
+  the residual stream there is left as it came. Gradients reach no padded position (its
+  output is zeroed and nothing valid reads it), so padding changes neither outputs nor
+  parameter gradients.
 - ``reverse``: each sequence's valid part is reversed in place (padding stays at the end),
   so the backward scan of a padded sequence equals that of the unpadded one.
 - ``prefix``: the first ``prefix`` positions (condition tokens) are never reversed, so in
@@ -133,13 +136,14 @@ class MambaBlock(nn.Module):
         if reverse and rows is None:
             rows = reversal_rows(valid, prefix)
         h = self.norm(_Rows.apply(x, rows) if reverse else x)
-        m = valid[..., None].to(h.dtype)
         u, z = self.in_proj(h).chunk(2, dim=-1)
-        u = F.silu(_CausalConv.apply(u * m, self.conv.weight[:, 0], self.conv.bias)) * m
+        u = F.silu(_CausalConv.apply(u, self.conv.weight[:, 0], self.conv.bias))
         dt, B, C = self.x_proj(u).split([self.dt_rank, self.d_state, self.d_state], dim=-1)
-        delta = F.softplus(self.dt_proj(dt)) * m
+        delta = F.softplus(self.dt_proj(dt))
         y = selective_scan_tm(u, delta, -torch.exp(self.A_log), B, C, self.D)
-        out = self.drop(self.out_proj(y * F.silu(z))) * m
+        out = self.drop(self.out_proj(y * F.silu(z)))
+        if not bool(valid.all()):
+            out = out * valid[..., None].to(out.dtype)
         if reverse:
             out = _Rows.apply(out, rows)
         return x + out

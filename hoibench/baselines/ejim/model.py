@@ -95,27 +95,37 @@ class DIB(nn.Module):
         tok = torch.cat([o[:, :, None], h], 2).reshape(B * L, J + 1, d)
         keymask = torch.cat([torch.zeros(B, L, 1, dtype=torch.bool, device=h.device), masked], 2).reshape(B * L, J + 1)
         x = self.norm(tok)
-        upd = self.attn(x, x, x, key_padding_mask=keymask, need_weights=False)[0]
-        scores = self.object_scores(x, keymask).reshape(B, L, J)
-        live = (~keymask)[..., None].to(tok.dtype)                         # masked tokens: no update
-        tok = tok + upd * live
-        tok = tok + self.ff(tok) * live
+        upd, scores = self.attend(x, keymask)
+        scores = scores.reshape(B, L, J)
+        if bool(masked.any()):
+            live = (~keymask)[..., None].to(tok.dtype)                     # masked tokens: no update
+            tok = tok + upd * live
+            tok = tok + self.ff(tok) * live
+        else:
+            tok = tok + upd
+            tok = tok + self.ff(tok)
         tok = tok.reshape(B, L, J + 1, d)
         return tok[:, :, 1:], tok[:, :, 0], scores
 
-    def object_scores(self, x: torch.Tensor, keymask: torch.Tensor) -> torch.Tensor:
-        """(N, J) attention of the object query (token 0) to the joint keys, averaged over
-        heads: ``mean_h softmax_k(q_h . k_h / sqrt(d_h))`` with masked keys excluded, computed
-        without attention dropout (``nn.MultiheadAttention`` returns its weights after
+    def attend(self, x: torch.Tensor, keymask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``self.attn``'s self-attention over x (N, T, d) with ``keymask`` (N, T) keys excluded
+        (the packed in-projection, scaled dot-product attention with attention dropout in
+        training, the out-projection), and the object query's scores (N, T - 1):
+        ``mean_h softmax_k(q_h . k_h / sqrt(d_h))`` over the joint keys, from the same q and k
+        but without attention dropout (``nn.MultiheadAttention`` returns its weights after
         dropout in training, which would make the progressive mask a dropout draw)."""
         a = self.attn
         N, T, d = x.shape
         H = a.num_heads
-        q = F.linear(x[:, :1], a.in_proj_weight[:d], a.in_proj_bias[:d]).view(N, 1, H, d // H).transpose(1, 2)
-        k = F.linear(x, a.in_proj_weight[d:2 * d], a.in_proj_bias[d:2 * d]).view(N, T, H, d // H).transpose(1, 2)
-        logits = (q @ k.transpose(-1, -2)) / math.sqrt(d // H)              # (N, H, 1, T)
-        logits = logits.masked_fill(keymask[:, None, None], float("-inf"))
-        return logits.softmax(-1).mean(1)[:, 0, 1:]
+        q, k, v = F.linear(x, a.in_proj_weight, a.in_proj_bias).view(N, T, 3, H, d // H).permute(2, 0, 3, 1, 4)
+        bias = torch.zeros(N, 1, 1, T, dtype=x.dtype, device=x.device).masked_fill_(keymask[:, None, None],
+                                                                                   float("-inf"))
+        out = F.scaled_dot_product_attention(q, k, v, bias, dropout_p=a.dropout if a.training else 0.0)
+        upd = a.out_proj(out.transpose(1, 2).reshape(N, T, d))
+        with torch.no_grad():
+            logits = (q[:, :, :1] @ k.transpose(-1, -2)) / math.sqrt(d // H)          # (N, H, 1, T)
+            scores = logits.masked_fill(keymask[:, None, None], float("-inf")).softmax(-1).mean(1)[:, 0, 1:]
+        return upd, scores
 
 
 class Module(nn.Module):
@@ -161,7 +171,7 @@ class Module(nn.Module):
         nc = cond.shape[1]
         ones = torch.ones(nc, B, dtype=torch.bool, device=h.device)
         ct = cond.transpose(0, 1)                                          # (nc, B, d)
-        hc = torch.cat([ct[:, :, None].expand(nc, B, J, d).reshape(nc, B * J, d), h.reshape(L, B * J, d)], 0)
+        hc = torch.cat([ct[:, :, None].expand(nc, B, J, d), h], 0).view(nc + L, B * J, d)
         vjc = torch.cat([ones[:, :, None].expand(nc, B, J).reshape(nc, B * J), vj], 0)
         h = self.human_cond.forward_tm(hc, vjc, prefix=nc)[nc:].reshape(L, B, J, d)
         o = self.object_cond.forward_tm(torch.cat([ct, o], 0), torch.cat([ones, valid], 0), prefix=nc)[nc:]
