@@ -1,0 +1,130 @@
+"""EJIM's fused selective scan and time-major blocks against independent references: a plain
+time loop of the S6 recurrence (written here), and the frozen pre-fusion implementation
+(``tests/_ejim_reference.py``) for whole models: same weights and inputs, same outputs and
+parameter gradients; padding invariance; unchanged parameter names and shapes."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+import _ejim_reference as R
+from hoibench.baselines import scan
+from hoibench.baselines.ejim.config import preset
+from hoibench.baselines.ejim.mamba import BiMamba
+from hoibench.baselines.ejim.model import EJIM
+
+
+def s6_loop(u, delta, A, B, C, D):
+    """``h_t = exp(delta_t A) h_{t-1} + delta_t B_t u_t``, ``y_t = C_t . h_t + D u_t``, one
+    step at a time: u, delta (b, L, d); A (d, n); B, C (b, L, n)."""
+    b, L, d = u.shape
+    h = u.new_zeros(b, d, A.shape[1])
+    ys = []
+    for t in range(L):
+        h = torch.exp(delta[:, t, :, None] * A) * h + (delta[:, t] * u[:, t])[..., None] * B[:, t, None, :]
+        ys.append((h * C[:, t, None, :]).sum(-1) + D * u[:, t])
+    return torch.stack(ys, 1)
+
+
+def s6_inputs(b, L, d, n, dtype, seed, lengths=None):
+    g = torch.Generator().manual_seed(seed)
+    u = torch.randn(b, L, d, generator=g, dtype=dtype)
+    delta = torch.rand(b, L, d, generator=g, dtype=dtype) * 0.3
+    if lengths is not None:                                 # padded tails: delta = 0, u = 0
+        pad = torch.arange(L)[None] >= torch.tensor(lengths)[:, None]
+        u[pad], delta[pad] = 0.0, 0.0
+    A = -torch.exp(torch.randn(d, n, generator=g, dtype=dtype))
+    B, C = torch.randn(b, L, n, generator=g, dtype=dtype), torch.randn(b, L, n, generator=g, dtype=dtype)
+    D = torch.randn(d, generator=g, dtype=dtype)
+    return [u, delta, A, B, C, D], torch.randn(b, L, d, generator=g, dtype=dtype)
+
+
+@pytest.mark.parametrize("L,n,chunk_steps", [(1, 4, None), (7, 16, 3), (64, 8, 5), (196, 4, 1), (196, 16, None),
+                                             (400, 6, 64)])
+def test_selective_scan_equals_the_time_loop_forward_and_gradients(L, n, chunk_steps, monkeypatch):
+    b, d = 3, 5
+    if chunk_steps is not None:                             # several time chunks: their seams are tested
+        monkeypatch.setattr(scan, "CHUNK_ELEMENTS", chunk_steps * b * n * d)
+    lengths = [L, max(1, L - 3), max(1, L // 2)]
+    args, w = s6_inputs(b, L, d, n, torch.float64, seed=L + n, lengths=lengths)
+    xs = [x.clone().requires_grad_() for x in args]
+    rs = [x.clone().requires_grad_() for x in args]
+    y, ref = scan.selective_scan(*xs), s6_loop(*rs)
+    torch.testing.assert_close(y, ref, rtol=1e-10, atol=1e-10)
+    for got, want in zip(torch.autograd.grad((y * w).sum(), xs), torch.autograd.grad((ref * w).sum(), rs)):
+        torch.testing.assert_close(got, want, rtol=1e-9, atol=1e-9)
+    with torch.no_grad():                                   # sampling's path (no states kept)
+        torch.testing.assert_close(scan.selective_scan(*args), ref.detach(), rtol=1e-10, atol=1e-10)
+
+
+def test_selective_scan_float32_matches_the_loop_to_1e_5():
+    args, w = s6_inputs(4, 96, 16, 4, torch.float32, seed=3, lengths=[96, 90, 50, 7])
+    y, ref = scan.selective_scan(*args), s6_loop(*args)
+    assert ((y - ref).abs().max() / ref.abs().max()).item() < 1e-5
+
+
+def _max_rel(a: torch.Tensor, b: torch.Tensor) -> float:
+    return ((a - b).abs().max() / b.abs().max().clamp(min=1e-30)).item()
+
+
+def _twin_models(over: dict):
+    cfg = preset("tiny").replace(**{"model.object_points": 64, "model.object_knn": 8, **over}).model
+    torch.manual_seed(0)
+    new = EJIM(cfg, vocab=10)
+    old = R.EJIM(cfg, vocab=10)
+    old.load_state_dict(new.state_dict())                  # strict: the same names and shapes
+    return cfg, new, old
+
+
+@pytest.mark.parametrize("over", [{"model.d_model": 32},
+                                  {"model.d_model": 16, "model.d_state": 16, "model.expand": 2, "model.modules": 3}])
+def test_model_equals_the_frozen_reference_outputs_and_parameter_gradients(over):
+    cfg, new, old = _twin_models(over)
+    g = torch.Generator().manual_seed(1)
+    B, L = 3, 21
+    x = torch.randn(B, L, 24, 12, generator=g)
+    valid = torch.arange(L)[None] < torch.tensor([L, 13, 4])[:, None]
+    ids, pad = torch.randint(1, 10, (B, 4), generator=g), torch.tensor([[False] * 4, [False] * 2 + [True] * 2,
+                                                                         [False] * 4])
+    pts, w = torch.randn(B, cfg.object_points, 3, generator=g), torch.randn(B, L, 24, 12, generator=g)
+    t, keep = torch.tensor([5, 500, 999]), torch.tensor([True, False, True])
+    results = []
+    for m in (new, old):
+        m.train()
+        out = m(x, t, keep, m.encode_text(ids, pad), pad, m.encode_object(pts), valid)
+        (out * w).sum().backward()
+        results.append((out.detach(), dict(m.named_parameters()), [k.clone() for k in m.last_masks]))
+    (o1, p1, m1), (o0, p0, m0) = results
+    assert _max_rel(o1, o0) < 1e-5
+    assert all(torch.equal(a, b) for a, b in zip(m1, m0))                     # the same joints masked
+    assert p1.keys() == p0.keys()
+    for name in p0:
+        assert _max_rel(p1[name].grad, p0[name].grad) < 1e-5, name
+
+
+@pytest.mark.parametrize("name", ["tiny", "paper"])
+def test_parameter_names_and_shapes_are_unchanged(name):
+    cfg = preset(name).replace(**{"model.text_encoder": "tokens"}).model
+    new, old = EJIM(cfg, vocab=20).state_dict(), R.EJIM(cfg, vocab=20).state_dict()
+    assert {k: tuple(v.shape) for k, v in new.items()} == {k: tuple(v.shape) for k, v in old.items()}
+
+
+def test_bimamba_padding_changes_neither_valid_outputs_nor_parameter_gradients():
+    torch.manual_seed(0)
+    m = BiMamba(8, 4, 2, 4, 0.0)
+    g = torch.Generator().manual_seed(2)
+    x = torch.randn(3, 12, 8, generator=g)
+    valid = torch.arange(12)[None] < torch.tensor([12, 9, 2])[:, None]
+    w = torch.randn(3, 12, 8, generator=g) * valid[..., None]
+    runs = []
+    for garbage in (0.0, 1e3):
+        xx = x.clone()
+        xx[~valid] = garbage * torch.randn(int((~valid).sum()), 8, generator=g)
+        m.zero_grad()
+        out = m(xx, valid, prefix=3)
+        (out * w).sum().backward()
+        runs.append((out[valid].detach(), {k: p.grad.clone() for k, p in m.named_parameters()}))
+    (o0, g0), (o1, g1) = runs
+    torch.testing.assert_close(o1, o0, rtol=1e-6, atol=1e-6)
+    for k in g0:
+        torch.testing.assert_close(g1[k], g0[k], rtol=1e-5, atol=1e-6)
