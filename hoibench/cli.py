@@ -81,6 +81,26 @@ def _one_line(exc: BaseException) -> str:
     return printable(" ".join(msg.split()))
 
 
+def _say(line: str) -> None:
+    """``line`` on stderr, flushed now; a closed stderr is not an error."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at the null device: the interpreter flushes stdout when it exits, and a
+    pipe whose reader has gone would answer that with "Exception ignored ... BrokenPipeError"."""
+    import os
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command. Bad input ends in one line ``hoibench <command>: error: ...`` and
     exit status 2 (1 for a ``--strict`` stop, 130 for an interrupt), never a traceback;
@@ -98,9 +118,10 @@ def main(argv: list[str] | None = None) -> int:
                 raise KeyboardInterrupt
             return code
     except KeyboardInterrupt:
-        print(interrupt_message(f"hoibench {args.command}"), file=sys.stderr)
+        _say(interrupt_message(f"hoibench {args.command}"))
         return EXIT_INTERRUPTED
     except BrokenPipeError:          # output piped into a command that stopped reading
+        _quiet_stdout()
         return 0
     except HoibenchError as exc:
         if debug:

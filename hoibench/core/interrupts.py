@@ -36,8 +36,15 @@ def interrupt_message(what: str) -> str:
 _INTERRUPTED = threading.Event()
 
 
+#: depth of :func:`hold_sigint` blocks in the main thread, and the signal that arrived inside one
+_HOLD = {"depth": 0, "pending": None}
+
+
 def _raise_interrupt(signum: int, frame) -> None:
     _INTERRUPTED.set()
+    if _HOLD["depth"] and _in_main_thread():     # held: raised when the block ends
+        _HOLD["pending"] = signal.Signals(signum).name
+        return
     raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
@@ -73,6 +80,7 @@ def terminate_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, old)
         signal.signal(signal.SIGINT, old_int)
         _INTERRUPTED.clear()        # handled by the caller; later work in this process runs
+        _HOLD["pending"] = None
 
 
 @contextmanager
@@ -80,15 +88,29 @@ def hold_sigint() -> Iterator[None]:
     """Block SIGINT in this thread inside the block: a Ctrl-C is held, not lost, and is
     delivered (``KeyboardInterrupt``) on exit. Processes started inside inherit the blocked
     signal through ``exec``, so a spawned worker cannot be hit by Ctrl-C while it imports,
-    before :func:`ignore_sigint` runs. A no-op without ``pthread_sigmask`` (Windows)."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    before :func:`ignore_sigint` runs.
+
+    The mask alone does not hold the interrupt in this process: the kernel hands a signal
+    sent to the process group to another thread (a pool's manager thread), and Python runs
+    the handler in the main thread anyway, possibly halfway through starting a worker.
+    Inside :func:`terminate_as_interrupt` the handler therefore only records a signal that
+    arrives in the block; the block raises it when it ends. The mask is a no-op without
+    ``pthread_sigmask`` (Windows)."""
+    main = _in_main_thread()
+    masked = hasattr(signal, "pthread_sigmask")
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if masked else None
+    if main:
+        _HOLD["depth"] += 1
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if main:
+            _HOLD["depth"] -= 1
+            if not _HOLD["depth"] and _HOLD["pending"] is not None:
+                pending, _HOLD["pending"] = _HOLD["pending"], None
+                raise KeyboardInterrupt(pending)
 
 
 def ignore_sigint() -> None:

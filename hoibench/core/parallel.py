@@ -128,10 +128,16 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
         yield _SerialExecutor()
         return
     if spec.kind == "processes":
-        with _single_threaded_children(), cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
-                                    mp_context=mp.get_context("spawn"),
-                                    initializer=_pool_worker, initargs=(os.getpid(),)) as ex:
+        with _single_threaded_children():
+            ex = cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
+                                        mp_context=mp.get_context("spawn"),
+                                        initializer=_pool_worker, initargs=(os.getpid(),))
+        try:
             yield ex
+            ex.shutdown(wait=True)        # an interrupt while waiting for the workers: abandoned below
+        except BaseException:
+            _abandon(ex, ())
+            raise
         return
     try:
         from dask.distributed import Client, LocalCluster
@@ -196,11 +202,11 @@ def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec
         limit = max(1, int(window)) if window is not None else None
 
         def fill() -> None:
-            with hold_sigint():           # workers start with SIGINT blocked, then ignore it
-                for unit in todo:
+            for unit in todo:             # reading the next unit may be interrupted at once
+                with hold_sigint():       # a submit is not: workers start with SIGINT blocked
                     futures.append(ex.submit(fn, unit))
-                    if limit is not None and len(futures) >= limit:
-                        return
+                if limit is not None and len(futures) >= limit:
+                    return
 
         try:
             fill()
@@ -217,9 +223,11 @@ def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec
 
 def _abandon(ex: cf.Executor, futures: Sequence[cf.Future], grace_s: float = 1.0) -> None:
     """Stop ``ex`` now: cancel units not started, shut down without waiting, terminate a
-    process pool's workers (SIGTERM, then SIGKILL after ``grace_s``). Dask's executor
-    cancels its futures on ``shutdown(wait=False)``."""
+    process pool's workers (SIGTERM, then SIGKILL after ``grace_s``), then wait (at most
+    ``grace_s`` more) for the pool's manager thread to close its pipes. Dask's executor
+    cancels its futures on ``shutdown(wait=False)``. Safe to call twice."""
     procs = list((getattr(ex, "_processes", None) or {}).values())   # gone after shutdown
+    manager = getattr(ex, "_executor_manager_thread", None)
     for fut in futures:
         fut.cancel()
     try:
@@ -227,6 +235,27 @@ def _abandon(ex: cf.Executor, futures: Sequence[cf.Future], grace_s: float = 1.0
     except TypeError:                     # executors without cancel_futures (Dask)
         ex.shutdown(wait=False)
     _terminate(procs, grace_s)
+    _retire_manager(manager, grace_s)
+
+
+def _retire_manager(thread: Any, timeout_s: float) -> None:
+    """Join a process pool's manager thread, so that nothing of the pool runs when the
+    interpreter exits. ``concurrent.futures`` wakes every manager thread it still knows at
+    exit by writing to the thread's pipe, without the lock the thread takes to close that
+    pipe: a thread still closing it then gets the write on a closed descriptor ("Exception
+    ignored in: <module 'threading'> ... OSError: [Errno 9] Bad file descriptor"). A thread
+    that does not end in ``timeout_s`` is dropped from that list (it is not written to)."""
+    if thread is None:
+        return
+    try:
+        thread.join(timeout_s)
+    except RuntimeError:                  # never started
+        return
+    if thread.is_alive():
+        from concurrent.futures import process
+        wakeups = getattr(process, "_threads_wakeups", None)
+        if wakeups is not None:
+            wakeups.pop(thread, None)
 
 
 def _terminate(procs: Sequence[Any], grace_s: float) -> None:
