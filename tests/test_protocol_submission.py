@@ -29,12 +29,15 @@ from hoibench.scoring import submission as S
 def test_shipped_protocols_fix_the_design_numbers():
     shipped = P.list_protocols()
     assert {p.id for p in shipped if p.kind == "multibody"} == {"multibody-synthetic"}
-    protos = {p.id: p for p in shipped if p.kind == "hoi"}
+    protos = {i: P.get_protocol(i) for i in sorted({p.id for p in shipped if p.kind == "hoi"})}   # defaults
     assert {"behave-legacy", "behave-clean", "omomo-legacy", "omomo-clean", "rich-cat-clean",
             "synthetic-clean", "synthetic-legacy"} <= set(protos)
     t2m = protos["t2m-legacy"]        # text-to-motion's loop, for rows scored with the t2m evaluator
     assert (t2m.replications, t2m.embedding_loop, t2m.diversity_pairs, t2m.track) == (20, "t2m", 300, "behave")
     assert t2m.physical == protos["behave-legacy"].physical
+    chois = [protos.pop(i) for i in ("omomo-chois", "omomo-chois-clean")]
+    for p in chois:                   # CHOIS's own protocol: its 30 fps evaluator, text-to-motion's loop
+        assert p.fps == 30 and p.embedding_loop == "t2m" and p.dataset == "omomo", p.ref
     for p in protos.values():
         if p is t2m:
             continue
@@ -49,7 +52,9 @@ def test_shipped_protocols_fix_the_design_numbers():
             assert (p.mm_texts, p.mm_samples, p.mm_pairs) == (100, 30, 10)
             assert p.diversity_pairs == (100 if p.mode == "legacy" else 200 if p.dataset == "behave" else 300)
     assert protos["behave-clean"].representation == "hml263-clean-1.0"
-    assert P.get_protocol("behave-clean@1.1") == protos["behave-clean"]
+    assert P.get_protocol("behave-clean@1.1") == protos["behave-clean"]      # the default: 1.2 is a preview
+    newer = P.get_protocol("behave-clean@1.2")
+    assert newer.preview and "physics" in newer.settings and newer.sha256 != protos["behave-clean"].sha256
     assert len({p.sha256 for p in protos.values()}) == len(protos)
 
 

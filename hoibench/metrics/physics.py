@@ -35,7 +35,10 @@ import numpy as np
 from .physics_scene import (BodyTrack, body_states, body_track, object_geometry, object_qpos, object_qvel,
                             scene_xml)
 
-NAMES = ("phys_support_err_m", "phys_unsupported_ratio", "phys_settle_m", "phys_balance_ratio")
+from .catalog import METRICS
+
+#: the metrics this module computes: the catalogue's entries read from the ``physics:`` key
+NAMES = tuple(n for n, i in METRICS.items() if i.settings_key == "physics")
 #: the protocol's ``physics:`` keys and their defaults (docs/metrics.md, "Physics")
 DEFAULTS: dict[str, Any] = {
     "window_s": 0.5,              # h: length of a support window

@@ -35,9 +35,10 @@ from __future__ import annotations
 
 import platform
 import time
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
@@ -49,6 +50,46 @@ from .results import RESULT_FORMAT, metric_entry
 
 #: motions embedded per batch while streaming
 EMBED_BATCH = 64
+
+
+@dataclass
+class HOIState:
+    """What the single-body scorer's stages hand on (one typed object instead of attributes
+    set across five methods). ``prepare`` fills the ground truth, ``validate`` what is scored,
+    ``stream`` the embeddings and physical metric states, ``replications`` the notes and the
+    per-clip table."""
+
+    # prepare: fit checks and the ground truth
+    overrides: list = field(default_factory=list)
+    rows: dict = field(default_factory=dict)          # test clip rows of the manifest, by id
+    fps: float = 0.0
+    cap: int = 0                                      # samples per prompt read at most
+    mode: str = "clean"                               # hoi269 mode of the store
+    test_ids: list = field(default_factory=list)
+    real_all: np.ndarray | None = None                # GT embeddings of every test clip
+    sets_all: list = field(default_factory=list)      # caption embeddings per test clip
+    gate: dict = field(default_factory=dict)
+    # validate: what is scored
+    report: Any = None
+    cache: Any = None                                 # what validation read and encoded
+    meta: dict = field(default_factory=dict)
+    human_only: bool = False
+    K: int = 1
+    ks_physical: list = field(default_factory=list)
+    ks_embed: list = field(default_factory=list)
+    mm_ok: bool = False
+    ids: list = field(default_factory=list)
+    # stream
+    windowed: bool = False
+    physical: dict = field(default_factory=dict)      # PhysicalMetrics per sample index or replication
+    gen: np.ndarray | None = None                     # (K, ids, dim) generated embeddings
+    not_computed: dict = field(default_factory=dict)  # catalogue metrics that cannot run here, and why
+    t3: float = 0.0
+    # replications
+    t4: float = 0.0
+    notes: list = field(default_factory=list)
+    per_clip: dict | None = None
+    fid_method: str = ""
 
 
 def _caption_lines(data: Path, clip_id: str) -> list:
@@ -85,10 +126,12 @@ def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_eva
 
 
 def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
-            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None) -> Iterator:
+            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None, cache=None) -> Iterator:
     """Yield the physical-metric inputs of every (id, sample) in ``ks_physical``, loading one
     file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``.
-    ``windows(id, k)``: the legacy length windows of the replications using sample k."""
+    ``windows(id, k)``: the legacy length windows of the replications using sample k;
+    ``cache``: what validation read and encoded (:class:`~hoibench.scoring.read_cache.ReadCache`),
+    used instead of reading and encoding again."""
     from ..metrics.physical import clip_input_factory
     from .submission import encode_sample
 
@@ -106,9 +149,11 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
 
     rows_of = getattr(ev, "sample_rows", None)     # evaluators with their own motion input (interact)
     for i, cid in enumerate(ids):
-        arrays = sub.load(cid)
+        arrays = (cache.take_arrays(cid) if cache is not None else None) or sub.load(cid)
         for k in ks_embed:
-            feats = rows_of(arrays, k, store, cid) if rows_of else encode_sample(arrays, k, mode, fps)
+            kept = cache.take_features(cid, k) if cache is not None and not rows_of else None
+            feats = kept if kept is not None else (rows_of(arrays, k, store, cid) if rows_of else
+                                                    encode_sample(arrays, k, mode, fps))
             if not np.isfinite(feats).all():      # validate refuses these; never embed them
                 raise ValueError(f"{cid}: sample {k} encodes to non-finite features")
             pending.append((k, i, feats))
@@ -189,6 +234,10 @@ class HOIScorer(Scorer):
     evaluator_options = {"allow_failed_gate": True}     # the gate is measured in prepare, on this store
     map_options = {"window": EMBED_BATCH, "progress": "evaluate"}
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.st = HOIState()
+
     @classmethod
     def check_fit(cls, store, protocol, card: dict, options: dict) -> None:
         """The fit checks of :meth:`prepare` on the card alone (before the weights load)."""
@@ -203,19 +252,19 @@ class HOIScorer(Scorer):
         from ..evaluator.gate import gate_from_embeddings
         from .submission import submission_context
         store, proto, ev, opts = self.store, self.proto, self.ev, self.options
-        self.overrides = _check_fit(proto, store, ev, opts.get("allow_protocol_mismatch", False),
+        self.st.overrides = _check_fit(proto, store, ev, opts.get("allow_protocol_mismatch", False),
                                     opts.get("allow_evaluator_mismatch", False))
-        self.rows, self.fps, self.cap, self.mode = submission_context(store, proto)
+        self.st.rows, self.st.fps, self.st.cap, self.st.mode = submission_context(store, proto)
         t1 = time.perf_counter()
         data = store.root
-        self.test_ids = test_ids = store.clip_ids("test")
+        self.st.test_ids = test_ids = store.clip_ids("test")
         lines = {cid: _caption_lines(data, cid) for cid in test_ids}
         captions = {cid: [c.text for c in caps] for cid, caps in lines.items()}
         no_text = [cid for cid, c in captions.items() if not c]
         if no_text:
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
-        self.real_all = ev.embed_motion([_real_features(store, cid, ev) for cid in test_ids])
+        self.st.real_all = ev.embed_motion([_real_features(store, cid, ev) for cid in test_ids])
         all_caps = sorted({c for caps in captions.values() for c in caps})
         # the store's HumanML3D tokens of each caption (first line wins), for evaluators that read them
         toks: dict[str, tuple] = {}
@@ -224,110 +273,116 @@ class HOIScorer(Scorer):
                 if c.tokens:
                     toks.setdefault(c.text, c.tokens)
         cap_emb = dict(zip(all_caps, ev.embed_text(all_caps, tokens=[toks.get(c) for c in all_caps])))
-        self.sets_all = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in test_ids]
-        self.gate = gate = gate_from_embeddings(self.real_all, self.sets_all, test_ids, proto)   # from the weights
+        self.st.sets_all = [np.stack([cap_emb[c] for c in captions[cid]]) for cid in test_ids]
+        # the gate from the weights, on this store
+        self.st.gate = gate = gate_from_embeddings(self.st.real_all, self.st.sets_all, test_ids, proto)
         if not gate["passed"]:
             if not opts.get("allow_failed_gate", False):
                 raise EvaluationRefused(f"evaluator {str(ev.id)[:12]} fails the sanity gate on {data}'s test split: "
                                         + "; ".join(gate["reasons"])
                                         + " (pass --allow-failed-gate to score anyway: the result is marked)")
-            self.overrides.append({"override": "failed_gate", "reasons": list(gate["reasons"])})
+            self.st.overrides.append({"override": "failed_gate", "reasons": list(gate["reasons"])})
         self.timings["ground_truth_s"] = time.perf_counter() - t1
 
     def open_submission(self):
         from .submission import Submission, limits_for
-        return Submission(self.submission, limits=limits_for(self.rows, self.fps, self.cap))
+        return Submission(self.submission, limits=limits_for(self.st.rows, self.st.fps, self.st.cap))
 
     def validate(self, sub) -> list[str]:
         from .submission import validation_report
         proto = self.proto
         t2 = time.perf_counter()
-        self.report = report = validation_report(sub, self.store, protocol=proto)
+        from .read_cache import ReadCache
+        self.st.cache = ReadCache()
+        self.st.report = report = validation_report(sub, self.store, protocol=proto, keep=self.st.cache)
         ids = sorted(report.valid_ids)
         if not ids:
             raise EvaluationRefused(f"{self.submission}: no valid test id to score ({len(report.errors)} error(s)); "
                                     f"run hoibench validate for the list")
-        self.meta = dict(sub.meta or {})
-        flags = self.meta.get("flags") if isinstance(self.meta.get("flags"), dict) else {}
-        self.human_only = flags.get("human_only") is True
-        if self.human_only and getattr(self.ev, "variant", "human") == "hoi":
+        self.st.meta = dict(sub.meta or {})
+        flags = self.st.meta.get("flags") if isinstance(self.st.meta.get("flags"), dict) else {}
+        self.st.human_only = flags.get("human_only") is True
+        if self.st.human_only and getattr(self.ev, "variant", "human") == "hoi":
             raise EvaluationRefused(f"{self.submission}: submission.json: flags.human_only is set, but evaluator "
                                     f"{self.ev.id} embeds human and object channels (variant 'hoi'); score a "
                                     f"human-only submission with a 'human' evaluator (train-evaluator --variant human)")
         self.timings["validate_s"] = time.perf_counter() - t2
-        self.K = K = int(report.samples_per_prompt or 1)
-        self.ks_physical = sorted({proto.sample_index(r, K) for r in range(proto.replications)})
-        self.mm_ok = K >= proto.mm_samples
-        self.ks_embed = sorted(set(self.ks_physical) | (set(range(proto.mm_samples)) if self.mm_ok else set()))
-        self.ids = ids
+        self.st.K = K = int(report.samples_per_prompt or 1)
+        self.st.ks_physical = sorted({proto.sample_index(r, K) for r in range(proto.replications)})
+        self.st.mm_ok = K >= proto.mm_samples
+        mm = set(range(proto.mm_samples)) if self.st.mm_ok else set()
+        self.st.ks_embed = sorted(set(self.st.ks_physical) | mm)
+        self.st.ids = ids
         return ids
 
     def stream(self, sub, ids: list[str]) -> Iterator:
         """One streaming pass: embeddings in this process, physical metrics on the executor."""
         from ..metrics.legacy_rules import replication_windows
         from ..metrics.physical import PhysicalMetrics, _unit, load_groups
-        self._t3 = time.perf_counter()
-        proto, K = self.proto, self.K
+        self.st.t3 = time.perf_counter()
+        proto, K = self.proto, self.st.K
         cfg = proto.physical_config()
         # physical metrics per sample index, or per replication when lengths are cropped
-        self.windowed = cfg.length_crop != "none"
-        slots = range(proto.replications) if self.windowed else self.ks_physical
-        self.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
-        self.gen = np.zeros((self.K, len(ids), self.ev.embed_dim), np.float32)
+        self.st.windowed = cfg.length_crop != "none"
+        slots = range(proto.replications) if self.st.windowed else self.st.ks_physical
+        self.st.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
+        self.st.gen = np.zeros((self.st.K, len(ids), self.ev.embed_dim), np.float32)
         from ..metrics.catalog import METRICS, unavailable
-        extra, self.not_computed = [], {}
+        extra, self.st.not_computed = [], {}
         for n in proto.metrics:
             if n in METRICS and METRICS[n].clip_fn:
                 why = unavailable(n)
                 if why:
-                    self.not_computed[n] = why
+                    self.st.not_computed[n] = why
                 else:
                     extra.append((n, proto.settings_for(METRICS[n].settings_key)))
         self.unit = partial(_unit, config=cfg, extra=tuple(extra)) if extra else partial(_unit, config=cfg)
         windows = None
-        if self.windowed:
+        if self.st.windowed:
             reps = {k: [r for r in range(proto.replications) if proto.sample_index(r, K) == k]
-                    for k in self.ks_physical}
+                    for k in self.st.ks_physical}
             windows = lambda cid, k: replication_windows(  # noqa: E731
-                cid, int(self.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
-        return _stream(sub, ids, self.ks_physical, self.ks_embed, self.ev, self.store, load_groups(self.store.root),
-                       proto, self.mode, self.fps, self.gen, windows)
+                cid, int(self.st.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
+        st = self.st
+        return _stream(sub, ids, st.ks_physical, st.ks_embed, self.ev, self.store, load_groups(self.store.root),
+                       proto, st.mode, st.fps, st.gen, windows, st.cache)
 
     def update(self, out) -> None:
         key, stats = out
-        if self.windowed:
+        if self.st.windowed:
             for r, st in stats["replications"].items():
-                self.physical[r].update(key, st)
+                self.st.physical[r].update(key, st)
         else:
-            self.physical[key[1]].update(key, stats)
+            self.st.physical[key[1]].update(key, stats)
 
     def replications(self) -> list[dict]:
         from ..metrics import embedding as em
-        physical = {k: m.compute() for k, m in self.physical.items()}
-        self.timings["stream_s"] = time.perf_counter() - self._t3
+        physical = {k: m.compute() for k, m in self.st.physical.items()}
+        self.st.cache = None                     # every kept file was scored
+        self.timings["stream_s"] = time.perf_counter() - self.st.t3
         t4 = time.perf_counter()
-        proto, ids, K, gen = self.proto, self.ids, self.K, self.gen
-        where_all = {cid: i for i, cid in enumerate(self.test_ids)}
-        real = self.real_all[[where_all[c] for c in ids]]
-        text_sets = [self.sets_all[where_all[c]] for c in ids]
-        per_rep, self.notes = [], []
+        proto, ids, K, gen = self.proto, self.st.ids, self.st.K, self.st.gen
+        where_all = {cid: i for i, cid in enumerate(self.st.test_ids)}
+        real = self.st.real_all[[where_all[c] for c in ids]]
+        text_sets = [self.st.sets_all[where_all[c]] for c in ids]
+        per_rep, self.st.notes = [], []
         if not proto.pools(ids, 0):
-            self.notes.append(f"fewer valid test ids ({len(ids)}) than the pool size ({proto.r_precision_pool_size}): "
+            self.st.notes.append(f"fewer valid test ids ({len(ids)}) than the pool size ({proto.r_precision_pool_size}): "
                               f"R-precision and MM-Dist use one pool of all ids (easier than the protocol's pools)")
-        if not self.mm_ok:
-            self.notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs "
+        if not self.st.mm_ok:
+            self.st.notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs "
                               f"{proto.mm_samples}")
         where = {cid: i for i, cid in enumerate(ids)}
-        self.per_clip = self._per_clip(real, text_sets)
-        self.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
+        self.st.per_clip = self._per_clip(real, text_sets)
+        self.st.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
         if proto.embedding_loop != "hoibench":
-            self._t4 = t4
+            self.st.t4 = t4
             return self._reference_loop_rows(real, text_sets, physical)
         pools_for = lambda r: [[where[c] for c in p] for p in proto.pools(ids, r)]  # noqa: E731
         retrieval, fid_by_sample = {}, {}
         real_stats = em.activation_statistics(real)               # once, for every sample index
-        fid_method = self.fid_method
-        for k in self.ks_physical:
+        fid_method = self.st.fid_method
+        for k in self.st.ks_physical:
             retrieval[k] = em.retrieval_replications(text_sets, gen[k], pools_for,
                                                      lambda r: proto.seed_for("caption", r),
                                                      proto.replications, proto.r_precision_top_k)
@@ -341,13 +396,13 @@ class HOIScorer(Scorer):
             pairs = proto.effective_diversity_pairs(len(ids))
             if pairs > 0:
                 row["diversity"] = em.diversity(gen[k], pairs, proto.seed_for("diversity", r))
-            if self.mm_ok:
+            if self.st.mm_ok:
                 sel = [where[c] for c in proto.multimodality_ids(ids, r)]
                 row["multimodality"] = em.multimodality(gen[:proto.mm_samples, sel].transpose(1, 0, 2),
                                                         proto.mm_pairs, proto.seed_for("multimodality", r))
             row.update(self._physical_row(physical, r))
             per_rep.append(row)
-        self._t4 = t4
+        self.st.t4 = t4
         return per_rep
 
     def _reference_loop_rows(self, real: np.ndarray, text_sets: list[np.ndarray], physical: dict) -> list[dict]:
@@ -361,15 +416,15 @@ class HOIScorer(Scorer):
         proto = self.proto
         rng = np.random.default_rng(proto.seed_for("caption", 0))
         text = np.stack([t[int(rng.integers(len(t)))] for t in text_sets])
-        samples = self.gen[:proto.mm_samples] if self.mm_ok else None
-        result = run_loop(proto.embedding_loop, text, self.gen[0], real, samples, seed=int(proto.seed),
+        samples = self.st.gen[:proto.mm_samples] if self.st.mm_ok else None
+        result = run_loop(proto.embedding_loop, text, self.st.gen[0], real, samples, seed=int(proto.seed),
                           **_loop_settings(proto))
-        self.fid_method = "sqrtm (the reference loop's)"
+        self.st.fid_method = "sqrtm (the reference loop's)"
         spec = LOOPS[proto.embedding_loop]
-        self.notes.append(f"embedding metrics: the {spec.name} loop as released ({spec.source}), "
+        self.st.notes.append(f"embedding metrics: the {spec.name} loop as released ({spec.source}), "
                           f"{proto.replications} replication(s)"
                           + ("; a single replication has no CI (shown as 0)" if proto.replications == 1 else ""))
-        self.notes += [f"{proto.embedding_loop} loop: {n}" for n in result.notes]
+        self.st.notes += [f"{proto.embedding_loop} loop: {n}" for n in result.notes]
         rows = []
         for r, row in enumerate(result.rows()):
             row.update(self._physical_row(physical, r))
@@ -380,24 +435,24 @@ class HOIScorer(Scorer):
         """The per-test-clip table (:mod:`hoibench.scoring.per_clip`) of the sample replication
         0 scores, with that replication's physical statistics."""
         from .per_clip import per_clip_table
-        k = self.proto.sample_index(0, self.K)
-        source = self.physical[0 if self.windowed else k].per_clip()
+        k = self.proto.sample_index(0, self.st.K)
+        source = self.st.physical[0 if self.st.windowed else k].per_clip()
         phys = {key[0]: row for key, row in source.items() if isinstance(key, tuple) and key[1] == k}
-        return per_clip_table(self.ids, self.gen[k], real, text_sets, phys, k)
+        return per_clip_table(self.st.ids, self.st.gen[k], real, text_sets, phys, k)
 
     def _physical_row(self, physical: dict, r: int) -> dict:
         """Replication r's physical metrics: its own length windows' (a length-cropping
         protocol) or sample ``r mod K``'s, numbers only."""
-        m = physical[r if self.windowed else self.proto.sample_index(r, self.K)]
+        m = physical[r if self.st.windowed else self.proto.sample_index(r, self.st.K)]
         return {key: float(v) for key, v in m.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
     def summary(self, rows: list[dict]) -> dict:
         from ..tracks.protocol import summarize_replications
-        proto, ids, report, ev, store, meta = self.proto, self.ids, self.report, self.ev, self.store, self.meta
+        proto, ids, report, ev, store, meta = self.proto, self.st.ids, self.st.report, self.ev, self.store, self.st.meta
         per_rep, undefined = _finite_rows(rows)
-        undefined.update(getattr(self, "not_computed", {}))
-        human_store = not any(self.rows[cid].get("object") for cid in ids)
-        if human_store or self.human_only:      # no object to measure against, or none generated
+        undefined.update(self.st.not_computed)
+        human_store = not any(self.st.rows[cid].get("object") for cid in ids)
+        if human_store or self.st.human_only:      # no object to measure against, or none generated
             from ..metrics.catalog import object_metrics
             why = ("not applicable: the scored clips have no object (human-only store, e.g. RICH's static scenes); "
                    "object metrics need an object mesh and pose" if human_store else
@@ -406,7 +461,7 @@ class HOIScorer(Scorer):
             for name in object_metrics():
                 if name in undefined:
                     undefined[name] = why
-        notes = self.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
+        notes = self.st.notes + [f"{name}: {why}" for name, why in sorted(undefined.items())]
         shared = _shares_text_encoder(meta, ev)
         if shared:
             notes.append(f"the submission's generator is conditioned on the evaluator's own text encoder ({shared}): "
@@ -416,10 +471,10 @@ class HOIScorer(Scorer):
             from ..metrics.physical import LEGACY_PS_NOTE
             notes.append(LEGACY_PS_NOTE)
         timings = self.timings
-        timings["replications_s"] = time.perf_counter() - self._t4
+        timings["replications_s"] = time.perf_counter() - self.st.t4
         timings["total_s"] = time.perf_counter() - self.started
         flags = meta.get("flags") if isinstance(meta.get("flags"), dict) else {}
-        overrides = self.overrides
+        overrides = self.st.overrides
         listed = set(proto.metrics) | {"clips", "clips_with_contact"}
         summary = summarize_replications(per_rep, proto.replications)
         return {
@@ -430,25 +485,25 @@ class HOIScorer(Scorer):
             "overrides": overrides,
             "evaluator_id": ev.id, "evaluator_variant": ev.variant,
             "evaluator_text_encoder": _text_encoder(ev),
-            "evaluator_backend": self.options.get("evaluator_backend", "contrastive"), "evaluator_gate": self.gate,
+            "evaluator_backend": self.options.get("evaluator_backend", "contrastive"), "evaluator_gate": self.st.gate,
             "representation": store.manifest["representations"], "toolkit": "hoibench",
             "toolkit_version": __version__,
             "dataset": store.manifest["dataset"], "store_config_sha256": store.manifest.get("config_sha256"),
             "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version"),
                            "flags": {k: flags[k] for k in ("uses_gt_length", "samples_per_prompt",
                                                            "checkpoint_selection", "human_only") if k in flags}},
-            "human_only": bool(self.human_only),
-            "counts": {"test_ids": len(report.test_ids), "scored_ids": len(ids), "samples_per_prompt": self.K,
+            "human_only": bool(self.st.human_only),
+            "counts": {"test_ids": len(report.test_ids), "scored_ids": len(ids), "samples_per_prompt": self.st.K,
                        "missing_ids": report.missing_ids, "errors": len(report.errors),
                        "warnings": len(report.warnings)},
             "body_surface": proto.physical_config().body_label,
-            "numerics": {"fid": self.fid_method},
+            "numerics": {"fid": self.st.fid_method},
             "metric_variants": {"embedding_loop": proto.embedding_loop,
                                 "physical": proto.physical_config().to_dict()},
             "metrics": {k: metric_entry(k, v["mean"], v["ci95"], v["n"], "replications", std=v["std"])
                         for k, v in summary.items() if k in listed},
             "undefined_metrics": undefined,
-            "per_replication": per_rep, "per_clip": getattr(self, "per_clip", None), "notes": notes,
+            "per_replication": per_rep, "per_clip": self.st.per_clip, "notes": notes,
             "timings_s": {k: round(v, 3) for k, v in timings.items()},
             "platform": {"python": platform.python_version(), "numpy": np.__version__},
         }

@@ -51,6 +51,8 @@ def format_result(result: dict) -> str:
     metrics = result["metrics"]
     gt = result.get("ground_truth") or {}
     lines = [_header(result)]
+    if result.get("protocol_preview"):
+        lines.append("preview protocol: scored only when named with its version; its numbers are not the track's")
     shown = set()
     for group in GROUPS:
         rows = [n for n, i in METRICS.items() if i.group == group and n in metrics and i.kind != "count"]

@@ -133,9 +133,10 @@ def _expect_shape(h: ArrayHeader | None, tail: tuple, name: str, sid: str, dtype
     return out
 
 
-def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Problem], int | None, str | None]:
+def _check_clip(sub: Submission, sid: str, ctx: ClipContext,
+                keep=None) -> tuple[list[Problem], int | None, str | None]:
     """Problems of one sample file, its K (None when unknown) and the up axis its joints
-    suggest (None when y-up or undecided)."""
+    suggest (None when y-up or undecided); ``keep`` receives the arrays of a file without errors."""
     try:
         headers = sub.headers(sid)
     except SubmissionError as e:
@@ -223,6 +224,8 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext) -> tuple[list[Probl
     except SubmissionError as e:
         return probs + [Problem(sid, "file", str(e))], K, None
     value_probs, up = check_arrays(sid, arrays, ctx)
+    if keep is not None and not any(p.severity == "error" for p in probs + value_probs):
+        keep.keep_arrays(sid, arrays)
     return probs + value_probs, K, up
 
 
@@ -271,9 +274,12 @@ def foreign_ids_line(submission: str | Path, data: str | Path, submitted: Iterab
 
 
 def validation_report(sub, store, split: str = "test", protocol=None,
-                      max_array_bytes: int | None = None) -> ValidationReport:
+                      max_array_bytes: int | None = None, keep=None) -> ValidationReport:
     """Validate ``sub`` (path or :class:`Submission`) against ``store`` (path or
-    :class:`hoibench.datasets.store.Store`); never raises on a broken submission. See :func:`validate`."""
+    :class:`hoibench.datasets.store.Store`); never raises on a broken submission. See :func:`validate`.
+    ``keep``: a :class:`hoibench.scoring.read_cache.ReadCache` that receives the arrays and
+    encoded features of the files that validate (scoring then reads each file once)."""
+    from .read_cache import feature_sink
     from ..datasets.store import Store
 
     st = store if isinstance(store, Store) else Store(store)
@@ -307,13 +313,14 @@ def validation_report(sub, store, split: str = "test", protocol=None,
             problems.append(Problem(sid, SAMPLES_DIR, f"extra file: {why} (not read)"))
         refused = {p.id for p in problems if p.severity == "error" and p.id != "*"}
         valid, ks, ups = [], {}, {}
+        sink = feature_sink(keep)
         for sid in test_ids:
             if sid not in found or sid in refused:
                 continue
             ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
                               bool(flags.get("uses_gt_length", False)) is True, cap, mode, required,
-                              human_only=flags.get("human_only") is True)
-            probs, K, up = _check_clip(s, sid, ctx)
+                              human_only=flags.get("human_only") is True, encoded=sink)
+            probs, K, up = _check_clip(s, sid, ctx, keep)
             problems += probs
             if K is not None:
                 ks[sid] = K

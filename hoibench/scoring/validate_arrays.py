@@ -4,7 +4,7 @@ and that every sample encodes to finite features (:func:`check_arrays`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
@@ -45,6 +45,9 @@ class ClipContext:
     mode: str = "clean"            # representation mode used to encode (hoi269 clean|legacy)
     required: tuple = ()           # further arrays the track's evaluator reads (interact: markers)
     human_only: bool = False       # flags.human_only: joints only on an HOI store (object metrics n/a)
+    #: where the features each sample encodes to are kept ({(id, k): rows}), so that scoring
+    #: does not encode them again (None: not kept)
+    encoded: dict | None = field(default=None, compare=False, repr=False)
 
 
 def check_arrays(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> tuple[list[Problem], str | None]:
@@ -221,4 +224,6 @@ def _check_encodes(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext)
             t = int(np.argwhere(~np.isfinite(feats))[0][0])
             return [Problem(sid, "joints", f"sample {k} encodes to non-finite features from frame {t} (a "
                                            "degenerate pose: coincident hips or shoulders?)")]
+        if ctx.encoded is not None:
+            ctx.encoded[(sid, k)] = feats
     return []

@@ -23,7 +23,7 @@ register_track(_hoi("synthetic", ("synthetic",), ("synthetic-clean", "synthetic-
                     generic_for="hoi"))
 register_track(_hoi("behave", ("behave",), ("behave-clean", "behave-legacy", "t2m-legacy"),
                     "BEHAVE (HOI-Diff's clip split): one person, one object, 20 fps."))
-register_track(_hoi("omomo", ("omomo",), ("omomo-clean", "omomo-legacy"),
+register_track(_hoi("omomo", ("omomo",), ("omomo-clean", "omomo-legacy", "omomo-chois", "omomo-chois-clean"),
                     "OMOMO: one person moving one large object, 20 fps."))
 register_track(_hoi("rich-cat", ("rich",), ("rich-cat-clean",),
                     "RICH-CAT (CATMO): a person and a static scene object; object metrics are not applicable.",

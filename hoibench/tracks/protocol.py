@@ -89,6 +89,9 @@ class Protocol:
     embedding_loop: str = "hoibench"
     #: optional top-level mappings metrics read (``physics``: :func:`hoibench.metrics.catalog.settings_keys`)
     settings: dict = field(default_factory=dict, compare=False)
+    #: a preview version: scored only when named with its version (``id@version``), never the
+    #: default of its id (not a setting: not hashed)
+    preview: bool = field(default=False, compare=False)
     # --- multibody
     samples_per_prompt: int | None = None
     surfaces: str | None = None
@@ -140,9 +143,12 @@ class Protocol:
 
     def result_header(self) -> dict:
         """What a result records about its protocol."""
-        return {"protocol": self.id, "protocol_version": self.version, "protocol_sha256": self.sha256,
+        head = {"protocol": self.id, "protocol_version": self.version, "protocol_sha256": self.sha256,
                 "mode": self.mode, "representation": self.representation, "fps": self.fps,
                 "replications": self.replications}
+        if self.preview:
+            head["protocol_preview"] = True
+        return head
 
     # ------------------------------------------------------------------ seeds and draws
     def seed_for(self, purpose: str, replication: int = 0) -> int:
@@ -282,6 +288,10 @@ def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
         kind = "multibody" if "contact" in d and "r_precision" not in d else "hoi"
     parse = _parse_multibody if kind == "multibody" else _parse_hoi
     proto = parse(d, w, track)
+    if "preview" in d:
+        if not isinstance(d["preview"], bool):
+            raise ValueError(f"{w}: field 'preview' must be true or false, got {d['preview']!r}")
+        proto = replace(proto, preview=d["preview"])
     from ..metrics.catalog import check_settings, settings_keys
     settings = {}
     for key in settings_keys():
@@ -401,8 +411,9 @@ def list_protocols() -> list[Protocol]:
 
 
 def get_protocol(name: str | Path | Protocol) -> Protocol:
-    """A protocol by id (``"behave-clean"``), id and version (``"behave-clean@1.1"``) or path
-    to a YAML file. ``KeyError`` listing the known ids otherwise."""
+    """A protocol by id (``"behave-clean"``: its newest version that is not a preview), id
+    and version (``"behave-clean@1.1"``) or path to a YAML file. ``KeyError`` listing the
+    known ids otherwise."""
     if isinstance(name, Protocol):
         return name
     s = str(name)
@@ -413,7 +424,7 @@ def get_protocol(name: str | Path | Protocol) -> Protocol:
     if not found:
         known = ", ".join(p.ref for p in list_protocols())
         raise KeyError(f"unknown protocol {s!r}; known: {known}")
-    return found[-1]
+    return ([p for p in found if not p.preview] or found)[-1]
 
 
 def default_protocol_id(manifest: dict) -> str:
