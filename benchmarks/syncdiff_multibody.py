@@ -51,7 +51,7 @@ def _test_clips(sub: Path, data: Path, family: str | None = None):
     """(clip id, ground-truth clip, generated clips) of each test clip (of ``family`` only when given)."""
     from hoibench.bodies.multibody import MultiBodyClip
     from hoibench.datasets.store import Store
-    from hoibench.scoring.multibody import clip_from_sample
+    from hoibench.scoring.multibody_samples import clip_from_sample
     from hoibench.scoring.submission import Submission
     store = Store(data)
     with Submission(sub) as s:
@@ -114,7 +114,7 @@ def contact_and_recognizer_scores(sub: Path, data: Path, rec_dir: Path) -> dict:
     from hoibench.evaluator.recognizer import load_recognizer
     from hoibench.metrics import multibody as mbm
     from hoibench.metrics.embedding import fid
-    from hoibench.scoring.multibody import clip_from_sample
+    from hoibench.scoring.multibody_samples import clip_from_sample
     from hoibench.scoring.submission import Submission
     from hoibench.tracks.protocol import get_protocol
     proto = get_protocol("multibody-synthetic")

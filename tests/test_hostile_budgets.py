@@ -65,7 +65,7 @@ def _bomb_npz(member: str, claim_bytes: int) -> bytes:
 
 
 def test_multibody_budget_is_the_single_body_rule_over_the_clips_own_arrays():
-    from hoibench.scoring.multibody import multibody_limits, sample_values_per_frame
+    from hoibench.scoring.multibody_samples import multibody_limits, sample_values_per_frame
     store = FakeStore([_clip()])
     assert sample_values_per_frame(store.load("mb_a")) == 22 * 3 + 12
     limits = multibody_limits(store, ["mb_a"], 3)
@@ -73,7 +73,7 @@ def test_multibody_budget_is_the_single_body_rule_over_the_clips_own_arrays():
 
 
 def test_multibody_ground_truth_validates_and_a_bomb_or_1e30_is_refused_by_id(tmp_path):
-    from hoibench.scoring.multibody import sample_arrays
+    from hoibench.scoring.multibody_samples import sample_arrays
     from hoibench.scoring.validate import multibody_report
     store, clip = FakeStore([_clip()]), _clip()
     good = _write_sub(tmp_path / "gt", sample_arrays([clip]))
@@ -96,7 +96,7 @@ def test_multibody_ground_truth_validates_and_a_bomb_or_1e30_is_refused_by_id(tm
 
 
 def test_multibody_scorer_opens_submissions_within_the_budget(tmp_path):
-    from hoibench.scoring.multibody import multibody_limits, sample_arrays
+    from hoibench.scoring.multibody_samples import multibody_limits, sample_arrays
     store = FakeStore([_clip()])
     bomb = _write_sub(tmp_path / "bomb", sample_arrays([_clip()]))
     (bomb / "samples" / "mb_a.npz").write_bytes(_bomb_npz("human__joints", 64 << 20))

@@ -37,7 +37,6 @@ per replication (:func:`clip_window_stats`, :func:`evaluate_physical_windows`).
 """
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path

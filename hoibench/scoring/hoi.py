@@ -45,7 +45,6 @@ import numpy as np
 from .. import __version__
 from ..datasets.store import Store
 from .pipeline import EvaluationRefused, Scorer
-from .report import format_result
 from .results import RESULT_FORMAT, metric_entry
 
 #: motions embedded per batch while streaming
@@ -508,7 +507,6 @@ class HOIScorer(Scorer):
             "platform": {"python": platform.python_version(), "numpy": np.__version__},
         }
 
-    format_result = staticmethod(format_result)
 
 
 def _real_features(store: Store, cid: str, ev=None) -> np.ndarray:

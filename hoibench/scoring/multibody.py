@@ -39,13 +39,11 @@ import numpy as np
 from .. import __version__
 from ..bodies.multibody import MultiBodyClip
 from ..bodies.capsules import object_fields, pair_contact_frames, pair_penetration
-from .multibody_samples import (clip_from_sample, multibody_limits, sample_arrays,  # noqa: F401
-                               sample_values_per_frame)
+from .multibody_samples import clip_from_sample, multibody_limits
 from .pipeline import EvaluationRefused, Scorer
-from .report import format_result
 from .results import RESULT_FORMAT, half_width_95, metric_entry
 
-__all__ = ["sample_arrays", "clip_from_sample", "write_multibody_submission", "MultiBodyScorer", "REFERENCE_KINDS"]
+__all__ = ["write_multibody_submission", "MultiBodyScorer", "REFERENCE_KINDS"]
 
 REFERENCE_KINDS = ("gt", "gt-noise", "desync", "lost_contact", "interpenetration", "static")
 
@@ -248,7 +246,6 @@ class MultiBodyScorer(Scorer):
             "undefined_metrics": undefined, "notes": self.notes,
         }
 
-    format_result = staticmethod(format_result)
 
 
 def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tuple[dict, dict, int]:

@@ -18,6 +18,7 @@ executor gives identical numbers. Adding a kind of track is one :func:`register_
 from __future__ import annotations
 
 import time
+from abc import ABC, abstractmethod
 from contextlib import AbstractContextManager
 from typing import Any, Callable, Iterable
 
@@ -30,10 +31,14 @@ class EvaluationRefused(ValueError):
     message names the file and field, and which override exists. Every scorer raises it."""
 
 
-class Scorer:
-    """The stages of one evaluation (see the module docstring). Subclasses set ``name``,
-    ``evaluator_options`` (passed to the evaluator's loader) and ``map_options`` (passed to
-    :func:`hoibench.core.parallel.map_units`), and implement the stages."""
+class Scorer(ABC):
+    """The stages of one evaluation (see the module docstring): the written contract of a
+    scorer. Subclasses set ``name``, ``evaluator_options`` (passed to the evaluator's loader)
+    and ``map_options`` (passed to :func:`hoibench.core.parallel.map_units`), set ``unit``
+    (the picklable per-unit function) by :meth:`stream` at the latest, and implement every
+    abstract stage; the result they write is ``hoibench-result-2``
+    (:mod:`hoibench.scoring.results`) and :func:`hoibench.scoring.report.format_result`
+    prints it."""
 
     name: str = ""
     evaluator_options: dict = {}
@@ -54,13 +59,16 @@ class Scorer:
     def prepare(self) -> None:
         """Checks that need no submission, and the ground truth's statistics."""
 
+    @abstractmethod
     def open_submission(self) -> AbstractContextManager:
         raise NotImplementedError
 
+    @abstractmethod
     def validate(self, sub) -> list[str]:
         """The test ids to score (refusing what cannot be scored)."""
         raise NotImplementedError
 
+    @abstractmethod
     def stream(self, sub, ids: list[str]) -> Iterable:
         """The per-clip work units, read one file at a time."""
         raise NotImplementedError
@@ -68,18 +76,17 @@ class Scorer:
     #: the per-unit function run on the executor (picklable)
     unit: Callable[[Any], Any]
 
+    @abstractmethod
     def update(self, out) -> None:
         """Fold one unit's output into the metric states."""
         raise NotImplementedError
 
+    @abstractmethod
     def replications(self) -> list[dict]:
         raise NotImplementedError
 
+    @abstractmethod
     def summary(self, rows: list[dict]) -> dict:
-        raise NotImplementedError
-
-    @staticmethod
-    def format_result(result: dict) -> str:
         raise NotImplementedError
 
 

@@ -145,7 +145,7 @@ class LoadedSyncDiff:
         """A multi-body submission of ``samples`` samples per clip of ``split``; ``inference``
         overrides the inference-time fields :data:`INFERENCE_FIELDS` (e.g. the "w/o exp sync"
         ablation of a run trained with it: explicit synchronization acts at sampling only)."""
-        from ...scoring.multibody import sample_arrays
+        from ...scoring.multibody_samples import sample_arrays
         log = log or (lambda s: None)
         if inference:
             bad = sorted(set(inference) - set(INFERENCE_FIELDS))
