@@ -58,7 +58,7 @@ def test_tracks_protocols_backends_formats_and_layouts_come_from_their_registrie
     tracks = _action(_sub(build_parser(), "tracks"), "name").help
     assert all(t.name in tracks.split("(")[1].rstrip(")").split(", ") for t in list_tracks())
     protocols = _action(_sub(build_parser(), "protocols"), "name").help
-    assert protocols.split("(")[1].rstrip(")").split(", ") == sorted(p.id for p in list_protocols())
+    assert protocols.split("(")[1].rstrip(")").split(", ") == sorted({p.id for p in list_protocols()})
     evaluator = _action(_sub(build_parser(), "evaluator"), "dir").help
     importable = [b.name for b in list_backends() if b.importer]
     assert importable and all(f"{n}," in evaluator or f"{n};" in evaluator for n in importable)

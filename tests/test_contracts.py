@@ -124,3 +124,12 @@ def test_every_registered_dataset_loader_keeps_the_loader_contract():
     assert len(loaders) >= 8
     for entry in loaders:
         assert isinstance(entry.load(), DatasetLoader), entry.name
+
+
+def test_every_import_format_names_a_reader_of_the_reader_contract():
+    from hoibench.core.registry import load_object
+    from hoibench.scoring.importers import FORMATS, IMPORT_FORMATS
+    assert list(FORMATS) and set(FORMATS) == set(IMPORT_FORMATS)
+    for name in FORMATS:
+        reader = load_object(IMPORT_FORMATS.get(name).reader)
+        assert list(inspect.signature(reader).parameters) == ["req"], name

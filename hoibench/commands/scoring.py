@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import H_ACTION, H_STORE, H_ZIP
+from .common import H_ACTION, H_STORE, H_ZIP, add_submission_args
 
 
 def _cmd_tracks(args) -> int:
@@ -60,9 +60,13 @@ def track_names() -> list[str]:
 
 def protocol_ids() -> list[str]:
     """The shipped protocols' ids, sorted: the stems of ``hoibench/tracks/protocols/*.yaml``
-    (read without loading them, so that building the parser stays fast)."""
+    less a later version's ``-<version>`` suffix (read without loading the files, so that
+    building the parser stays fast)."""
+    import re
+
     from .. import tracks
-    return sorted(p.stem for p in (Path(tracks.__file__).parent / "protocols").glob("*.yaml"))
+    return sorted({re.sub(r"-\d+(\.\d+)+$", "", p.stem)
+                   for p in (Path(tracks.__file__).parent / "protocols").glob("*.yaml")})
 
 
 def _add_tracks_protocols(sub) -> None:
@@ -82,8 +86,7 @@ def _add_tracks_protocols(sub) -> None:
 def _add_submissions(sub) -> None:
     s = sub.add_parser("validate", help="check a submission against a store's test split",
                        epilog="example: hoibench validate my_method.zip --data data/behave")
-    s.add_argument("submission", type=Path, help="the submission folder or .zip")
-    s.add_argument("--data", type=Path, required=True, help="the store the submission is for (" + H_STORE + ")")
+    add_submission_args(s)
     s.add_argument("--protocol", default=None, help="protocol id (default: the store's)")
     s.set_defaults(func=_cmd_validate)
 

@@ -114,13 +114,35 @@ def get_backend(name: str) -> Backend:
     return _BACKENDS.get(name)
 
 
-def _declared_backend(folder: Path) -> Backend | None:
-    """The backend named by ``folder/card.json``'s ``backend`` field (None without one)."""
+#: the last card files read: {(path, size, mtime_ns): parsed JSON or None}; one evaluation asks
+#: for the same card from several checks, and reads it once
+_CARDS: dict[tuple, Any] = {}
+
+
+def _read_card(path: Path, what: str) -> Any:
+    """The JSON of ``path`` (None when unreadable), read once per file version."""
+    import copy
+
     from ..core.io import read_json_file
     try:
-        card = read_json_file(folder / "card.json", 8 << 20, "card.json")
-    except (ValueError, OSError, RecursionError):
+        st = path.stat()
+    except OSError:
         return None
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _CARDS:
+        try:
+            got = read_json_file(path, 8 << 20, what)
+        except (ValueError, OSError, RecursionError):
+            got = None
+        if len(_CARDS) > 16:
+            _CARDS.clear()
+        _CARDS[key] = got
+    return copy.deepcopy(_CARDS[key])
+
+
+def _declared_backend(folder: Path) -> Backend | None:
+    """The backend named by ``folder/card.json``'s ``backend`` field (None without one)."""
+    card = _read_card(folder / "card.json", "card.json")
     name = card.get("backend") if isinstance(card, dict) else None
     if isinstance(name, str) and name in _BACKENDS:
         return _BACKENDS.get(name)
@@ -130,14 +152,10 @@ def _declared_backend(folder: Path) -> Backend | None:
 def baseline_run_refusal(folder: str | Path) -> str | None:
     """The one-line refusal of a baseline run folder given where an evaluator folder is needed
     (its ``card.json`` has ``checkpoint_id`` and ``baseline``, no ``evaluator_id``); None otherwise."""
-    from ..core.io import read_json_file
     folder = Path(folder)
     if not (folder / "card.json").is_file():
         return None
-    try:
-        card = read_json_file(folder / "card.json", 8 << 20, "card.json")
-    except (ValueError, OSError, RecursionError):
-        return None
+    card = _read_card(folder / "card.json", "card.json")
     if not isinstance(card, dict) or "evaluator_id" in card or "checkpoint_id" not in card:
         return None
     name = str(card.get("baseline", "?"))[:40]
@@ -165,14 +183,10 @@ def peek_card(folder: str | Path, kind: str | None = None) -> dict:
     """The card of ``folder`` (its marker file's JSON) read without loading any weights, for
     checks that can refuse before the slow load; ``{}`` when the folder has no marker of
     ``kind`` or it cannot be read (:func:`load_evaluator` then names the problem)."""
-    from ..core.io import read_json_file
     backend = backend_of(folder)
     if backend is None or (kind is not None and backend.kind != kind) or baseline_run_refusal(folder):
         return {}
-    try:
-        card = read_json_file(Path(folder) / backend.marker, 8 << 20, backend.marker)
-    except (ValueError, OSError, RecursionError):
-        return {}
+    card = _read_card(Path(folder) / backend.marker, backend.marker)
     return card if isinstance(card, dict) else {}
 
 

@@ -18,9 +18,9 @@ from .pipeline import EvaluationRefused
 from .report import format_result
 
 
-def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, protocol: str | None = None,
+def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, protocol=None,
              executor: str = "serial", allow_failed_gate: bool = False, allow_protocol_mismatch: bool = False,
-             allow_evaluator_mismatch: bool = False) -> dict:
+             allow_evaluator_mismatch: bool = False, lead=None) -> dict:
     """Score ``submission`` against the store ``data`` with the evaluator folder ``evaluator``.
 
     Returns the result dictionary (also what ``--out`` writes). Raises
@@ -28,7 +28,10 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     allowed), when the evaluator fails its sanity gate on this store (unless
     ``allow_failed_gate``), or when nothing can be scored; a partial single-body submission
     is scored on its valid ids and marked ``complete: false`` (multi-body ones are scored
-    complete only). The ``allow_*`` overrides apply to single-body tracks.
+    complete only). The ``allow_*`` overrides apply to single-body tracks. ``protocol``: an
+    id, ``id@version``, a YAML path or a :class:`~hoibench.tracks.protocol.Protocol`. ``lead``:
+    called with the one line that says the submission was made for another store (most of its
+    ids belong to no test split here), before scoring.
     """
     from ..core.parallel import map_units
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
@@ -56,6 +59,11 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     scorer.timings["load_s"] = time.perf_counter() - started      # store, protocol, evaluator
     scorer.prepare()
     with scorer.open_submission() as sub:
+        if lead is not None:
+            from .validate import foreign_ids_line
+            line = foreign_ids_line(submission, data, list(sub.ids), store.clip_ids("test"))
+            if line:
+                lead(line)
         ids = scorer.validate(sub)
         units = scorer.stream(sub, ids)          # sets up the unit's settings before the map
         for out in map_units(scorer.unit, units, executor, **scorer.map_options):
@@ -65,15 +73,15 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
 
 def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str | Path,
                         out: str | Path | None = None, protocol: str | None = None, executor: str = "serial",
-                        overwrite: bool = False) -> None:
+                        overwrite: bool = False):
     """Refuse bad arguments of ``hoibench evaluate`` before any store is read (one line each):
     the executor spec, the protocol id, the store, evaluator and submission paths, and
-    ``--out`` (a file that is not there yet, unless ``overwrite``)."""
+    ``--out`` (a file that is not there yet, unless ``overwrite``). Returns the protocol
+    (resolved once; None when not given)."""
     from ..core.parallel import parse_executor
     from ..tracks.protocol import get_protocol
     parse_executor(executor)
-    if protocol is not None:
-        get_protocol(protocol)
+    resolved = get_protocol(protocol) if protocol is not None else None
     if not (Path(data) / "manifest.json").is_file():
         raise FileNotFoundError(f"--data {data}: not a hoibench store (no manifest.json)")
     if not Path(evaluator).is_dir():
@@ -85,6 +93,7 @@ def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str
         raise FileNotFoundError(f"{submission}: {what} (expected a submission folder or .zip)")
     if out is not None:
         check_result_free(out, overwrite)
+    return resolved
 
 
 def check_result_free(out: str | Path, overwrite: bool = False) -> None:
@@ -97,30 +106,16 @@ def check_result_free(out: str | Path, overwrite: bool = False) -> None:
                               f"or choose another file")
 
 
-def foreign_submission_line(submission: str | Path, data: str | Path) -> str | None:
-    """The line that leads ``validate``/``evaluate`` output when most submitted ids belong to
-    no test split of the store at ``data`` (a submission made for another store); None otherwise."""
-    from .submission import Submission
-    from .validate import foreign_ids_line
-    store = Store(Path(data))
-    with Submission(submission) as sub:
-        ids = list(sub.ids)
-    return foreign_ids_line(submission, data, ids, store.clip_ids("test"))
-
-
 def main_evaluate(submission, data, evaluator, out=None, protocol=None, executor="serial",
                   allow_failed_gate: bool = False, allow_protocol_mismatch: bool = False,
                   allow_evaluator_mismatch: bool = False, overwrite: bool = False) -> int:
     """``hoibench evaluate``: exit 0 when complete, 1 when incomplete or overridden. Every
     argument is checked before the store is read; without ``out`` the last line says how to
     keep the result."""
-    check_evaluate_args(submission, data, evaluator, out, protocol, executor, overwrite)
-    lead = foreign_submission_line(submission, data)
-    if lead:
-        print(lead)
-    result = evaluate(submission, data, evaluator, protocol=protocol, executor=executor,
+    resolved = check_evaluate_args(submission, data, evaluator, out, protocol, executor, overwrite)
+    result = evaluate(submission, data, evaluator, protocol=resolved, executor=executor,
                       allow_failed_gate=allow_failed_gate, allow_protocol_mismatch=allow_protocol_mismatch,
-                      allow_evaluator_mismatch=allow_evaluator_mismatch)
+                      allow_evaluator_mismatch=allow_evaluator_mismatch, lead=print)
     if out is not None:
         atomic_write_json(out, result)
     print(format_result(result))
@@ -129,4 +124,4 @@ def main_evaluate(submission, data, evaluator, out=None, protocol=None, executor
 
 
 __all__ = ["evaluate", "format_result", "main_evaluate", "check_evaluate_args", "check_result_free",
-           "foreign_submission_line", "EvaluationRefused"]
+           "EvaluationRefused"]

@@ -185,4 +185,9 @@ def read_param_files(folder: Path, ids: list[str], up: str, body_models, model_t
     return out
 
 
-__all__ = ["Z_TO_Y", "MODEL_TYPES", "read_param_file", "read_param_files", "load_model"]
+__all__ = ["Z_TO_Y", "MODEL_TYPES", "read_param_file", "read_param_files", "read_params_request", "load_model"]
+
+
+def read_params_request(req) -> list[tuple[str, str, dict]]:
+    """The ``params`` import format's reader (:class:`hoibench.scoring.importers.ResultReader`)."""
+    return read_param_files(req.results, req.ids, req.up, req.body_models, req.model_type, req.gender, req.budget)

@@ -36,19 +36,76 @@ MDM's and HOI-Diff's files are pickles: loading one can run code. They are read 
 """
 from __future__ import annotations
 
-import json
 import sys
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
 from .. import __version__
+from ..core.registry import Registry, load_object
 from ..datasets.store import Store
 from .submission import write_submission
 
-FORMATS = ("mdm", "hoidiff", "joints", "chois", "features", "params")
-SOURCE_FPS = {"mdm": 20.0, "hoidiff": 20.0, "chois": 30.0}
+
+@dataclass(frozen=True)
+class ImportRequest:
+    """What a reader is given: the results path and the import's options (``ids``: the
+    store's test ids; ``budget``: the byte budget every read is charged to)."""
+
+    results: Path
+    store: Store
+    ids: list
+    up: str
+    normalized: bool
+    trust_pickle: bool
+    body_models: Any
+    model_type: str
+    gender: str
+    budget: Any
+
+
+class ResultReader(Protocol):
+    """The contract of an import format's reader: ``reader(request) -> [(key, text, arrays),
+    ...]`` (``key`` a file stem or index, ``text`` its prompt when the format stores one,
+    ``arrays`` with ``joints`` (K, T, 22, 3) and optionally ``obj_rot``/``obj_rotvec`` and
+    ``obj_trans``, at the format's frame rate, y-up)."""
+
+    def __call__(self, request: ImportRequest) -> list[tuple[str, str, dict]]: ...
+
+
+@dataclass(frozen=True)
+class ImportFormat:
+    """One ``hoibench import FORMAT``: its reader (a :class:`ResultReader`, ``"module:attr"``),
+    how entries match test ids by default (``id`` | ``text``), its frame rate (None: the
+    store's unless ``--fps``), the up axis it is always given in (None: ``--up``), whether it
+    reads joints (``--up`` applies) and the files it reads (for messages)."""
+
+    name: str
+    reader: str
+    match: str = "id"
+    source_fps: float | None = None
+    up: str | None = None
+    joints: bool = False
+    files: str = ".npy"
+
+    def up_axis(self, requested: str) -> str:
+        return self.up or (requested if self.joints else "y")
+
+
+IMPORT_FORMATS: Registry[ImportFormat] = Registry("import format")
+_SHIPPED = (ImportFormat("mdm", __name__ + ":_read_mdm", match="text", source_fps=20.0),
+            ImportFormat("hoidiff", __name__ + ":_read_hoidiff", match="text", source_fps=20.0),
+            ImportFormat("joints", __name__ + ":_read_joints", joints=True),
+            ImportFormat("chois", __name__ + ":_read_chois", source_fps=30.0, up="z", files=".npz"),
+            ImportFormat("features", __name__ + ":_read_features"),
+            ImportFormat("params", "hoibench.scoring.import_params:read_params_request", joints=True, files=".npz"))
+for _f in _SHIPPED:
+    IMPORT_FORMATS.add(_f.name, _f)
+#: the import formats, in registration order (the CLI's choices and help)
+FORMATS = tuple(f.name for f in _SHIPPED)
 
 
 from .import_common import ImportProblem, _group_files, pickle_refusal, pickled_members  # noqa: E402,F401
@@ -428,6 +485,26 @@ def joint_warnings(results: Path, entries: list, converted_from_z: bool) -> list
 
 
 # ------------------------------------------------------------------------------ import
+def _read_mdm(req: ImportRequest) -> list:
+    return read_mdm(req.results, req.trust_pickle, False, req.budget)
+
+
+def _read_hoidiff(req: ImportRequest) -> list:
+    return read_mdm(req.results, req.trust_pickle, True, req.budget)
+
+
+def _read_joints(req: ImportRequest) -> list:
+    return read_joint_files(req.results, req.ids, req.up, False, req.budget)
+
+
+def _read_chois(req: ImportRequest) -> list:
+    return read_joint_files(req.results, req.ids, "z", True, req.budget)
+
+
+def _read_features(req: ImportRequest) -> list:
+    return read_features(req.results, req.ids, req.store, req.normalized, req.budget)
+
+
 def import_results(fmt: str, results: str | Path, data: str | Path, out: str | Path, *, match: str | None = None,
                    mapping: str | Path | None = None, trust_pickle: bool = False, fps: float | None = None,
                    up: str = "y", normalized: bool = False, method: str | None = None,
@@ -435,34 +512,27 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
                    gender: str = "neutral") -> tuple[Path, dict]:
     """Write the submission; return (path, report: matched, missing ids, unmatched entries,
     ambiguous texts, conversions)."""
-    if fmt not in FORMATS:
+    if fmt not in IMPORT_FORMATS:
         raise ImportProblem(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
+    spec = IMPORT_FORMATS.get(fmt)
     if up not in ("y", "z"):
         raise ImportProblem(f"--up: expected y or z, got {up!r}")
     results, store = Path(results), Store(data)
     store_fps = float(store.manifest["config"]["fps"])
     ids = store.clip_ids("test")
-    how = "map" if mapping else (match or ("text" if fmt in ("mdm", "hoidiff") else "id"))
+    how = "map" if mapping else (match or spec.match)
     if how not in ("id", "text", "map"):
         raise ImportProblem(f"--match: expected id or text, got {how!r}")
     table = read_mapping(mapping) if mapping else None
-    budget = ReadBudget.for_store(store)
-    if fmt in ("mdm", "hoidiff"):
-        entries = read_mdm(results, trust_pickle, fmt == "hoidiff", budget)
-    elif fmt in ("joints", "chois"):
-        entries = read_joint_files(results, ids, "z" if fmt == "chois" else up, fmt == "chois", budget)
-    elif fmt == "params":
-        from .import_params import read_param_files
-        entries = read_param_files(results, ids, up, body_models, model_type, gender, budget)
-    else:
-        entries = read_features(results, ids, store, normalized, budget)
+    request = ImportRequest(results, store, ids, spec.up_axis(up), normalized, trust_pickle, body_models, model_type,
+                            gender, ReadBudget.for_store(store))
+    entries = load_object(spec.reader)(request)
     if not entries:
-        raise ImportProblem(f"{results}: nothing to import (no {'.npz' if fmt in ('chois', 'params') else '.npy'} sample files "
-                            f"or entries found)")
-    warnings = joint_warnings(results, entries, fmt == "chois" or (up == "z" and fmt in ("joints", "params")))
+        raise ImportProblem(f"{results}: nothing to import (no {spec.files} sample files or entries found)")
+    warnings = joint_warnings(results, entries, spec.up_axis(up) == "z")
     for line in warnings:
         print(f"hoibench import: warning: {line}", file=sys.stderr)
-    src_fps = float(fps) if fps is not None else SOURCE_FPS.get(fmt, store_fps)
+    src_fps = float(fps) if fps is not None else (spec.source_fps or store_fps)
     if not (np.isfinite(src_fps) and 1 <= src_fps <= 1000):
         raise ImportProblem(f"--fps: expected 1..1000 frames per second, got {fps!r}")
     matcher = Matcher(store, how, table)
@@ -487,8 +557,8 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
                             f"{(matcher.unmatched or ['-'])[0]!r})")
     K = {len(a["joints"]) for a in samples.values()}
     conversions = {"format": fmt, "match": how, "source_fps": src_fps, "store_fps": store_fps,
-                   "resampled": abs(src_fps - store_fps) > 1e-9, "up_axis": "z -> y" if (fmt == "chois" or up == "z")
-                   else "y", "normalized_features": bool(normalized) if fmt == "features" else None,
+                   "resampled": abs(src_fps - store_fps) > 1e-9,
+                   "up_axis": "z -> y" if spec.up == "z" or up == "z" else "y", "normalized_features": bool(normalized) if fmt == "features" else None,
                    **({"body_model": model_type, "default_gender": gender} if fmt == "params" else {})}
     report = {"matched": len(samples), "test_ids": len(ids), "missing_ids": sorted(set(ids) - set(samples)),
               "unmatched_entries": matcher.unmatched, "ambiguous_texts": sorted(set(matcher.ambiguous)),
