@@ -12,7 +12,9 @@ to 96 frames):
 - ``ChainHOI tiny``.
 
 The models take turns step by step (the same step indices, so the same batches), so a change
-in the machine's load hits all three alike; the load average is printed beside every round.
+in the machine's load hits all three alike; the load average is printed beside every round,
+and the thread's CPU time beside the wall time (on a shared machine the CPU time is the
+steadier figure).
 
     python benchmarks/ejim_step.py --data STORE [--steps 3] [--threads 1]
 """
@@ -54,8 +56,8 @@ def stepper(name: str, data: str, reference: bool = False):
     diffusion = GaussianDiffusion(cfg.diffusion)
     mean, std = torch.from_numpy(ts.stats.mean), torch.from_numpy(ts.stats.std)
 
-    def step(i: int) -> float:
-        t0 = time.perf_counter()
+    def step(i: int) -> tuple[float, float]:
+        t0, c0 = time.perf_counter(), time.thread_time()
         torch.manual_seed(i)
         batch = make_batch(ts, cfg, i, text, "cpu")
         losses = spec.losses(model, diffusion, batch, cfg, mean, std, torch.Generator().manual_seed(i))
@@ -65,7 +67,7 @@ def stepper(name: str, data: str, reference: bool = False):
             torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)
         opt.step()
         ema.update(model)
-        return time.perf_counter() - t0
+        return time.perf_counter() - t0, time.thread_time() - c0
 
     return sum(p.numel() for p in model.parameters()), step
 
@@ -83,24 +85,29 @@ def main() -> None:
     print(f"# {args.threads} thread(s), torch {torch.__version__}, {os.cpu_count()} CPUs; "
           f"load average at start {os.getloadavg()[0]:.2f}")
     times: dict[str, list[float]] = {k: [] for k in models}
+    cpu: dict[str, list[float]] = {k: [] for k in models}
     for i in range(args.steps + 1):
         row = []
         for name, (_, step) in models.items():
-            s = step(1000 + i)
+            s, c = step(1000 + i)
             if i:
                 times[name].append(s)
-            row.append(f"{name} {s:.2f} s")
+                cpu[name].append(c)
+            row.append(f"{name} {s:.2f} s (CPU {c:.2f} s)")
         print(f"round {i}{' (warm-up)' if not i else ''}: " + ", ".join(row) +
               f"; load {os.getloadavg()[0]:.2f}", flush=True)
-    print("\n| model | parameters (M) | step s (median) | min | steps/s |")
-    print("|---|---:|---:|---:|---:|")
+    print("\n| model | parameters (M) | step s (median wall) | min | CPU s (median) | steps/s |")
+    print("|---|---:|---:|---:|---:|---:|")
     for name, (n, _) in models.items():
         med = statistics.median(times[name])
-        print(f"| {name} | {n / 1e6:.2f} | {med:.2f} | {min(times[name]):.2f} | {1 / med:.2f} |")
-    before, after = statistics.median(times["EJIM tiny, before"]), statistics.median(times["EJIM tiny, after"])
-    chain = statistics.median(times["ChainHOI tiny"])
-    print(f"\nEJIM tiny before / after: {before / after:.2f}x; EJIM tiny / ChainHOI tiny step: "
-          f"{before / chain:.1f} before, {after / chain:.1f} after; load average at end {os.getloadavg()[0]:.2f}")
+        print(f"| {name} | {n / 1e6:.2f} | {med:.2f} | {min(times[name]):.2f} | {statistics.median(cpu[name]):.2f} | "
+              f"{1 / med:.2f} |")
+    for label, t in (("wall", times), ("CPU", cpu)):
+        before, after = statistics.median(t["EJIM tiny, before"]), statistics.median(t["EJIM tiny, after"])
+        chain = statistics.median(t["ChainHOI tiny"])
+        print(f"{label}: EJIM tiny before / after {before / after:.2f}x; EJIM tiny / ChainHOI tiny step "
+              f"{before / chain:.1f} before, {after / chain:.1f} after")
+    print(f"load average at end {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":
