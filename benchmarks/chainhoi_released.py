@@ -5,7 +5,7 @@ leak of the released arithmetic, and a short training run through the CLI.
     python benchmarks/chainhoi_released.py padding       # leak of padding="reference" at initialisation
     python benchmarks/chainhoi_released.py train [--data DATA] [--steps 2] [--batch 2] [--frames 32]
 
-``reference`` draws the 46 M seeded weights of tests/test_chainhoi_released.py (``fill``) into
+``reference`` draws the 46 M seeded weights of tests/chainhoi_seeded_weights.py (``fill``) into
 the BEHAVE-size denoiser and compares its output with ``full_out`` of
 tests/data/chainhoi_released_reference.npz (computed with the public code, see
 tests/data/README.md). ``train`` builds a 24-clip synthetic store when no ``--data`` is given
@@ -18,35 +18,18 @@ import argparse
 import sys
 import tempfile
 import time
-import zlib
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from hoibench.baselines.chainhoi.released import ReleasedDenoiser
-from hoibench.baselines.chainhoi.released_config import ReleasedConfig
-
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
 
+from chainhoi_seeded_weights import fill  # noqa: E402
 
-def fill(model: torch.nn.Module) -> None:
-    """The seeded weights of tests/test_chainhoi_released.py (same rule, same keys)."""
-    trainable = {n for n, p in model.named_parameters() if p.requires_grad}
-    with torch.no_grad():
-        for name, v in model.state_dict().items():
-            if name not in trainable:
-                continue
-            w = np.random.RandomState(zlib.crc32(name.encode())).standard_normal(tuple(v.shape))
-            if name.endswith(".A"):
-                w = v.numpy() + 0.05 * w
-            elif w.ndim >= 2:
-                w = w / np.sqrt(np.prod(w.shape[1:]))
-            elif w.ndim == 1 and name.endswith("weight"):
-                w = 1 + 0.1 * w
-            else:
-                w = 0.1 * w
-            v.copy_(torch.from_numpy(np.asarray(w, np.float64)).float())
+from hoibench.baselines.chainhoi.released import ReleasedDenoiser  # noqa: E402
+from hoibench.baselines.chainhoi.released_config import ReleasedConfig  # noqa: E402
 
 
 def reference() -> None:

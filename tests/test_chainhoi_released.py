@@ -5,17 +5,18 @@ Reference values (``tests/data/chainhoi_released_reference.npz``, see tests/data
 the public denoiser ``ChainHOI`` of ``Huanggh531/ChainHOI`` commit 4990160
 (``src/models/nets/chainhoi.py``) instantiated outside the project with the BEHAVE settings of
 ``scripts/train_behave.sh`` (45,979,565 parameters, ``sum(p.numel() for p in
-model.parameters())``) and with a tiny width (736,821), weights from :func:`fill`, inputs
+model.parameters())``) and with a tiny width (736,821), weights from :func:`chainhoi_seeded_weights.fill`, inputs
 from ``numpy.random.RandomState(7)``, eval mode.
 """
 from __future__ import annotations
 
-import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+
+from chainhoi_seeded_weights import fill
 
 from hoibench.baselines.chainhoi.released import ReleasedDenoiser, released_partitions
 from hoibench.baselines.chainhoi.released_config import ReleasedConfig
@@ -29,27 +30,6 @@ PUBLIC_PARAMS = {"full": 45_979_565, "tiny": 736_821}
 def ref():
     with np.load(REF) as z:
         return dict(z)
-
-
-def fill(model: torch.nn.Module) -> None:
-    """Deterministic weights by state-dict key (the same rule produced the reference values):
-    ``w = N(0, 1)`` from ``RandomState(crc32(key))``; matrices / sqrt(fan-in), 1-D weights
-    1 + 0.1 w, biases 0.1 w, the adjacency its initial value + 0.05 w; fixed tables kept."""
-    trainable = {n for n, p in model.named_parameters() if p.requires_grad}
-    with torch.no_grad():
-        for name, v in model.state_dict().items():
-            if name not in trainable:
-                continue
-            w = np.random.RandomState(zlib.crc32(name.encode())).standard_normal(tuple(v.shape))
-            if name.endswith(".A"):
-                w = v.numpy() + 0.05 * w
-            elif w.ndim >= 2:
-                w = w / np.sqrt(np.prod(w.shape[1:]))
-            elif w.ndim == 1 and name.endswith("weight"):
-                w = 1 + 0.1 * w
-            else:
-                w = 0.1 * w
-            v.copy_(torch.from_numpy(np.asarray(w, np.float64)).float())
 
 
 def inputs(ref: dict, tag: str):
