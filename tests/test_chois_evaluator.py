@@ -23,6 +23,8 @@ import torch
 from torch import nn
 from torch.nn.utils.rnn import pack_padded_sequence
 
+from t2m_release import import_release
+
 from hoibench.evaluator.published_t2m import T2MDims, expected_shapes
 
 DIMS = T2MDims(pose=72, movement_hidden=16, movement_latent=12, motion_hidden=20, text_hidden=10, output=8)
@@ -57,11 +59,8 @@ def write_release(root: Path) -> dict[str, Path]:
 
 @pytest.fixture(scope="module")
 def release(tmp_path_factory):
-    root = tmp_path_factory.mktemp("chois")
-    files = write_release(root / "release")
     from hoibench.evaluator.chois_t2m import import_chois
-    eid = import_chois(root / "ev", files["checkpoint"], files["glove"], files["meta"], dims=DIMS)
-    return root, files, eid
+    return import_release(tmp_path_factory, "chois", write_release, import_chois, DIMS)
 
 
 def _reference_motion(files, clips) -> np.ndarray:

@@ -27,6 +27,8 @@ import numpy as np
 import pytest
 import torch
 
+from t2m_release import import_release
+
 from hoibench.evaluator.published_t2m import T2MDims, expected_shapes, import_t2m, load_t2m
 
 DIMS = T2MDims(movement_hidden=16, movement_latent=12, motion_hidden=20, text_hidden=10, output=8)
@@ -109,10 +111,7 @@ REF_MOTION = [
 
 @pytest.fixture(scope="module")
 def imported(tmp_path_factory):
-    root = tmp_path_factory.mktemp("t2m")
-    files = write_fixture(root / "release")
-    eid = import_t2m(root / "ev", files["checkpoint"], files["glove"], files["meta"], dims=DIMS)
-    return root, files, eid
+    return import_release(tmp_path_factory, "t2m", write_fixture, import_t2m, DIMS)
 
 
 def test_embeddings_equal_the_reference_code(imported):

@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .published_t2m import (T2MDims, T2MEvaluator, _sha256_file, build_parts, check_part, expected_shapes,
-                            read_checkpoint, read_meta, summary, verify_t2m_folder)
-from .t2m_text import GLOVE_FILES, Vocabulary, read_glove
+from .published_t2m import (T2MDims, T2MEvaluator, _sha256_file, build_parts, load_folder, read_checkpoint, read_meta,
+                            summary, verify_t2m_folder)
+from .t2m_text import GLOVE_FILES, read_glove
 
 BACKEND = "chois"
 JOINTS = 24
@@ -86,29 +86,7 @@ def verify_folder(folder: str | Path) -> tuple[dict, bytes]:
 def load_chois(folder: str | Path, *, threads: int | None = None, device: str = "cpu",
                **_ignored) -> "ChoisEvaluator":
     """A verified :class:`ChoisEvaluator` from ``folder`` (no card gate, as the t2m backend)."""
-    from safetensors.torch import load as load_tensors
-    from .card import WEIGHTS
-    from .errors import CorruptEvaluatorFile
-    card, data = verify_folder(folder)
-    where = str(Path(folder) / WEIGHTS)
-    try:
-        dims = T2MDims(**{k: int(v) for k, v in card["dims"].items()})
-        tensors = load_tensors(data)
-    except (TypeError, ValueError) as exc:
-        raise CorruptEvaluatorFile(f"{folder}: card field dims or {WEIGHTS}: {' '.join(str(exc).split())[:160]}") \
-            from None
-    except Exception as exc:                                   # SafetensorError
-        raise CorruptEvaluatorFile(f"{where}: not a readable safetensors file ({str(exc)[:120]})") from None
-    parts, shapes = build_parts(dims, 0), expected_shapes(dims, 0)
-    for part, module in parts.items():
-        own = {k[len(part) + 1:]: v for k, v in tensors.items() if k.startswith(part + ".")}
-        module.load_state_dict(check_part(own, part, shapes[part], where))
-    for key in ("vocab.vectors", "meta.mean", "meta.std"):
-        if key not in tensors:
-            raise CorruptEvaluatorFile(f"{where}: tensor {key} is missing")
-    vocab = Vocabulary(card["vocabulary"], tensors["vocab.vectors"].numpy())
-    stats = (tensors["meta.mean"].numpy(), tensors["meta.std"].numpy())
-    return ChoisEvaluator(parts, vocab, stats, card, dims, threads=threads, device=device)
+    return load_folder(folder, ChoisEvaluator, BACKEND, 0, threads=threads, device=device)
 
 
 class ChoisEvaluator(T2MEvaluator):

@@ -313,9 +313,16 @@ def summary(card: dict, verified: bool | None = None) -> str:
 def load_t2m(folder: str | Path, *, threads: int | None = None, device: str = "cpu", **_ignored) -> "T2MEvaluator":
     """A verified :class:`T2MEvaluator` from ``folder``. There is no card gate (the weights
     were not trained here); ``hoibench evaluate`` measures the sanity gate on the store."""
+    return load_folder(folder, T2MEvaluator, BACKEND, FOOT_CONTACTS, threads=threads, device=device)
+
+
+def load_folder(folder: str | Path, cls: type, backend: str, contacts: int, *, threads: int | None = None,
+                device: str = "cpu") -> "T2MEvaluator":
+    """``cls`` (:class:`T2MEvaluator` or a subclass) built from the verified ``backend`` folder
+    ``folder``, whose movement encoder leaves out ``contacts`` trailing pose columns."""
     from safetensors.torch import load as load_tensors
     from .card import WEIGHTS
-    card, data = verify_t2m_folder(folder)
+    card, data = verify_t2m_folder(folder, backend)
     where = str(Path(folder) / WEIGHTS)
     try:
         dims = T2MDims(**{k: int(v) for k, v in card["dims"].items()})
@@ -325,7 +332,7 @@ def load_t2m(folder: str | Path, *, threads: int | None = None, device: str = "c
             from None
     except Exception as exc:                                   # SafetensorError
         raise CorruptEvaluatorFile(f"{where}: not a readable safetensors file ({str(exc)[:120]})") from None
-    parts, shapes = build_parts(dims), expected_shapes(dims)
+    parts, shapes = build_parts(dims, contacts), expected_shapes(dims, contacts)
     for part, module in parts.items():
         own = {k[len(part) + 1:]: v for k, v in tensors.items() if k.startswith(part + ".")}
         module.load_state_dict(check_part(own, part, shapes[part], where))
@@ -334,7 +341,7 @@ def load_t2m(folder: str | Path, *, threads: int | None = None, device: str = "c
             raise CorruptEvaluatorFile(f"{where}: tensor {key} is missing")
     vocab = Vocabulary(card["vocabulary"], tensors["vocab.vectors"].numpy())
     stats = (tensors["meta.mean"].numpy(), tensors["meta.std"].numpy())
-    return T2MEvaluator(parts, vocab, stats, card, dims, threads=threads, device=device)
+    return cls(parts, vocab, stats, card, dims, threads=threads, device=device)
 
 
 # ============================================================================ embeddings
