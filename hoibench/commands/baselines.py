@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import H_SEED, H_STORE, H_THREADS, H_ZIP, LazyChoices
+from .common import H_SEED, H_STORE, H_THREADS, H_ZIP, LazyChoices, action_command
 
 #: baselines with nothing to train: sampled from the store's train statistics
 SAMPLE_ONLY = ("mean-pose",)
@@ -203,15 +203,15 @@ def _add_sample(bsub, names: list[str], trained: list[str]) -> None:
 def _add_baseline(sub) -> None:
     from ..baselines.registry import SPECS
     listed = ", ".join(list(SPECS) + list(SAMPLE_ONLY))
-    s = sub.add_parser("baseline", help=f"train and sample reference baselines ({listed})",
-                       epilog="examples:\n  hoibench baseline train chainhoi data --config tiny --out runs/chainhoi-tiny\n"
-                              "  hoibench baseline sample chainhoi runs/chainhoi-tiny --data data --out sub\n"
-                              "  hoibench baseline train catmo data --out runs/catmo-tiny --set train.gpt_steps=3000\n"
-                              "  hoibench baseline sample catmo runs/catmo-tiny --data data --out sub-catmo -k 30\n"
-                              "  hoibench baseline sample mean-pose --data data --out sub-mean\n"
-                              "  hoibench baseline show runs/chainhoi-tiny",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    bsub = s.add_subparsers(dest="action", required=True, metavar="{train,sample,show}")
+    bsub = action_command(
+        sub, "baseline", f"train and sample reference baselines ({listed})",
+        ["hoibench baseline train chainhoi data --config tiny --out runs/chainhoi-tiny",
+         "hoibench baseline sample chainhoi runs/chainhoi-tiny --data data --out sub",
+         "hoibench baseline train catmo data --out runs/catmo-tiny --set train.gpt_steps=3000",
+         "hoibench baseline sample catmo runs/catmo-tiny --data data --out sub-catmo -k 30",
+         "hoibench baseline sample mean-pose --data data --out sub-mean",
+         "hoibench baseline show runs/chainhoi-tiny"],
+        ["train", "sample", "show"])
     _add_train(bsub, sorted(SPECS))
     _add_sample(bsub, sorted(SPECS), list(SPECS))
     b = bsub.add_parser("show", help="show (and verify) a baseline run folder")

@@ -1,13 +1,12 @@
 """Hosted challenges: ``hoibench challenge bundle|public|check|import-results``."""
 from __future__ import annotations
 
-import argparse
 import json
 import zipfile
 from datetime import date
 from pathlib import Path
 
-from .common import H_ROOT, H_STORE
+from .common import H_ROOT, H_STORE, action_command
 
 
 def iso_date(option: str, text: str | None) -> date | None:
@@ -73,12 +72,12 @@ def _cmd_import_results(args) -> int:
 
 def register(sub) -> None:
     """challenge."""
-    s = sub.add_parser("challenge", help="host a challenge on Codabench or EvalAI: bundle, public data, results",
-                       epilog="examples:\n  hoibench challenge bundle --data data --evaluator ev --out bundle.zip\n"
-                              "  hoibench challenge public --data data --out public\n"
-                              "  hoibench challenge import-results results.json --bundle bundle.zip --track synthetic",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    csub = s.add_subparsers(dest="action", required=True, metavar="{bundle,public,check,import-results}")
+    csub = action_command(
+        sub, "challenge", "host a challenge on Codabench or EvalAI: bundle, public data, results",
+        ["hoibench challenge bundle --data data --evaluator ev --out bundle.zip",
+         "hoibench challenge public --data data --out public",
+         "hoibench challenge import-results results.json --bundle bundle.zip --track synthetic"],
+        ["bundle", "public", "check", "import-results"])
     b = csub.add_parser("bundle", help="a Codabench competition bundle with the hidden test split")
     b.add_argument("--data", type=Path, required=True, help="the store (" + H_STORE + ")")
     b.add_argument("--evaluator", type=Path, required=True, help="the evaluator folder the challenge scores with")

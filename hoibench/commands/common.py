@@ -3,6 +3,7 @@ read from a registry on use."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Iterator, Sequence
 
 
@@ -52,3 +53,17 @@ class LazyChoices(Sequence[str]):
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._names())
+
+
+def action_command(sub, name: str, help: str, examples: Sequence[str], actions: Sequence[str]):
+    """The action subparsers of a new command ``hoibench NAME ACTION``: ``examples`` listed in
+    its epilog, one a line; the chosen action lands in ``args.action``."""
+    s = sub.add_parser(name, help=help, epilog="examples:\n" + "\n".join("  " + e for e in examples),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    return s.add_subparsers(dest="action", required=True, metavar="{" + ",".join(actions) + "}")
+
+
+def add_submission_args(s) -> None:
+    """The submission and the store it is for (``evaluate``, ``validate``)."""
+    s.add_argument("submission", type=Path, help="the submission folder or .zip")
+    s.add_argument("--data", type=Path, required=True, help="the store the submission is for (" + H_STORE + ")")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import H_EXECUTOR, H_SEED, H_STORE, executor_arg
+from .common import H_EXECUTOR, H_SEED, H_STORE, add_submission_args, executor_arg
 
 
 def _cmd_train_evaluator(args) -> int:
@@ -107,8 +107,7 @@ def _add_evaluator(sub) -> None:
 def _add_evaluate(sub) -> None:
     s = sub.add_parser("evaluate", help="score a submission under a protocol (writes a result JSON with --out)",
                        epilog="example: hoibench evaluate sub.zip --data data --evaluator ev --out result.json")
-    s.add_argument("submission", type=Path, help="the submission folder or .zip")
-    s.add_argument("--data", type=Path, required=True, help="the store the submission is for (" + H_STORE + ")")
+    add_submission_args(s)
     s.add_argument("--evaluator", type=Path, required=True,
                    help="the evaluator folder (hoibench train-evaluator; train-recognizer for multi-body stores)")
     s.add_argument("--protocol", default=None, help="protocol id (default: <dataset>-<mode> of the store)")

@@ -1,10 +1,9 @@
 """Leaderboards: ``hoibench leaderboard add|build|ls|site``."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from .common import H_ROOT
+from .common import H_ROOT, action_command
 
 
 def _cmd_leaderboard(args) -> int:
@@ -25,12 +24,12 @@ def _cmd_leaderboard_site(args) -> int:
 
 def register(sub) -> None:
     """leaderboard."""
-    s = sub.add_parser("leaderboard", help="add results to a track and build its README, CSV and HTML page",
-                       epilog="examples:\n  hoibench leaderboard add result.json --track synthetic --method 'My method'\n"
-                              "  hoibench leaderboard build            # every track under leaderboards/\n"
-                              "  hoibench leaderboard ls",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    lsub = s.add_subparsers(dest="action", required=True, metavar="{add,build,ls,site}")
+    lsub = action_command(
+        sub, "leaderboard", "add results to a track and build its README, CSV and HTML page",
+        ["hoibench leaderboard add result.json --track synthetic --method 'My method'",
+         "hoibench leaderboard build            # every track under leaderboards/",
+         "hoibench leaderboard ls"],
+        ["add", "build", "ls", "site"])
     b = lsub.add_parser("add", help="add a result of `hoibench evaluate` to a track")
     b.add_argument("result", type=Path, help="the result JSON (hoibench evaluate --out)")
     b.add_argument("--track", required=True, help="the track folder's name under the root (an id)")
