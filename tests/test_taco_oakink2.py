@@ -52,34 +52,37 @@ def _worst(clip, gt, step=1):
     return max(errs)
 
 
+def _synth(tmp_path_factory, layout: str, clips: int) -> Path:
+    root = tmp_path_factory.mktemp(layout) / "raw"
+    assert main(["synth", "--layout", layout, "--out", str(root), "--clips", str(clips)]) == 0
+    return root
+
+
+def _prepare(raw: Path, layout: str, fps: int) -> Path:
+    out = raw.parent / "data"
+    assert main(["prepare", layout, "--root", str(raw), "--body-models", str(raw / "body_models"),
+                 "--out", str(out), "--fps", str(fps)]) == 0
+    return out
+
+
 @pytest.fixture(scope="module")
 def taco_raw(tmp_path_factory):
-    root = tmp_path_factory.mktemp("taco") / "raw"
-    assert main(["synth", "--layout", "taco", "--out", str(root), "--clips", "5"]) == 0
-    return root
+    return _synth(tmp_path_factory, "taco", 5)
 
 
 @pytest.fixture(scope="module")
 def taco_store(taco_raw):
-    out = taco_raw.parent / "data"
-    assert main(["prepare", "taco", "--root", str(taco_raw), "--body-models", str(taco_raw / "body_models"),
-                 "--out", str(out), "--fps", "30"]) == 0
-    return out
+    return _prepare(taco_raw, "taco", 30)
 
 
 @pytest.fixture(scope="module")
 def oi_raw(tmp_path_factory):
-    root = tmp_path_factory.mktemp("oakink2") / "raw"
-    assert main(["synth", "--layout", "oakink2", "--out", str(root), "--clips", "3"]) == 0
-    return root
+    return _synth(tmp_path_factory, "oakink2", 3)
 
 
 @pytest.fixture(scope="module")
 def oi_store(oi_raw):
-    out = oi_raw.parent / "data"
-    assert main(["prepare", "oakink2", "--root", str(oi_raw), "--body-models", str(oi_raw / "body_models"),
-                 "--out", str(out), "--fps", "120"]) == 0
-    return out
+    return _prepare(oi_raw, "oakink2", 120)
 
 
 # --------------------------------------------------------------------------- splits
