@@ -21,7 +21,7 @@ import numpy as np
 
 from ..core import geometry as geo
 from ..core import plausibility as pl
-from ..bodies.multibody import Body
+from ..bodies.multibody import Body, MultiBodyClip, check_clip
 from .behave import SequenceError, _lerp, _slerp_resample, resample_rigid
 
 __all__ = ["ZUP_TO_YUP", "MANO_TIPS", "BOTTOM_ROW_TOL", "rigid_poses", "mano_joints", "hand_body", "object_body",
@@ -119,3 +119,13 @@ def object_body(name: str, template: str, R: np.ndarray, t: np.ndarray, mean: np
     """An object Body at times ``dst`` for source poses ``R v + t`` of a template centred on ``mean``."""
     rot, trans = resample_rigid(src_t, dst, R, t + R @ np.asarray(mean, np.float64))
     return Body(name=name, kind="object", trans=trans @ F.T, rot=F @ rot, template=template)
+
+
+def checked_clip(clip: MultiBodyClip, cid: str) -> MultiBodyClip:
+    """``clip`` once :func:`~hoibench.bodies.multibody.check_clip` accepts it; a
+    :class:`SequenceError` naming ``cid`` where it does not."""
+    try:
+        check_clip(clip)
+    except ValueError as exc:
+        raise SequenceError(f"{cid}: {exc}") from None
+    return clip

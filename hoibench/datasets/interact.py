@@ -59,7 +59,7 @@ import numpy as np
 
 from ..bodies.markers import markers_from_vertices
 from ..core import geometry as geo
-from ..core.ids import InvalidIdError, check_id
+from ..core.ids import check_id
 from ..core.io import load_raw_npz, read_regular_file
 from .behave import SequenceError, _lerp, _slerp_resample, read_mesh, resample_rigid, resample_times
 from .sequence import BodyParams, HOISequence
@@ -290,7 +290,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
                  sources: str | None = None, split: str = "sequence") -> list[tuple]:
     """One :func:`hoibench.datasets.store.run_unit` job per sequence of the chosen sources
     (default: every supported source folder present under ``root``)."""
-    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates
+    from .store import fail_unit, file_sha256, refuse_duplicates, refused_id_job
     if split_file is not None:
         raise ValueError("prepare interact: --split-file is not used; choose --split object|sequence")
     root = Path(root)
@@ -309,10 +309,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
             raise FileNotFoundError(f"--root: no {src}/{SEQUENCES} in {root}")
         for seq in sorted(p for p in seqs.iterdir() if p.is_dir()):
             clip = f"{src}-{seq.name}"
-            try:
-                check_id(clip, "sequence folder", seqs)
-            except InvalidIdError as exc:
-                jobs.append(invalid_id_job(clip, str(exc), out, config.mode))
+            refused = refused_id_job(clip, "sequence folder", seqs, out, config.mode)
+            if refused:
+                jobs.append(refused)
                 where.append(str(seq))
                 continue
             try:

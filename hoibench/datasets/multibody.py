@@ -115,7 +115,7 @@ def prepare_jobs(root: str | Path, body_models, out: str | Path, config, split_f
                  ) -> list[tuple]:
     """One job per ``ROOT/sequences/<id>.npz`` (``body_models`` is not used: the layout
     holds joints). The split is ``split_file``, else ``ROOT/split.json``, else "train"."""
-    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates
+    from .store import fail_unit, file_sha256, refuse_duplicates, refused_id_job
     root = Path(root)
     seq_dir = root / "sequences"
     if not seq_dir.is_dir():
@@ -127,10 +127,9 @@ def prepare_jobs(root: str | Path, body_models, out: str | Path, config, split_f
     jobs, sources = [], []
     for p in sorted(seq_dir.glob("*.npz")):
         cid = p.stem
-        try:
-            check_id(cid, "sequence file name", seq_dir)
-        except InvalidIdError as exc:
-            jobs.append(invalid_id_job(cid, str(exc), out, config.mode))
+        refused = refused_id_job(cid, "sequence file name", seq_dir, out, config.mode)
+        if refused:
+            jobs.append(refused)
             sources.append(str(p))
             continue
         split = splits.get(cid, "unknown") if splits is not None else "train"

@@ -55,10 +55,10 @@ import numpy as np
 from ..core import geometry as geo
 from ..core import plausibility as pl
 from ..core.ids import InvalidIdError, check_id
-from ..bodies.multibody import MultiBodyClip, check_clip
+from ..bodies.multibody import MultiBodyClip
 from . import torch_pickle
 from .behave import SequenceError, load_split_file, read_mesh, resample_times
-from .hand_object import axis_to_yup, hand_body, object_body, rigid_poses
+from .hand_object import axis_to_yup, checked_clip, hand_body, object_body, rigid_poses
 
 __all__ = ["SOURCE_FPS", "TRANSIENT", "SequenceError", "token", "seq_id", "primitives", "official_split",
            "up_rotation", "load_primitive", "prepare_jobs", "LOADER_VERSION"]
@@ -299,11 +299,7 @@ def load_primitive(root: str | Path, seq_key: str, key: str, name: str, body_mod
             "top_camera_axis_to_down_deg": cam_deg, "floor_shift_m": 0.0, "loader": LOADER_VERSION}
     clip = MultiBodyClip(name=cid, dataset="oakink2", subject=seq_key.split("/")[0], fps=float(fps), bodies=bodies,
                          templates=templates, action=str(info.get("primitive")), texts=texts, provenance=prov)
-    try:
-        check_clip(clip)
-    except ValueError as exc:
-        raise SequenceError(f"{cid}: {exc}") from None
-    return clip
+    return checked_clip(clip, cid)
 
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,

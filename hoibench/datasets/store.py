@@ -355,6 +355,16 @@ def invalid_id_job(raw_id: object, message: str, out, mode: str) -> tuple:
     return (stand_in, "unknown", "", str(out), fail_unit, (f"{stand_in}: {message}",), mode)
 
 
+def refused_id_job(raw_id: str, what: str, where, out, mode: str) -> tuple | None:
+    """The :func:`invalid_id_job` of ``raw_id`` when :func:`check_id` refuses it (``what``
+    and ``where`` name the id's source in the message); None for an id it accepts."""
+    try:
+        check_id(raw_id, what, where)
+    except InvalidIdError as exc:
+        return invalid_id_job(raw_id, str(exc), out, mode)
+    return None
+
+
 def refuse_duplicates(jobs: list[tuple], sources: Sequence[str] | None = None) -> list[tuple]:
     """Fail every copy of a clip id that more than one job produces (compared case-folded:
     ``A.npz`` and ``a.npz`` are one file on some file systems), naming all their sources

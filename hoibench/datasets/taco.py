@@ -51,10 +51,10 @@ import numpy as np
 
 from ..core import plausibility as pl
 from ..core.ids import InvalidIdError, check_id
-from ..bodies.multibody import MultiBodyClip, check_clip
+from ..bodies.multibody import MultiBodyClip
 from . import torch_pickle
 from .behave import SequenceError, load_split_file, read_mesh, resample_times
-from .hand_object import ZUP_TO_YUP, hand_body, object_body, rigid_poses
+from .hand_object import ZUP_TO_YUP, checked_clip, hand_body, object_body, rigid_poses
 from .taco_split import TACO_SPLIT
 from .taco_triplets import TACO_TRIPLETS
 
@@ -250,18 +250,14 @@ def load_sequence(hand_dir: str | Path, root: str | Path, body_models: str | Pat
             "start": 0, "end": len(dst)}
     clip = MultiBodyClip(name=cid, dataset="taco", subject=seq.split("_")[0], fps=float(fps), bodies=bodies,
                          templates=templates, action=action, texts=[text], provenance=prov)
-    try:
-        check_clip(clip)
-    except ValueError as exc:
-        raise SequenceError(f"{cid}: {exc}") from None
-    return clip
+    return checked_clip(clip, cid)
 
 
 def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, config,
                  split_file: str | Path | None = None) -> list[tuple]:
     """One job per ``Hand_Poses/<triplet>/<seq>`` folder; split from TACO's lists unless
     ``split_file`` names another; an unlisted sequence fails."""
-    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates
+    from .store import fail_unit, file_sha256, refuse_duplicates, refused_id_job
     root = Path(root)
     hp = root / "Hand_Poses"
     if not hp.is_dir():
@@ -271,10 +267,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     for tri in sorted(p for p in hp.iterdir() if p.is_dir()):
         for sd in sorted(p for p in tri.iterdir() if p.is_dir()):
             cid, origin = sd.name, f"Hand_Poses/{tri.name}/{sd.name}"
-            try:
-                check_id(cid, "sequence folder", origin)
-            except InvalidIdError as exc:
-                jobs.append(invalid_id_job(cid, str(exc), out, config.mode))
+            refused = refused_id_job(cid, "sequence folder", origin, out, config.mode)
+            if refused:
+                jobs.append(refused)
                 sources.append(origin)
                 continue
             listed = official_split(cid)
