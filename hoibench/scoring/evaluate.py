@@ -20,7 +20,7 @@ from .report import format_result
 
 def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, protocol=None,
              executor: str = "serial", allow_failed_gate: bool = False, allow_protocol_mismatch: bool = False,
-             allow_evaluator_mismatch: bool = False, lead=None) -> dict:
+             allow_evaluator_mismatch: bool = False, lead=None, clip_data: dict | None = None) -> dict:
     """Score ``submission`` against the store ``data`` with the evaluator folder ``evaluator``.
 
     Returns the result dictionary (also what ``--out`` writes). Raises
@@ -31,7 +31,8 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     complete only). The ``allow_*`` overrides apply to single-body tracks. ``protocol``: an
     id, ``id@version``, a YAML path or a :class:`~hoibench.tracks.protocol.Protocol`. ``lead``:
     called with the one line that says the submission was made for another store (most of its
-    ids belong to no test split here), before scoring.
+    ids belong to no test split here), before scoring. ``clip_data``: a dict the scorer fills
+    with the result's per-clip arrays (:mod:`hoibench.scoring.clip_data`; single-body tracks).
     """
     from ..core.parallel import map_units
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
@@ -51,7 +52,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     backend = backend_of(evaluator)
     options = {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": allow_protocol_mismatch,
                "allow_evaluator_mismatch": allow_evaluator_mismatch,
-               "evaluator_backend": backend.name if backend else track.evaluator_kind}
+               "evaluator_backend": backend.name if backend else track.evaluator_kind, "clip_data": clip_data}
     # the card alone decides a mismatch: refuse it before the weights and the text encoder load
     scorer_cls.check_fit(store, proto, peek_card(evaluator, track.evaluator_kind), options)
     ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options)
@@ -113,10 +114,14 @@ def main_evaluate(submission, data, evaluator, out=None, protocol=None, executor
     argument is checked before the store is read; without ``out`` the last line says how to
     keep the result."""
     resolved = check_evaluate_args(submission, data, evaluator, out, protocol, executor, overwrite)
+    clips: dict = {}
     result = evaluate(submission, data, evaluator, protocol=resolved, executor=executor,
                       allow_failed_gate=allow_failed_gate, allow_protocol_mismatch=allow_protocol_mismatch,
-                      allow_evaluator_mismatch=allow_evaluator_mismatch, lead=print)
+                      allow_evaluator_mismatch=allow_evaluator_mismatch, lead=print, clip_data=clips)
     if out is not None:
+        if clips:
+            from .clip_data import write_clip_data
+            write_clip_data(result, clips, out)
         atomic_write_json(out, result)
     print(format_result(result))
     print(f"wrote {out}" if out is not None else "not written: pass --out result.json to keep it")

@@ -373,6 +373,8 @@ class HOIScorer(Scorer):
                               f"{proto.mm_samples}")
         where = {cid: i for i, cid in enumerate(ids)}
         self.st.per_clip = self._per_clip(real, text_sets)
+        if isinstance(self.options.get("clip_data"), dict):
+            self.options["clip_data"].update(self._clip_data(real, text_sets))
         self.st.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
         if proto.embedding_loop != "hoibench":
             self.st.t4 = t4
@@ -438,6 +440,19 @@ class HOIScorer(Scorer):
         source = self.st.physical[0 if self.st.windowed else k].per_clip()
         phys = {key[0]: row for key, row in source.items() if isinstance(key, tuple) and key[1] == k}
         return per_clip_table(self.st.ids, self.st.gen[k], real, text_sets, phys, k)
+
+    def _clip_data(self, real: np.ndarray, text_sets: list[np.ndarray]) -> dict:
+        """What a paired comparison recomputes every metric from (:mod:`hoibench.scoring.clip_data`):
+        per scored clip the motion embedding of every sample, the real motion's, the caption
+        embeddings, and the physical metrics' per-clip values of each scored sample (of
+        replication 0's windows under a length-cropping protocol)."""
+        from .clip_data import clip_arrays
+        st = self.st
+        phys = {}
+        for k in st.ks_physical:
+            source = st.physical[0 if st.windowed else k].per_clip()
+            phys[k] = {key[0]: row for key, row in source.items() if isinstance(key, tuple) and key[1] == k}
+        return clip_arrays(st.ids, st.gen, real, text_sets, phys)
 
     def _physical_row(self, physical: dict, r: int) -> dict:
         """Replication r's physical metrics: its own length windows' (a length-cropping

@@ -1,0 +1,108 @@
+"""Metrics recomputed on a resample of the test clips (a clip bootstrap), from stored
+embeddings and per-clip values: what a paired comparison and a clip-bootstrap interval need.
+
+A resample is a weight per clip (how often it was drawn; :func:`bootstrap_weights`), so the
+same draw applies to every result of a comparison (paired). Per resample:
+
+- FID: the Frechet distance between the weighted statistics of the real and the generated
+  embeddings (weighted mean, unbiased weighted covariance with divisor ``sum(w) - 1``); with
+  fewer distinct clips than dimensions, ``tr sqrt(S1 S2)`` is the nuclear norm of the small
+  matrix ``A B^T`` (``S1 = A^T A``, ``S2 = B^T B``), the same number at a fraction of the cost;
+- R-precision top-k and MM-Dist: per-clip values under fixed pools (each clip's text against
+  its pool's motions), averaged with the weights;
+- Diversity: the mean distance between ``pairs`` seeded pairs of drawn clips;
+- per-clip physical values: the weighted mean over the clips where they are defined.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .embedding import frechet_distance
+
+
+def bootstrap_weights(n: int, resamples: int, seed: int) -> np.ndarray:
+    """(resamples, n) draw counts: each row draws n clips with replacement (seeded)."""
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, n, size=(resamples, n))
+    out = np.zeros((resamples, n), np.int64)
+    np.add.at(out, (np.repeat(np.arange(resamples), n), idx.ravel()), 1)
+    return out
+
+
+def weighted_mean(values: np.ndarray, w: np.ndarray) -> float:
+    """``sum(w v) / sum(w)`` over the clips where ``v`` is defined (NaN when none is)."""
+    v = np.asarray(values, np.float64)
+    ok = np.isfinite(v) & (w > 0)
+    return float(np.dot(w[ok], v[ok]) / w[ok].sum()) if ok.any() else float("nan")
+
+
+def _centred(x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    keep = w > 0
+    x, w = np.asarray(x, np.float64)[keep], w[keep].astype(np.float64)
+    n = w.sum()
+    mu = w @ x / n
+    return mu, (x - mu) * np.sqrt(w)[:, None] / np.sqrt(max(n - 1.0, 1.0)), n
+
+
+def weighted_fid(real: np.ndarray, gen: np.ndarray, w: np.ndarray) -> float:
+    """FID of the weighted clips (module docstring); ``w`` (N,) draw counts, at least 2 in all."""
+    mu1, a, _ = _centred(real, w)
+    mu2, b, _ = _centred(gen, w)
+    if len(a) >= a.shape[1]:            # as many distinct clips as dimensions: the usual form
+        return frechet_distance(mu1, a.T @ a, mu2, b.T @ b)
+    cross = np.linalg.svd(a @ b.T, compute_uv=False).sum()
+    d = float(np.sum((mu1 - mu2) ** 2) + np.sum(a * a) + np.sum(b * b) - 2.0 * cross)
+    return d
+
+
+def retrieval_per_clip(text: np.ndarray, motion: np.ndarray, pools: Sequence[Sequence[int]],
+                       top_k: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Per clip: hit@1..k (N, k; NaN for a clip in no pool) of its text retrieving its own
+    motion within its pool, and its text-motion distance (N,)."""
+    text, motion = np.asarray(text, np.float64), np.asarray(motion, np.float64)
+    hits = np.full((len(text), top_k), np.nan)
+    for pool in pools:
+        p = np.asarray(pool, np.int64)
+        d = np.linalg.norm(text[p][:, None, :] - motion[p][None, :, :], axis=-1)
+        rank = (d < np.diag(d)[:, None]).sum(1)
+        hits[p] = rank[:, None] < np.arange(1, top_k + 1)[None, :]
+    return hits, np.linalg.norm(text - motion, axis=1)
+
+
+def resampled_diversity(gen: np.ndarray, w: np.ndarray, pairs: int, seed: int) -> float:
+    """Mean distance between ``pairs`` seeded pairs of the drawn clips (with repeats)."""
+    drawn = np.repeat(np.arange(len(w)), np.rint(np.asarray(w)).astype(np.int64))
+    rng = np.random.default_rng(seed)
+    a, b = rng.integers(0, len(drawn), pairs), rng.integers(0, len(drawn), pairs)
+    x = np.asarray(gen, np.float64)
+    return float(np.linalg.norm(x[drawn[a]] - x[drawn[b]], axis=1).mean())
+
+
+def holm(pvalues: Sequence[float]) -> list[float]:
+    """Holm's step-down adjustment: the i-th smallest p becomes ``max_{j <= i} min(1, (m - j + 1) p_(j))``."""
+    p = np.asarray(pvalues, np.float64)
+    order = np.argsort(p, kind="stable")
+    adjusted = np.empty_like(p)
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (len(p) - rank) * p[i]))
+        adjusted[i] = running
+    return [float(x) for x in adjusted]
+
+
+def bootstrap_p(differences: np.ndarray) -> float:
+    """Two-sided bootstrap p-value of ``difference = 0``: ``min(1, 2 min(P(d <= 0), P(d >= 0)))``
+    with the add-one rule (``(1 + count) / (1 + B)``)."""
+    d = np.asarray(differences, np.float64)
+    d = d[np.isfinite(d)]
+    if not len(d):
+        return float("nan")
+    lo = (1 + np.sum(d <= 0)) / (1 + len(d))
+    hi = (1 + np.sum(d >= 0)) / (1 + len(d))
+    return float(min(1.0, 2 * min(lo, hi)))
+
+
+__all__ = ["bootstrap_weights", "weighted_mean", "weighted_fid", "retrieval_per_clip", "resampled_diversity",
+           "holm", "bootstrap_p"]

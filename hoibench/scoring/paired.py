@@ -1,0 +1,205 @@
+"""``hoibench compare A.json B.json [C.json ...] --paired``: does a difference mean anything?
+
+Every result after the first is compared with the first (A) over the test clips both scored,
+by a paired bootstrap: each of ``resamples`` (at least 2,000) draws the shared clips with
+replacement once, and every metric of both results is recomputed on that draw from their
+per-clip data (:mod:`hoibench.scoring.clip_data`, :mod:`hoibench.metrics.resampling`):
+
+- FID, Diversity: on the drawn clips' embeddings (sample 0); R-precision top-k and MM-Dist:
+  per-clip values under the protocol's replication-0 pools of the shared clips, each clip's
+  first caption (so they differ from the result's mean over replications; the difference is
+  what is tested); the physical metrics: the mean of their per-clip values (a pooled metric
+  such as PS or FSR weighs frames, the per-clip mean weighs clips);
+- ``diff = B - A`` on all shared clips, its 95% percentile interval, a two-sided bootstrap
+  p-value (for a metric best closest to the ground truth: of ``|B - GT| - |A - GT|``), Holm's
+  adjustment across the metrics of one pair, and a verdict: ``A better``, ``B better`` or
+  ``not distinguishable on N clips`` (adjusted p >= 0.05).
+
+Results scored with another evaluator, protocol (id and version) or store are refused in one
+line naming the field. The same seed gives the same numbers on every executor: the draws are
+made up front and the per-resample work is split in fixed chunks.
+"""
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+
+from ..metrics.catalog import METRICS
+from ..metrics.resampling import (bootstrap_p, bootstrap_weights, holm, resampled_diversity, retrieval_per_clip,
+                                  weighted_fid)
+
+#: fewest resamples a paired comparison runs
+MIN_RESAMPLES = 2000
+#: the fields two results must share to be compared, and what they mean
+SCALE_FIELDS = (("evaluator_id", "evaluator"), ("protocol", "protocol"), ("protocol_version", "protocol version"),
+                ("dataset", "store dataset"), ("store_config_sha256", "store"))
+ALPHA = 0.05
+_CHUNK = 100
+
+
+def _seed(*parts) -> int:
+    return int.from_bytes(hashlib.sha256(repr(parts).encode()).digest()[:4], "little")
+
+
+def check_same_scale(a: dict, b: dict, a_path, b_path) -> None:
+    """ValueError naming the first field on which ``b`` was scored differently from ``a``."""
+    for field, what in SCALE_FIELDS:
+        if a.get(field) != b.get(field):
+            raise ValueError(f"{b_path}: field {field}: {str(b.get(field))[:16]} is not {a_path}'s "
+                             f"{str(a.get(field))[:16]}: a paired comparison needs one {what}")
+
+
+class _Side:
+    """One result's per-clip statistics on the shared clips."""
+
+    def __init__(self, arrays: dict, order: np.ndarray, pools: list, top_k: int):
+        offsets = arrays["text_offsets"]
+        self.motion = arrays["motion"][0][order].astype(np.float64)
+        self.real = arrays["real"][order].astype(np.float64)
+        text = arrays["text"][offsets[:-1][order]].astype(np.float64)    # each clip's first caption
+        self.hits, self.mmd = retrieval_per_clip(text, self.motion, pools, top_k)
+        names = [str(n) for n in arrays["physical_names"]]
+        self.physical = {n: arrays["physical"][0][order, j] for j, n in enumerate(names)}
+
+    def per_clip(self) -> dict[str, np.ndarray]:
+        out = {f"r_precision_top{k + 1}": self.hits[:, k] for k in range(self.hits.shape[1])}
+        out["mm_dist"] = self.mmd
+        out.update(self.physical)
+        return out
+
+
+def _means(values: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Weighted means of per-clip ``values`` for every row of ``W`` (NaN clips left out)."""
+    ok = np.isfinite(values)
+    den = W[:, ok].sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, W[:, ok] @ values[ok] / np.maximum(den, 1), np.nan)
+
+
+def _set_level(job: tuple) -> dict[str, np.ndarray]:
+    """FID and Diversity of both sides (and the ground truth's Diversity) on a chunk of draws."""
+    start, W, a_motion, b_motion, real, pairs, seed = job
+    out = {k: np.empty(len(W)) for k in ("fid_a", "fid_b", "div_a", "div_b", "div_gt")}
+    for i, w in enumerate(W):
+        s = _seed(seed, start + i)
+        out["fid_a"][i] = weighted_fid(real, a_motion, w)
+        out["fid_b"][i] = weighted_fid(real, b_motion, w)
+        out["div_a"][i] = resampled_diversity(a_motion, w, pairs, s)
+        out["div_b"][i] = resampled_diversity(b_motion, w, pairs, s)
+        out["div_gt"][i] = resampled_diversity(real, w, pairs, s)
+    return out
+
+
+def _verdict(p_holm: float, better_b: bool | None, n: int) -> str:
+    """``A better`` / ``B better`` when the adjusted p is under :data:`ALPHA`, else not distinguishable."""
+    if not np.isfinite(p_holm) or p_holm >= ALPHA:
+        return f"not distinguishable on {n} clips"
+    if better_b is None:
+        return f"different on {n} clips (neither end is better)"
+    return "B better" if better_b else "A better"
+
+
+def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamples: int = MIN_RESAMPLES,
+                 seed: int = 0, executor: str = "serial") -> dict:
+    """The paired comparison of two results (module docstring): ``{"n_clips", "metrics": {name:
+    {"diff", "ci95", "p", "p_holm", "verdict", "a", "b", "direction", "unit", "tested"}}}``."""
+    from ..core.parallel import map_units
+    a_ids, b_ids = [str(x) for x in a_arrays["ids"]], [str(x) for x in b_arrays["ids"]]
+    shared = sorted(set(a_ids) & set(b_ids))
+    if len(shared) < 2:
+        raise ValueError(f"the two results share {len(shared)} scored test clip(s): a paired comparison needs 2 or more")
+    ia, ib = {c: i for i, c in enumerate(a_ids)}, {c: i for i, c in enumerate(b_ids)}
+    where = {c: i for i, c in enumerate(shared)}
+    pools = [[where[c] for c in p] for p in proto.pools(shared, 0)] or [list(range(len(shared)))]
+    top_k = int(proto.r_precision_top_k or 3)
+    A = _Side(a_arrays, np.array([ia[c] for c in shared]), pools, top_k)
+    B = _Side(b_arrays, np.array([ib[c] for c in shared]), pools, top_k)
+    n = len(shared)
+    W = bootstrap_weights(n, resamples, seed).astype(np.float64)
+    ones = np.ones((1, n))
+    names = [m for m in METRICS if m in a["metrics"] and m in b["metrics"]]
+    pa, pb = A.per_clip(), B.per_clip()
+    pairs = int(min(proto.diversity_pairs or 300, 300))
+    jobs = [(s, W[s:s + _CHUNK], A.motion, B.motion, A.real, pairs, seed) for s in range(0, resamples, _CHUNK)]
+    chunks = list(map_units(_set_level, jobs, executor))
+    full = _set_level((0, ones, A.motion, B.motion, A.real, pairs, seed))
+    boot = {k: np.concatenate([c[k] for c in chunks]) for k in full}
+    rows, pvals = {}, []
+    for m in names:
+        info = METRICS[m]
+        if m in pa and m in pb:
+            va, vb, vg = _means(pa[m], W), _means(pb[m], W), None
+            fa, fb = float(_means(pa[m], ones)[0]), float(_means(pb[m], ones)[0])
+        elif m == "fid":
+            va, vb, vg, fa, fb = boot["fid_a"], boot["fid_b"], None, float(full["fid_a"][0]), float(full["fid_b"][0])
+        elif m == "diversity":
+            va, vb, vg = boot["div_a"], boot["div_b"], boot["div_gt"]
+            fa, fb = float(full["div_a"][0]), float(full["div_b"][0])
+        else:
+            continue                          # no per-clip data for it (e.g. MultiModality)
+        diff = vb - va
+        tested = "difference"
+        stat = diff
+        if info.direction == "gt" and vg is not None:
+            stat, tested = np.abs(vb - vg) - np.abs(va - vg), "distance to the ground truth"
+        ok = diff[np.isfinite(diff)]
+        lo, hi = (np.percentile(ok, [2.5, 97.5]) if len(ok) else (np.nan, np.nan))
+        p = bootstrap_p(stat)
+        point = fb - fa
+        better = {"lower": point < 0, "higher": point > 0}.get(info.direction)
+        if tested.startswith("distance"):
+            better = float(np.nanmean(stat)) < 0
+        rows[m] = {"a": fa, "b": fb, "diff": point, "ci95": [float(lo), float(hi)], "p": p, "direction": info.direction,
+                   "unit": info.unit, "tested": tested, "_better_b": better}
+        pvals.append(p)
+    adjusted = holm([x if np.isfinite(x) else 1.0 for x in pvals])
+    for (m, row), ph in zip(rows.items(), adjusted):
+        row["p_holm"] = ph
+        row["verdict"] = _verdict(ph, row.pop("_better_b"), n)
+    return {"n_clips": n, "metrics": rows}
+
+
+def _method(result: dict, path) -> str:
+    from ..core.errors import printable
+    return printable(str((result.get("submission") or {}).get("method") or Path(path).stem))
+
+
+def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, executor: str = "serial") -> dict:
+    """Every result after the first against the first (module docstring); the ``cmp.json`` dict."""
+    from ..tracks.protocol import get_protocol
+    from .clip_data import read_clip_data
+    from .results import read_result
+    if len(paths) < 2:
+        raise ValueError("compare --paired: give at least two result files")
+    if resamples < MIN_RESAMPLES:
+        raise ValueError(f"--resamples {resamples}: a paired comparison runs at least {MIN_RESAMPLES}")
+    results = [read_result(p) for p in paths]
+    for r, p in zip(results[1:], paths[1:]):
+        check_same_scale(results[0], r, paths[0], p)
+    arrays = [read_clip_data(r, p) for r, p in zip(results, paths)]
+    proto = get_protocol(f"{results[0]['protocol']}@{results[0]['protocol_version']}")
+    pairs = []
+    for r, arr, p in zip(results[1:], arrays[1:], paths[1:]):
+        pair = compare_pair(results[0], arrays[0], r, arr, proto, resamples, seed, executor)
+        pairs.append({"a": _method(results[0], paths[0]), "b": _method(r, p), "a_file": str(paths[0]),
+                      "b_file": str(p), **pair})
+    return {"format": "hoibench-compare-1", "resamples": resamples, "seed": seed, "alpha": ALPHA,
+            "protocol": f"{results[0]['protocol']}@{results[0]['protocol_version']}",
+            "evaluator_id": results[0].get("evaluator_id"), "pairs": pairs}
+
+
+def format_paired(cmp: dict) -> str:
+    """One line per metric and pair: difference, interval, adjusted p and verdict."""
+    lines = [f"paired bootstrap, {cmp['resamples']} resamples of the shared test clips (seed {cmp['seed']}), "
+             f"{cmp['protocol']}, evaluator {str(cmp['evaluator_id'])[:12]}; diff = B - A, Holm-adjusted p"]
+    for pair in cmp["pairs"]:
+        lines.append(f"A = {pair['a']}  vs  B = {pair['b']}  ({pair['n_clips']} clips)")
+        for m, row in pair["metrics"].items():
+            lines.append(f"  {m:26s} {row['diff']:+11.4g} [{row['ci95'][0]:+.3g}, {row['ci95'][1]:+.3g}]  "
+                         f"p {row['p_holm']:.3g}  {row['verdict']}")
+    return "\n".join(lines)
+
+
+__all__ = ["paired_compare", "compare_pair", "check_same_scale", "format_paired", "MIN_RESAMPLES"]

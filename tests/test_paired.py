@@ -1,0 +1,117 @@
+"""compare --paired: the paired bootstrap against direct computations on constructed results."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hoibench.metrics.embedding import fid
+from hoibench.metrics.resampling import bootstrap_p, bootstrap_weights, holm, weighted_fid
+
+N, D = 40, 8
+
+
+def _result(tmp_path: Path, name: str, motion: np.ndarray, real: np.ndarray, cd: np.ndarray,
+            evaluator: str = "e" * 64) -> Path:
+    from hoibench.scoring.clip_data import write_clip_data
+    from hoibench.scoring.results import metric_entry
+    ids = [f"clip_{i:03d}" for i in range(N)]
+    rng = np.random.default_rng(7)
+    text = real + 0.05 * rng.standard_normal(real.shape)           # captions near their real motion
+    arrays = {"ids": np.array(ids), "motion": motion[None].astype(np.float32), "real": real.astype(np.float32),
+              "text": text.astype(np.float32), "text_offsets": np.arange(N + 1),
+              "physical": cd[None, :, None], "physical_samples": np.array([0]), "physical_names": np.array(["cd"])}
+    result = {"format": "hoibench-result-2", "protocol": "synthetic-clean", "protocol_version": "1.1",
+              "evaluator_id": evaluator, "dataset": "synthetic", "store_config_sha256": "s" * 64,
+              "submission": {"method": name},
+              "counts": {"test_ids": N, "scored_ids": N, "samples_per_prompt": 1},
+              "metrics": {m: metric_entry(m, 0.0, 0.0, 20) for m in
+                          ("fid", "r_precision_top1", "r_precision_top2", "r_precision_top3", "mm_dist", "diversity",
+                           "cd")}}
+    path = tmp_path / f"{name}.json"
+    write_clip_data(result, arrays, path)
+    path.write_text(json.dumps(result))
+    return path
+
+
+@pytest.fixture
+def world():
+    rng = np.random.default_rng(0)
+    real = rng.standard_normal((N, D))
+    return rng, real
+
+
+def test_weighted_fid_is_the_fid_of_the_drawn_rows_in_both_forms(world):
+    rng, real = world
+    gen = real + 0.3 * rng.standard_normal(real.shape)
+    assert weighted_fid(real, gen, np.ones(N, np.int64)) == pytest.approx(fid(real, gen), rel=1e-6)
+    w = bootstrap_weights(N, 1, 3)[0]
+    rows = np.repeat(np.arange(N), w)
+    assert weighted_fid(real, gen, w) == pytest.approx(fid(real[rows], gen[rows]), rel=1e-6)
+    wide = rng.standard_normal((N, 64))                  # fewer clips than dimensions: the small form
+    wide_gen = wide + 0.2
+    assert weighted_fid(wide, wide_gen, w) == pytest.approx(fid(wide[rows], wide_gen[rows]), rel=1e-5)
+
+
+def test_holm_and_the_bootstrap_p_value_as_defined():
+    assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
+    assert holm([0.5, 0.001]) == pytest.approx([0.5, 0.002])
+    assert bootstrap_p(np.zeros(100)) == 1.0
+    assert bootstrap_p(np.ones(1999)) == pytest.approx(2 / 2000)
+
+
+def test_a_planted_difference_is_found_and_identical_results_are_not_distinguished(world, tmp_path):
+    from hoibench.scoring.paired import paired_compare
+    rng, real = world
+    cd = np.abs(rng.normal(0.01, 0.002, N))
+    good = _result(tmp_path, "good", real + 0.05 * rng.standard_normal(real.shape), real, cd)
+    bad = _result(tmp_path, "bad", real + 1.0 * rng.standard_normal(real.shape), real, cd + 0.01)
+    same = _result(tmp_path, "same", np.load(good.with_name("good.clips.npz"))["motion"][0], real, cd)
+    cmp = paired_compare([good, bad, same], resamples=2000, seed=0)
+    worse, twin = cmp["pairs"]
+    assert worse["a"] == "good" and worse["b"] == "bad" and worse["n_clips"] == N
+    assert worse["metrics"]["fid"]["diff"] > 0 and worse["metrics"]["fid"]["ci95"][0] > 0
+    assert worse["metrics"]["fid"]["verdict"] == "A better"
+    assert worse["metrics"]["cd"]["diff"] == pytest.approx(0.01) and worse["metrics"]["cd"]["verdict"] == "A better"
+    assert worse["metrics"]["mm_dist"]["verdict"] == "A better"
+    for m, row in twin["metrics"].items():
+        lo, hi = row["ci95"]
+        assert lo <= 0 <= hi and row["p"] == 1.0 and row["verdict"] == f"not distinguishable on {N} clips", m
+    ps = [r["p"] for r in worse["metrics"].values()]
+    assert [r["p_holm"] for r in worse["metrics"].values()] == pytest.approx(holm(ps))
+
+
+def test_the_same_seed_gives_the_same_interval_on_any_executor(world, tmp_path):
+    from hoibench.scoring.paired import paired_compare
+    rng, real = world
+    cd = np.abs(rng.normal(0.01, 0.002, N))
+    a = _result(tmp_path, "a", real + 0.1 * rng.standard_normal(real.shape), real, cd)
+    b = _result(tmp_path, "b", real + 0.2 * rng.standard_normal(real.shape), real, cd * 1.1)
+    serial = paired_compare([a, b], resamples=2000, seed=5)
+    pool = paired_compare([a, b], resamples=2000, seed=5, executor="processes:2")
+    assert json.dumps(serial, sort_keys=True) == json.dumps(pool, sort_keys=True)
+    assert paired_compare([a, b], resamples=2000, seed=6) != serial
+
+
+def test_results_of_another_evaluator_are_refused_in_one_line(world, tmp_path, capsys):
+    from hoibench.cli import main
+    rng, real = world
+    cd = np.ones(N) * 0.01
+    a = _result(tmp_path, "a", real, real, cd)
+    b = _result(tmp_path, "b", real, real, cd, evaluator="f" * 64)
+    assert main(["compare", str(a), str(b), "--paired"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "b.json: field evaluator_id" in err[0] and "one evaluator" in err[0]
+
+
+def test_a_result_whose_per_clip_file_changed_is_refused(world, tmp_path):
+    from hoibench.scoring.paired import paired_compare
+    rng, real = world
+    a = _result(tmp_path, "a", real, real, np.ones(N))
+    b = _result(tmp_path, "b", real + 0.1, real, np.ones(N))
+    with open(b.with_name("b.clips.npz"), "ab") as f:
+        f.write(b"x")
+    with pytest.raises(ValueError, match=r"b.clips.npz: per_clip_data.sha256"):
+        paired_compare([a, b])
