@@ -400,6 +400,18 @@ def _split_faces(V: np.ndarray, F: np.ndarray, part_of: np.ndarray, pick: np.nda
     return V, F, part_of
 
 
+def _skinned_arrays(V: np.ndarray, F: np.ndarray, J: np.ndarray, J_reg: np.ndarray, weights: np.ndarray,
+                    joint_parents: Sequence[int], shapedirs: np.ndarray, posedirs: np.ndarray) -> dict[str, np.ndarray]:
+    """The arrays every SMPL-family file holds, keyed and ordered as in the released files:
+    template, faces, joints, joint regressor, skinning weights, kinematic tree, shape and pose
+    directions."""
+    parents = np.array(joint_parents, dtype=np.int64)
+    parents[0] = 4294967295  # as in the released files (uint32 -1)
+    return {"v_template": V, "f": F.astype(np.int64), "J": J, "J_regressor": J_reg, "weights": weights,
+            "kintree_table": np.stack([parents, np.arange(len(parents), dtype=np.int64)]),
+            "shapedirs": shapedirs, "posedirs": posedirs}
+
+
 def _reorder_and_skin(V: np.ndarray, F: np.ndarray, part_of: np.ndarray, order: np.ndarray, ring: dict,
                       parts: list[_Part], n_joints: int):
     """Put vertex ``order[i]`` at index ``i`` (faces renumbered), then one-hot skinning
@@ -457,18 +469,8 @@ def _build(model_type: str) -> dict[str, np.ndarray]:
         shapedirs = np.zeros((n_v, 3, PROXY_NUM_BETAS))
         posedirs = np.zeros((n_v, 3, 9 * (n_joints - 1)))
     shapedirs[:, :, 0] = PROXY_SCALE_PER_BETA * V
-    parents = np.array(joint_parents, dtype=np.int64)
-    parents[0] = 4294967295  # as in the released files (uint32 -1)
-    kintree = np.stack([parents, np.arange(n_joints, dtype=np.int64)])
     out = {
-        "v_template": V,
-        "f": F.astype(np.int64),
-        "J": J,
-        "J_regressor": J_reg,
-        "weights": weights,
-        "kintree_table": kintree,
-        "shapedirs": shapedirs,
-        "posedirs": posedirs,
+        **_skinned_arrays(V, F, J, J_reg, weights, joint_parents, shapedirs, posedirs),
         "hands_componentsl": np.eye(45),
         "hands_componentsr": np.eye(45),
         "hands_meanl": np.zeros(45),

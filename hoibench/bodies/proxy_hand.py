@@ -70,7 +70,8 @@ import numpy as np
 from ..core.geometry import axis_angle_to_matrix
 from ..core.io import atomic_write_bytes, npz_bytes
 from .proxy import (_FINGER_RADIUS, _FINGERS, _LEFT_FINGERS, PROXY_SCALE_PER_BETA, _assemble, _Part,
-                    _reorder_and_skin, _split_faces)
+                    _reorder_and_skin, _skinned_arrays, _split_faces)
+from .smpl import first_file
 
 __all__ = [
     "MANO_NUM_VERTICES",
@@ -199,17 +200,9 @@ def _build(side: str) -> dict:
     n_v = len(V)
     shapedirs = np.zeros((n_v, 3, MANO_NUM_BETAS))
     shapedirs[:, :, 0] = PROXY_SCALE_PER_BETA * V
-    parents = np.array(MANO_PARENTS, dtype=np.int64)
-    parents[0] = 4294967295  # as in the released files (uint32 -1)
     out = {
-        "v_template": V,
-        "f": F.astype(np.int64),
-        "J": J,
-        "J_regressor": J_reg,
-        "weights": weights,
-        "kintree_table": np.stack([parents, np.arange(MANO_NUM_JOINTS, dtype=np.int64)]),
-        "shapedirs": shapedirs,
-        "posedirs": np.zeros((n_v, 3, 9 * (MANO_NUM_JOINTS - 1))),
+        **_skinned_arrays(V, F, J, J_reg, weights, MANO_PARENTS, shapedirs,
+                          np.zeros((n_v, 3, 9 * (MANO_NUM_JOINTS - 1)))),
         "hands_components": np.eye(MANO_POSE_DIM),
         "hands_mean": np.zeros(MANO_POSE_DIM),
         "bs_style": "lbs",
@@ -291,14 +284,10 @@ def mano_model_path(model_dir, side: str = "right", ext: str | None = None) -> P
     folder = Path(model_dir).expanduser() / "mano"
     exts = ("pkl", "npz") if ext is None else (_check_ext(ext),)
     tried = [folder / f"{_FILE_NAME[s]}.{e}" for e in exts]
-    for p in tried:
-        if p.is_file():
-            return p
-    raise FileNotFoundError(
-        f"MANO {s} hand not found: looked for {', '.join(str(p) for p in tried)}. Download "
-        "MANO yourself from https://mano.is.tue.mpg.de (it is licensed) and pass the folder "
-        "that contains 'mano/', or write the license-free proxy with "
-        "hoibench.bodies.proxy_hand.write_proxy_mano(model_dir).")
+    return first_file(tried, f"MANO {s} hand",
+                      "Download MANO yourself from https://mano.is.tue.mpg.de (it is licensed) and pass the folder "
+                      "that contains 'mano/', or write the license-free proxy with "
+                      "hoibench.bodies.proxy_hand.write_proxy_mano(model_dir).")
 
 
 def load_mano_model(model_dir, side: str = "right", ext: str | None = None, **kwargs):

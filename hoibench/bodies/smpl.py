@@ -72,14 +72,19 @@ def model_path(model_dir, model_type: str = "smplh", gender: str = "neutral",
     if mt == "smpl" and exts != ("pkl",):
         raise ValueError("smplx reads SMPL models from .pkl files only (ext='pkl')")
     tried = [folder / f"{MODEL_FILE_PREFIX[mt]}_{str(gender).upper()}.{e}" for e in exts]
+    return first_file(tried, f"{mt} body model",
+                      f"Download the {mt.upper()} files yourself (they are licensed) and pass the folder "
+                      f"that contains '{mt}/', or write the license-free proxy with "
+                      "hoibench.bodies.write_proxy_model(model_dir).")
+
+
+def first_file(tried: list[Path], what: str, advice: str) -> Path:
+    """The first of ``tried`` that is a file; FileNotFoundError naming ``what``, every path
+    tried and then ``advice`` where none is."""
     for p in tried:
         if p.is_file():
             return p
-    raise FileNotFoundError(
-        f"{mt} body model not found: looked for {', '.join(str(p) for p in tried)}. "
-        f"Download the {mt.upper()} files yourself (they are licensed) and pass the folder "
-        f"that contains '{mt}/', or write the license-free proxy with "
-        "hoibench.bodies.write_proxy_model(model_dir).")
+    raise FileNotFoundError(f"{what} not found: looked for {', '.join(str(p) for p in tried)}. {advice}")
 
 
 def load_body_model(model_dir, model_type: str = "smplh", gender: str = "neutral",
