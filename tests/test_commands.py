@@ -179,7 +179,6 @@ def test_prepare_passes_a_loaders_own_options_and_refuses_them_elsewhere(fake_lo
 def test_a_newly_registered_loader_is_a_prepare_choice_and_runs(monkeypatch, tmp_path):
     from hoibench.datasets import catalog
     monkeypatch.setattr(catalog.LOADER_REGISTRY, "_entries", dict(catalog.LOADER_REGISTRY._entries))
-    monkeypatch.setattr(catalog, "_ORDER", list(catalog._ORDER))
     mod = types.ModuleType("extra_loader")
     seen = []
     mod.prepare_jobs = lambda root, body_models, out, config, split_file=None: seen.append(config) or []
@@ -201,7 +200,6 @@ def test_a_newly_registered_loader_is_a_prepare_choice_and_runs(monkeypatch, tmp
 def test_synth_calls_a_registered_writer_with_what_its_entry_takes(monkeypatch, tmp_path, capsys):
     from hoibench.datasets import synth_registry as reg
     monkeypatch.setattr(reg.SYNTH_LAYOUTS, "_entries", dict(reg.SYNTH_LAYOUTS._entries))
-    monkeypatch.setattr(reg, "_ORDER", list(reg._ORDER))
     mod = types.ModuleType("extra_writer")
     got = []
     mod.write = lambda out, n, seed=0, **kw: got.append((n, seed, kw))

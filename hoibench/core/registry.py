@@ -35,6 +35,10 @@ class Registry(Generic[T]):
     def __iter__(self) -> Iterator[str]:
         return iter(sorted(self._entries))
 
+    def in_order(self) -> list[str]:
+        """The names, in registration order."""
+        return list(self._entries)
+
     def values(self) -> list[T]:
         """The entries, sorted by name."""
         return [self._entries[k] for k in sorted(self._entries)]

@@ -63,14 +63,11 @@ def synthetic_or_behave(root: str | Path) -> str:
 
 
 LOADER_REGISTRY: Registry[Loader] = Registry("dataset loader")
-_ORDER: list[str] = []
 
 
 def register_loader(loader: Loader) -> Loader:
     """Add a loader (listed after the ones before it); a name registered twice is refused."""
-    LOADER_REGISTRY.add(loader.name, loader)
-    _ORDER.append(loader.name)
-    return loader
+    return LOADER_REGISTRY.add(loader.name, loader)
 
 
 def get_loader(name: str) -> Loader:
@@ -80,7 +77,7 @@ def get_loader(name: str) -> Loader:
 
 def loader_names() -> list[str]:
     """Every registered loader, in registration order (``hoibench prepare`` choices, ``datasets ls``)."""
-    return list(_ORDER)
+    return LOADER_REGISTRY.in_order()
 
 
 _HERE = __package__
@@ -115,4 +112,4 @@ for _loader in (
     register_loader(_loader)
 
 #: the registered loaders in registration order (``LOADER_REGISTRY`` answers by name)
-LOADERS: tuple[Loader, ...] = tuple(LOADER_REGISTRY.get(n) for n in _ORDER)
+LOADERS: tuple[Loader, ...] = tuple(LOADER_REGISTRY.get(n) for n in loader_names())

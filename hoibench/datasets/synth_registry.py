@@ -28,23 +28,21 @@ class SynthLayout:
 
 
 SYNTH_LAYOUTS: Registry[SynthLayout] = Registry("synthetic layout")
-_ORDER: list[str] = []
 
 
 def register_layout(layout: SynthLayout) -> SynthLayout:
-    SYNTH_LAYOUTS.add(layout.name, layout)
-    _ORDER.append(layout.name)
-    return layout
+    """Add a layout (listed after the ones before it); a name registered twice is refused."""
+    return SYNTH_LAYOUTS.add(layout.name, layout)
 
 
 def layout_names() -> list[str]:
     """Every registered layout, in registration order."""
-    return list(_ORDER)
+    return SYNTH_LAYOUTS.in_order()
 
 
 def layouts_with(flag: str) -> list[str]:
     """The layouts whose ``flag`` (``takes_defects``, ...) is true, in registration order."""
-    return [n for n in _ORDER if getattr(SYNTH_LAYOUTS.get(n), flag)]
+    return [n for n in layout_names() if getattr(SYNTH_LAYOUTS.get(n), flag)]
 
 
 _P = __package__
