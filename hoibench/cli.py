@@ -107,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     ``HOIBENCH_DEBUG=1`` re-raises for debugging."""
     import os
 
+    from .core.threads import set_wait_policy
+    set_wait_policy()                # before anything loads torch (OpenMP reads it then)
     from .core.errors import HoibenchError
     from .core.interrupts import EXIT_INTERRUPTED, interrupt_message, terminate_as_interrupt, was_interrupted
     args = build_parser().parse_args(argv)

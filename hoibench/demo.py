@@ -216,7 +216,7 @@ def _score(label: str, role: str, sub: Path, data: Path, ev_dir: Path, track: Pa
 
 #: the demo's training schedules, about a third of the tiny configs' (ChainHOI 1,500 steps;
 #: CATMO VQ-VAE 4,000, contact VQ-VAE 1,500, GPT 3,000, object head 1,500), so that ``make
-#: demo`` ends within 15 minutes on 2 cores; the rows of ``leaderboards/synthetic`` use the full
+#: demo`` ends within 15 minutes on 2 idle cores; the rows of ``leaderboards/synthetic`` use the full
 #: tiny schedules (``benchmarks/baselines_synthetic.py``)
 DEMO_SCHEDULES = {"chainhoi": ["--set", "train.steps=450"],
                   "catmo": ["--set", "train.vq_steps=1500", "--set", "train.contact_steps=550",
@@ -251,7 +251,8 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
     times["reference_rows_s"] = round(time.perf_counter() - t0, 1)
     if baselines:
         t1 = time.perf_counter()
-        print("[baselines] training ChainHOI tiny and CATMO tiny side by side (one CPU thread each, ~9 min; "
+        print("[baselines] training ChainHOI tiny and CATMO tiny side by side (one CPU thread each, ~9 min on 2 "
+              "idle cores, longer when other processes keep them busy; "
               "the demo's schedules: " + "; ".join(f"{n} {' '.join(a[1::2])}" for n, a in DEMO_SCHEDULES.items())
               + f", shorter than the checked-in track's tiny rows); logs in {out / 'runs'}")
         (out / "runs").mkdir(parents=True, exist_ok=True)
@@ -309,9 +310,11 @@ def leaderboard_stage(out: Path, seed: int = 0, executor: str = "serial", baseli
 
 def run_demo(out: Path, seed: int = 0, baselines: bool = True) -> dict:
     """The main job on generated data; ``baselines=False`` skips training the two tiny
-    baselines (about 9 of the demo's 13 minutes)."""
+    baselines (about 9 of the demo's 13 minutes on 2 idle cores)."""
     out = Path(out)
     t0 = time.perf_counter()
+    from .core.threads import default_threads
+    default_threads()       # decided now, from the load before the demo's own work (kept for the process)
     report = {"representations": representation_stage(out / "representations", seed=seed)}
     report["synthetic"] = synthetic_stage(out, seed=seed)
     report["leaderboard"] = leaderboard_stage(out, seed=seed, baselines=baselines)

@@ -25,6 +25,7 @@ import torch
 
 from .. import __version__
 from ..core.interrupts import check_interrupted
+from ..core.threads import set_torch_threads
 from ..representations import hoi269, joint_level
 from ..datasets.store import Store
 from . import checkpoint as ckpt
@@ -180,11 +181,13 @@ def sample(run: str | Path, data: str | Path, out: str | Path, *, samples: int =
            split: str = "test", device: str = "cpu", guidance: float | None = None, steps: int | None = None,
            temperature: float | None = None, as_zip: bool = False, limit: int | None = None,
            baseline: str | None = None, log: Callable[[str], None] | None = print,
-           inference: dict | None = None) -> Path:
+           inference: dict | None = None, threads: int | None = None) -> Path:
     """Write a submission of ``samples`` (K) samples per clip of ``split`` to ``out``
     (``baseline``: refuse a run of another baseline; ``inference``: SyncDiff's inference-time
-    settings, ``{"syncdiff.explicit_sync": False}``)."""
+    settings, ``{"syncdiff.explicit_sync": False}``; ``threads``: torch threads, default the
+    machine's free cores, :func:`hoibench.core.threads.set_torch_threads`)."""
     log = log or (lambda s: None)
+    set_torch_threads(threads)
     if not (isinstance(samples, int) and 1 <= samples <= 1000):
         raise ValueError(f"--samples: expected an integer in 1..1000, got {samples!r}")
     loaded = load_run(run, device, baseline)

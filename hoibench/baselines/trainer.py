@@ -26,6 +26,7 @@ from .. import __version__
 from ..core.errors import HoibenchError
 from .config import check_parameter_count, sizing
 from ..core.interrupts import check_interrupted
+from ..core.threads import set_torch_threads
 from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_save_figure, atomic_torch_save, atomic_write_json, check_regular_file,
                        clean_stale_tmp, finished_output, read_json_file)
 from ..datasets.store import Store, legacy_manifest_sha256
@@ -302,9 +303,9 @@ def finished_run(out: Path, name: str, config: dict, dataset: dict, tag: str, lo
 def start_run(out: str | Path, device: str, threads: int | None, log: Callable[[str], None] | None
               ) -> tuple[Callable[[str], None], Path, "torch.device", float]:
     """What every baseline's training starts with: the log function (None: silent), the run
-    folder, the torch device, the thread count set, and the start time."""
-    if threads:
-        torch.set_num_threads(threads)
+    folder, the torch device, the thread count set (``threads``, else the machine's free
+    cores: :func:`hoibench.core.threads.set_torch_threads`), and the start time."""
+    set_torch_threads(threads)
     return log or (lambda s: None), Path(out), torch.device(device), time.perf_counter()
 
 

@@ -105,16 +105,14 @@ def sample_baseline(name: str, run: str | Path | None, data: str | Path, out: st
     if run is None:
         raise ValueError(f"baseline sample {name}: the RUN folder (from `hoibench baseline train {name}`) is required")
     _check_device(device)
-    if threads:
-        import torch
-        torch.set_num_threads(threads)
     from ..baselines.sampler import sample
     over = parse_overrides(overrides)
     if over and name != "syncdiff":
         raise ValueError(f"--set: {name} has no inference-time settings (syncdiff's: syncdiff.explicit_sync, "
                          f"syncdiff.sync_every, syncdiff.sync_weight)")
     sample(run, data, out, samples=samples, seed=seed, device=device, guidance=guidance, steps=ddim_steps,
-           temperature=temperature, as_zip=as_zip, baseline=name, **({"inference": over} if over else {}))
+           temperature=temperature, as_zip=as_zip, baseline=name, threads=threads,
+           **({"inference": over} if over else {}))
     return 0
 
 

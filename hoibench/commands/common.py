@@ -21,7 +21,8 @@ H_EXECUTOR = "where per-clip work runs: serial (default), processes[:N] (N local
 H_STORE = "the processed store (a folder written by hoibench prepare)"
 H_SEED = "random seed (default 0)"
 H_ZIP = "write the submission as one .zip file instead of a folder"
-H_THREADS = "torch threads (default: torch's own choice)"
+H_THREADS = ("torch threads (default: $HOIBENCH_THREADS, else $OMP_NUM_THREADS, else the cores not already busy "
+             "by the load average; docs/benchmarks.md)")
 H_ROOT = ("the leaderboards folder (default: the nearest leaderboards/ with track folders, in the current folder "
           "or above; the command says which)")
 H_ACTION = "what to do: ls lists, show prints one (named next)"

@@ -31,7 +31,7 @@ def register(sub) -> None:
     s.add_argument("--out", type=Path, default=Path("demo-out"), help="the folder to write (default demo-out)")
     s.add_argument("--seed", type=int, default=0, help=H_SEED)
     s.add_argument("--no-baselines", action="store_true",
-                   help="skip training the tiny ChainHOI and CATMO (~9 of the demo's ~13 minutes)")
+                   help="skip training the tiny ChainHOI and CATMO (~9 of the demo's ~13 minutes on 2 idle cores)")
     s.set_defaults(func=_cmd_demo)
 
     s = sub.add_parser("render", help="render a processed clip to PNG, GIF or MP4 (off-screen)",
