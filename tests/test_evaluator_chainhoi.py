@@ -325,24 +325,26 @@ def test_checkpoint_keys_and_shapes_are_checked_before_loading(imported, tmp_pat
     assert "edited.ckpt" in msg and all(n in msg for n in needles), msg
 
 
-def test_missing_statistics_and_text_files_are_named(imported, tmp_path):
+@pytest.mark.parametrize("option, folder, name", [("stats", "behave_t2m", "Std_local.npy"),
+                                                  ("text_model", "roberta", "merges.txt")])
+def test_a_missing_statistics_or_text_file_is_named(imported, tmp_path, option, folder, name):
+    files, _, _ = imported
+    copy = tmp_path / folder
+    shutil.copytree(files[option], copy)
+    (copy / name).unlink()
+    with pytest.raises(ValueError) as e:
+        _import(tmp_path, files, **{option: copy})
+    assert f"{name} is missing" in _one_line(e)
+
+
+def test_unusable_statistics_are_named(imported, tmp_path):
     files, _, _ = imported
     stats = tmp_path / "behave_t2m"
     shutil.copytree(files["stats"], stats)
-    (stats / "Std_local.npy").unlink()
-    with pytest.raises(ValueError) as e:
-        _import(tmp_path, files, stats=stats)
-    assert "Std_local.npy is missing" in _one_line(e)
     np.save(stats / "Std_local.npy", np.zeros(269, np.float32))
     with pytest.raises(ValueError) as e:
         _import(tmp_path, files, stats=stats)
     assert "Std_local.npy" in _one_line(e) and "positive" in str(e.value)
-    text = tmp_path / "roberta"
-    shutil.copytree(files["text_model"], text)
-    (text / "merges.txt").unlink()
-    with pytest.raises(ValueError) as e:
-        _import(tmp_path, files, text_model=text)
-    assert "merges.txt is missing" in _one_line(e)
     unnamed = tmp_path / "stats"
     shutil.copytree(files["stats"], unnamed)
     with pytest.raises(ValueError) as e:         # a tiny evaluator: the dataset comes from the folder name
