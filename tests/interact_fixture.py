@@ -4,7 +4,8 @@
 
 * ``distilbert/``: a tiny DistilBERT folder (``config.json``: dim 32, 2 layers, 2 heads,
   hidden 64, 64 positions; ``vocab.txt`` of :data:`VOCAB`; tokenizer files as
-  ``DistilBertTokenizer.save_pretrained`` writes them), the layout of a local
+  ``DistilBertTokenizer.from_pretrained(folder).save_pretrained(folder)`` writes them, so
+  every word of :data:`VOCAB` is its own token), the layout of a local
   ``distilbert-base-uncased`` download;
 * ``markersbps.ckpt``: a Lightning-style checkpoint ``{"state_dict": ..., "epoch": ...}``
   saved with ``torch.save``: ``textencoder.text_model.*`` (the DistilBERT's own state dict),
@@ -67,7 +68,10 @@ def write_interact_files(root: Path) -> dict[str, Path]:
     bert = root / "distilbert"
     bert.mkdir(parents=True, exist_ok=True)
     (bert / "vocab.txt").write_text("\n".join(VOCAB) + "\n")
-    DistilBertTokenizer(vocab_file=str(bert / "vocab.txt"), do_lower_case=True).save_pretrained(str(bert))
+    # read the vocabulary from the folder, as a hub download is read: transformers 5 ignores
+    # ``DistilBertTokenizer(vocab_file=...)``, whose tokenizer knows only the special tokens
+    # (every word [UNK])
+    DistilBertTokenizer.from_pretrained(str(bert), do_lower_case=True).save_pretrained(str(bert))
     cfg = DistilBertConfig(vocab_size=len(VOCAB), dim=32, n_layers=2, n_heads=2, hidden_dim=64,
                            max_position_embeddings=64)
     cfg.save_pretrained(str(bert))
