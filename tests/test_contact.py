@@ -15,6 +15,8 @@ import pytest
 pytest.importorskip("open3d")
 trimesh = pytest.importorskip("trimesh")
 
+from synthetic_points import points_around_objects  # noqa: E402
+
 from hoibench.bodies import contact as C  # noqa: E402
 from hoibench.core import geometry as geo  # noqa: E402
 from hoibench.datasets import synthetic as syn  # noqa: E402
@@ -63,12 +65,7 @@ def test_sphere_signed_distance_within_tessellation():
 def test_synthetic_objects_match_their_analytic_sdf():
     """Unions of overlapping / touching closed parts (chair, table, stool, backpack): whole-mesh
     ray parity mis-signs the overlaps; the per-component test must not."""
-    rng = np.random.default_rng(2)
-    for name in syn.OBJECTS:
-        obj = syn.build_object(name)
-        lo, hi = obj.vertices.min(0) - 0.05, obj.vertices.max(0) + 0.05
-        p = rng.uniform(lo, hi, (4000, 3))
-        exact = obj.sdf_local(p)
+    for name, obj, p, exact in points_around_objects(seed=2, margin=0.05, n=4000):
         field = C.SignedDistance(obj.vertices, obj.faces)
         d = field(p)
         # tessellated curved parts lie within 3 mm inside the analytic surface

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from synthetic_points import points_around_objects
+
 from hoibench.core import geometry as geo
 from hoibench.bodies import proxy_rest_joints
 from hoibench.datasets import synthetic as syn
@@ -167,12 +169,7 @@ def test_mesh_distance_helper_on_a_unit_square():
 
 
 def test_analytic_signed_distance_matches_the_written_mesh():
-    rng = np.random.default_rng(0)
-    for name in syn.OBJECTS:
-        m = syn.build_object(name)
-        lo, hi = m.vertices.min(0) - 0.1, m.vertices.max(0) + 0.1
-        p = rng.uniform(lo, hi, (300, 3))
-        sd = m.sdf_local(p)
+    for name, m, p, sd in points_around_objects(seed=0, margin=0.1, n=300):
         p = p[sd > 0.002]
         dist = _mesh_distance(p, m.vertices, m.faces)
         # boxes exactly; curved parts differ by at most the tessellation sagitta
