@@ -115,3 +115,32 @@ def test_a_result_whose_per_clip_file_changed_is_refused(world, tmp_path):
         f.write(b"x")
     with pytest.raises(ValueError, match=r"b.clips.npz: per_clip_data.sha256"):
         paired_compare([a, b])
+
+
+def test_evaluate_keeps_per_clip_data_and_clip_intervals_and_compare_paired_reads_them(
+        annotated_store_with_evaluator, tmp_path, capsys):
+    from hoibench.cli import main
+    _, data, ev = annotated_store_with_evaluator
+    for kind, sigma in (("gt", None), ("gt-noise", "0.05")):
+        args = ["submission", "from-store", str(data), "--out", str(tmp_path / kind)] if kind == "gt" else \
+            ["submission", "reference", str(data), "--kind", kind, "--sigma", sigma, "--out", str(tmp_path / kind)]
+        assert main(args) == 0
+        assert main(["evaluate", str(tmp_path / kind), "--data", str(data), "--evaluator", str(ev),
+                     "--out", str(tmp_path / f"{kind}.json")]) == 0
+    res = json.loads((tmp_path / "gt.json").read_text())
+    ref = res["per_clip_data"]
+    assert ref["file"] == "gt.clips.npz" and (tmp_path / ref["file"]).stat().st_size == ref["bytes"]
+    cd = res["metrics"]["cd"]
+    lo, hi = cd["clips"]["ci95"]
+    assert lo <= cd["mean"] <= hi and cd["clips"]["over"] == "test clips"       # CD is a mean over clips
+    assert "clips" in res["metrics"]["fid"] and "clips" in res["metrics"]["r_precision_top1"]
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "gt.json"), str(tmp_path / "gt-noise.json"), "--paired",
+                 "--out", str(tmp_path / "cmp.json")]) == 0
+    cmp = json.loads((tmp_path / "cmp.json").read_text())
+    pair = cmp["pairs"][0]
+    assert pair["n_clips"] == res["counts"]["scored_ids"] and cmp["resamples"] == 2000
+    fid = pair["metrics"]["fid"]
+    assert set(fid) >= {"diff", "ci95", "p", "p_holm", "verdict"} and fid["diff"] > 0
+    assert pair["metrics"]["jitter_mps3"]["verdict"] == "A better"            # 5 cm noise jitters every frame
+    assert "A better" in capsys.readouterr().out

@@ -57,7 +57,7 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
         raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
     result = upgrade_result(result)
     counts = result.get("counts", {})
-    metrics = {k: {f: v.get(f) for f in ENTRY_METRIC_FIELDS} for k, v in sorted(result.get("metrics", {}).items())}
+    metrics = {k: {f: v[f] for f in ENTRY_METRIC_FIELDS if f in v} for k, v in sorted(result.get("metrics", {}).items())}
     return {
         "format": ENTRY_FORMAT, "track": track, "method": method, "source": source,
         "metrics": metrics, "undefined_metrics": result.get("undefined_metrics", {}),
@@ -76,7 +76,7 @@ def entry_from_result(result: dict, *, method: str, track: str, source: str = "r
 
 
 #: the fields of an entry's metric block
-ENTRY_METRIC_FIELDS = ("mean", "ci95", "n", "unit", "direction", "interval")
+ENTRY_METRIC_FIELDS = ("mean", "ci95", "n", "unit", "direction", "interval", "clips")
 
 
 def upgrade_entry(entry: dict) -> dict:

@@ -30,6 +30,10 @@ MAX_ABOUT_BYTES = 1024 ** 2
 COLORS = {"ground-truth": "#2b6cb0", "ranked": "#dd6b20", "reference": "#718096", "reported": "#a0aec0"}
 #: what a CI cell shows at K = 1 when the metric did not move over the replications
 K1_CI = "n/a (K = 1)"
+#: marks a half-width over the test clips (a clip bootstrap) in place of one over replications
+CLIPS_MARK = "(clips)"
+CLIPS_NOTE = ("(clips): half the width of the 95% clip-bootstrap interval (1,000 seeded resamples of the scored "
+              "test clips, sample 0), shown at K = 1 where the replications do not move the number")
 K1_NOTE = ("n/a (K = 1): one sample per prompt, so every replication scores the same samples and a metric "
            "of the samples alone (FID, CD, PS, FSR, ...) has no spread to report; sample K > 1 times "
            "(--samples) for a CI that includes sampling variance")
@@ -58,6 +62,10 @@ def _parts(m: dict | None, k=None, name: str = "") -> tuple[str, str]:
     if "ci95" in m and m["ci95"] is None:          # a hosted row: the engine keeps means only
         return f"{mean:.{digits}f}", ""
     if k == 1 and ci == 0 and m.get("interval", "replications") == "replications":
+        clips = m.get("clips") if isinstance(m.get("clips"), dict) else None
+        if clips and len(clips.get("ci95") or []) == 2:          # an interval over the test clips instead
+            half = (float(clips["ci95"][1]) - float(clips["ci95"][0])) / 2
+            return f"{mean:.{digits}f}", f"{half:.{digits}f} {CLIPS_MARK}"
         return f"{mean:.{digits}f}", K1_CI
     small = 0 < ci < 0.5 * 10 ** -digits            # a real spread that the digits would round to 0
     return f"{mean:.{digits}f}", (f"{ci:.1e}" if small else f"{ci:.{digits}f}")
@@ -156,6 +164,11 @@ def _replication_k(e: dict):
     return e.get("samples_per_prompt")
 
 
+def _any_clips(entries: list[dict], cols: list[str]) -> bool:
+    return any(_parts(e["metrics"].get(c), _replication_k(e), c)[1].endswith(CLIPS_MARK)
+               for e in entries for c in cols)
+
+
 def _any_k1(entries: list[dict], cols: list[str]) -> bool:
     return any(_replication_k(e) == 1 and _parts(e["metrics"].get(c), 1, c)[1] == K1_CI
                for e in entries for c in cols)
@@ -241,7 +254,8 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
             lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))} | "
                          + " | ".join(fmt(e["metrics"].get(c), k, c) for c in cols) + f" | {md_text(budget(e))} |")
     units = "; ".join(f"{title(c)}: {_info(c).units}" for c in cols if _info(c))
-    lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else [])
+    lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else []) \
+        + (["", f"CI {CLIPS_NOTE}."] if _any_clips(entries, cols) else [])
     lines += ["", "Bar and point colours: " + ", ".join(f"{_COLOR_NAMES[b]} {b.replace('-', ' ')}"
                                                        for b, _, _ in _bands(entries)) + ".", "",
               "![metrics](metrics.png)", ""] + (["![FID vs R@1](fid_vs_r1.png)", ""] if _has_fid_r1(entries) else [])
@@ -482,7 +496,8 @@ def _legend(entries: list[dict], cols: list[str]) -> str:
     rows = "".join(f"<li>{e_(BAND_LEGEND[b])}</li>" for b in bands)
     swatches = " ".join(f'<span class="swatch" style="background:{COLORS[b]}"></span>{e_(b.replace("-", " "))}'
                         for b in bands)
-    k1 = f"<li>{e_(K1_NOTE)}</li>" if _any_k1(entries, cols) else ""
+    k1 = (f"<li>{e_(K1_NOTE)}</li>" if _any_k1(entries, cols) else "") + \
+        (f"<li>{e_(CLIPS_NOTE)}</li>" if _any_clips(entries, cols) else "")
     return (f'<div class="legend"><b>Legend</b><ul>{rows}{k1}<li>Each cell: {html.escape(_cells_text(entries, "html"), quote=False)}.'
             f"</li><li>Bar and point colours in the plots: {swatches}.</li></ul></div>")
 

@@ -88,6 +88,7 @@ class HOIState:
     t4: float = 0.0
     notes: list = field(default_factory=list)
     per_clip: dict | None = None
+    clip_arrays: dict = field(default_factory=dict)   # the per-clip data (scoring.clip_data)
     fid_method: str = ""
 
 
@@ -373,8 +374,9 @@ class HOIScorer(Scorer):
                               f"{proto.mm_samples}")
         where = {cid: i for i, cid in enumerate(ids)}
         self.st.per_clip = self._per_clip(real, text_sets)
+        self.st.clip_arrays = self._clip_data(real, text_sets)
         if isinstance(self.options.get("clip_data"), dict):
-            self.options["clip_data"].update(self._clip_data(real, text_sets))
+            self.options["clip_data"].update(self.st.clip_arrays)
         self.st.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
         if proto.embedding_loop != "hoibench":
             self.st.t4 = t4
@@ -491,6 +493,10 @@ class HOIScorer(Scorer):
         overrides = self.st.overrides
         listed = set(proto.metrics) | {"clips", "clips_with_contact"}
         summary = summarize_replications(per_rep, proto.replications)
+        over_clips = {}
+        if self.st.K == 1 and self.st.clip_arrays:       # K = 1: replications resample captions and pools only
+            from .paired import clip_intervals
+            over_clips = clip_intervals(self.st.clip_arrays, proto, seed=int(proto.seed or 0))
         return {
             "format": RESULT_FORMAT, "kind": "hoi", "track": self.track.name,
             **proto.result_header(),
@@ -514,7 +520,8 @@ class HOIScorer(Scorer):
             "numerics": {"fid": self.st.fid_method},
             "metric_variants": {"embedding_loop": proto.embedding_loop,
                                 "physical": proto.physical_config().to_dict()},
-            "metrics": {k: metric_entry(k, v["mean"], v["ci95"], v["n"], "replications", std=v["std"])
+            "metrics": {k: metric_entry(k, v["mean"], v["ci95"], v["n"], "replications", std=v["std"],
+                                        **({"clips": over_clips[k]} if k in over_clips else {}))
                         for k, v in summary.items() if k in listed},
             "undefined_metrics": undefined,
             "per_replication": per_rep, "per_clip": self.st.per_clip, "notes": notes,

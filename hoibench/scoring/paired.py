@@ -202,4 +202,41 @@ def format_paired(cmp: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["paired_compare", "compare_pair", "check_same_scale", "format_paired", "MIN_RESAMPLES"]
+
+
+#: resamples of the clip-bootstrap interval a result carries
+CLIP_RESAMPLES = 1000
+#: set-level metrics (FID, Diversity) get a clip interval in the result up to this many clips
+#: (beyond it the per-resample cost grows with the embedding size; compare --paired computes it)
+SET_LEVEL_MAX_CLIPS = 256
+
+
+def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: int = 0) -> dict[str, dict]:
+    """``{metric: {"ci95": [lo, hi], "resamples": B, "over": "test clips"}}``: the 2.5 and 97.5
+    percentiles of each metric recomputed on ``resamples`` seeded draws of the scored clips
+    (sample 0; the per-clip forms of :func:`compare_pair`); set-level metrics only up to
+    :data:`SET_LEVEL_MAX_CLIPS` clips."""
+    ids = [str(x) for x in arrays["ids"]]
+    n = len(ids)
+    if n < 2:
+        return {}
+    order = np.arange(n)
+    pools = [[ids.index(c) for c in p] for p in proto.pools(ids, 0)] or [list(range(n))]
+    side = _Side(arrays, order, pools, int(proto.r_precision_top_k or 3))
+    W = bootstrap_weights(n, resamples, seed).astype(np.float64)
+    boot = {m: _means(v, W) for m, v in side.per_clip().items()}
+    if n <= SET_LEVEL_MAX_CLIPS:
+        pairs = int(min(proto.diversity_pairs or 300, 300))
+        got = _set_level((0, W, side.motion, side.motion, side.real, pairs, seed))
+        boot.update(fid=got["fid_a"], diversity=got["div_a"])
+    out = {}
+    for m, v in boot.items():
+        v = v[np.isfinite(v)]
+        if len(v) > 1:
+            lo, hi = np.percentile(v, [2.5, 97.5])
+            out[m] = {"ci95": [float(lo), float(hi)], "resamples": int(resamples), "over": "test clips"}
+    return out
+
+
+__all__ = ["paired_compare", "compare_pair", "check_same_scale", "format_paired", "clip_intervals", "MIN_RESAMPLES",
+           "CLIP_RESAMPLES"]
