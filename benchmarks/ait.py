@@ -8,9 +8,12 @@ verified), the run's own sampling options (``options()``: the config's DDIM step
 guidance, or CATMO's temperature) and ``generate_sample`` (text and object encoding, the
 DDIM loop with classifier-free guidance or CATMO's autoregressive tokens, de-normalisation,
 decoding to joints and object pose). Prompt and object: the first test clip of ``--data``;
-length ``--frames``. One warm-up sample (2 DDIM steps) per model and thread count, then
+length ``--frames``. Threads wait passively (``OMP_WAIT_POLICY=PASSIVE`` unless set, as the
+``hoibench`` command sets it). One warm-up sample (2 DDIM steps) per model and thread count, then
 ``--samples`` timed samples (``--paper-samples`` at paper size). The load average is
-printed beside every row (the figures are only comparable within one run).
+printed beside every row (the figures are only comparable within one run), and the
+process's CPU seconds per sample beside the wall time (all threads together; on a shared
+machine the steadier figure at one thread).
 
     python benchmarks/ait.py --data STORE [--work W] [--frames 120] [--threads 1 2] [--paper-threads 1]
 
@@ -28,13 +31,15 @@ import tempfile
 import time
 from pathlib import Path
 
-import torch
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")   # as the hoibench command: waiting threads sleep
 
-from hoibench.baselines import joint_data as D
-from hoibench.baselines.sampler import load_run
-from hoibench.commands.baselines import train_baseline
-from hoibench.datasets.store import Store
-from hoibench.evaluator.text import read_captions
+import torch  # noqa: E402
+
+from hoibench.baselines import joint_data as D  # noqa: E402
+from hoibench.baselines.sampler import load_run  # noqa: E402
+from hoibench.commands.baselines import train_baseline  # noqa: E402
+from hoibench.datasets.store import Store  # noqa: E402
+from hoibench.evaluator.text import read_captions  # noqa: E402
 
 
 def run_folder(work: Path, name: str, size: str, data: str) -> Path:
@@ -72,11 +77,15 @@ def main() -> None:
     v, f = Store(args.data).object_template(obj)
     print(f"# AIT on CPU ({platform.processor() or platform.machine()}, {os.cpu_count()} cores), torch "
           f"{torch.__version__}, T = {args.frames} frames, untrained weights; prompt {caption!r} ({obj})")
-    print("| model | size | parameters (M) | sampling | threads | AIT (s/sample) | samples | load |")
-    print("|---|---|---:|---|---:|---:|---:|---:|")
+    print("| model | size | parameters (M) | sampling | threads | AIT (s/sample) | CPU s/sample | samples | load |")
+    print("|---|---|---:|---|---:|---:|---:|---:|---:|")
     for name in args.models:
         for size in args.sizes:
-            loaded = load_run(run_folder(work, name, size, args.data))
+            try:
+                loaded = load_run(run_folder(work, name, size, args.data))
+            except Exception as exc:                      # report the row, time the others
+                print(f"| {name} | {size} | | | | not measured: {type(exc).__name__}: {exc} | | | |", flush=True)
+                continue
             opts = loaded.options()
             points = (D.input_points(v, f, loaded.object_points, obj, getattr(loaded, "object_source", "surface"))
                       if loaded.requires_object else None)
@@ -86,12 +95,12 @@ def main() -> None:
                 torch.set_num_threads(threads)
                 warm = {**opts, "ddim_steps": 2} if "ddim_steps" in opts else opts
                 loaded.generate_sample(caption, points, args.frames, 1, (0, "warm-up"), **warm)
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 for s in range(n):
                     loaded.generate_sample(caption, points, args.frames, 1, (0, "ait", s), **opts)
-                ait = (time.perf_counter() - t0) / n
+                ait, cpu = (time.perf_counter() - t0) / n, (time.process_time() - c0) / n
                 how = ", ".join(f"{k} {v:g}" for k, v in opts.items())
-                print(f"| {name} | {size} | {params / 1e6:.2f} | {how} | {threads} | {ait:.3f} | {n} | "
+                print(f"| {name} | {size} | {params / 1e6:.2f} | {how} | {threads} | {ait:.3f} | {cpu:.3f} | {n} | "
                       f"{os.getloadavg()[0]:.2f} |", flush=True)
     if tmp is not None:
         tmp.cleanup()
