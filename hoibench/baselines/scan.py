@@ -2,19 +2,20 @@
 
 :func:`selective_scan` is Mamba-1's S6 with zero-order-hold ``A`` and the simplified (Euler)
 ``B``: ``h_t = exp(delta_t A) h_{t-1} + delta_t B_t u_t`` (``h_{-1} = 0``, per channel ``d`` and
-state ``n``), ``y_t = C_t . h_t + D u_t``. It runs as a loop over time on one (sequences,
-state, width) slice at a time, with the ``C`` contraction fused into the loop, so the
-(sequences, frames, width, state) tensors of ``exp(delta A)`` and ``delta B u`` are never
-built; the state sits as (state, width) with the width contiguous, so every broadcast in the
-loop runs over the contiguous width; sequences are taken in tiles of about
-``TILE_ELEMENTS`` state entries, so a step's operands stay in the CPU's cache.
+state ``n``), ``y_t = C_t . h_t + D u_t``. It runs time-major as a loop over time chunks of
+about ``CHUNK_ELEMENTS`` state entries (one step for many sequences, many steps for few):
+per chunk ``exp(delta A)`` and ``delta B u`` for the chunk only, the recurrence one step at a
+time in place, and the ``C`` contraction as one batched product, so no (sequences, frames,
+width, state) tensor is streamed through memory again and again; the state sits as (state,
+width) with the width contiguous, so every broadcast runs over the contiguous width.
 
 Its backward is written out (:class:`_S6`): the adjoint ``g_t = dL/dh_t`` runs backwards in
 time, ``g_t = C_t dy_t + exp(delta_{t+1} A) g_{t+1}``, and with ``q_t = g_t h_{t-1}
 exp(delta_t A)``: ``dL/dA = sum_t delta_t q_t``, ``dL/ddelta_t = sum_n A q_t + u_t sum_n B_t
-g_t``, ``dL/du_t = delta_t sum_n B_t g_t``, ``dL/dB_t = sum_d delta_t u_t g_t``, ``dL/dC_t =
-sum_d dy_t h_t``. Training keeps the states h (frames, sequences, state, width) for it;
-``exp(delta A)`` is recomputed.
+g_t``, ``dL/du_t = delta_t sum_n B_t g_t + D dy_t``, ``dL/dB_t = sum_d delta_t u_t g_t``,
+``dL/dC_t = sum_d dy_t h_t``, ``dL/dD = sum_t dy_t u_t``. Training keeps each chunk's states h
+and ``exp(delta A)`` for it (chunks of a few hundred KB: reused memory, where one tensor of
+the whole scan would be a fresh memory mapping at every call); sampling keeps nothing.
 
 :func:`linear_scan` is the general ``h_t = a_t h_{t-1} + b_t`` over given tensors by
 Blelloch's work-efficient parallel scan (``2 log2 L`` vectorised steps over strided views,
@@ -41,7 +42,7 @@ def _s6_forward(u, delta, At, B, C, keep: bool):
     Per time chunk: ``E = exp(delta A)`` and ``X = delta B u`` for the chunk (T, b, n, d), the
     recurrence ``h_t = E_t h_{t-1} + X_t`` step by step in place of X, ``y = C . h`` for the
     chunk. Returns y (L, b, d) and, with ``keep``, the chunks' (E, h) for the backward pass
-    (chunks of a few MB, so they are reused memory, not a fresh mapping per call)."""
+    (chunks of about ``CHUNK_ELEMENTS`` entries: reused memory, not a fresh mapping per call)."""
     L, b, d = u.shape
     n = At.shape[0]
     du = delta * u
