@@ -351,16 +351,15 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     The split is the official one (test = Date03) unless ``split_file`` names another; a
     sequence the split file does not list is an error for that sequence.
     """
-    from .store import fail_unit, file_sha256, invalid_id_job, refuse_duplicates, unlisted_split_jobs
+    from .store import fail_unit, file_sha256, refuse_duplicates, refused_id_job, unlisted_split_jobs
     root = Path(root)
     splits = load_split_file(split_file) if split_file else None
     jobs, sources = [], []
     for seq in list_sequences(root):
         name = seq.name
-        try:
-            check_id(name, "sequence folder", root / "sequences")
-        except InvalidIdError as exc:
-            jobs.append(invalid_id_job(name, str(exc), out, config.mode))
+        refused = refused_id_job(name, "sequence folder", root / "sequences", out, config.mode)
+        if refused:
+            jobs.append(refused)
             sources.append(str(seq))
             continue
         loader, args = load_sequence, (str(seq), str(root / "objects"), str(body_models), config.fps)

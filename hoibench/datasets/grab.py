@@ -680,7 +680,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     ``s1``..``s10`` is one failing source job (the manifest's ``incomplete``), except in
     hoibench's synthetic GRAB layout (``hoibench_synthetic.json``), which writes a few.
     """
-    from .store import (fail_unit, file_sha256, invalid_id_job, refuse_duplicates, source_failure_job, unlisted_split_jobs)
+    from .store import (fail_unit, file_sha256, refuse_duplicates, refused_id_job, source_failure_job, unlisted_split_jobs)
     data_root, asset_root = _roots(Path(root))
     splits = load_split_file(split_file) if split_file else None
     source_jobs = [source_failure_job(f"grab_{s}", f"grab/{s}: missing in {data_root}: the store has no sequences "
@@ -696,10 +696,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
         for f in sorted(p for p in folder.iterdir() if _is_sequence_file(p)):
             cid = clip_id(subject, f.stem)
             origin = f"grab/{subject}/{f.name}"
-            try:
-                check_id(cid, "clip id", origin)
-            except InvalidIdError as exc:
-                jobs.append(invalid_id_job(cid, str(exc), out, config.mode))
+            refused = refused_id_job(cid, "clip id", origin, out, config.mode)
+            if refused:
+                jobs.append(refused)
                 sources.append(origin)
                 continue
             files = conventional_assets(asset_root, subject, f.stem.split("_")[0], with_table)

@@ -571,7 +571,7 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     every copy. A missing or unreadable pickle is one failing "source" job (the manifest's
     ``incomplete``), never a silent store without that split.
     """
-    from .store import fail_unit, invalid_id_job, refuse_duplicates, unlisted_split_jobs
+    from .store import fail_unit, refuse_duplicates, refused_id_job, unlisted_split_jobs
     root = Path(root)
     data_root = _data_root(root)
     objects_root = data_root / "captured_objects"
@@ -591,10 +591,9 @@ def prepare_jobs(root: str | Path, body_models: str | Path, out: str | Path, con
     jobs, sources = [], []
     for cid, seq, origin in entries:
         fname = origin.split(" ")[0]
-        try:
-            check_id(cid, "seq_name", origin)
-        except InvalidIdError as exc:
-            jobs.append(invalid_id_job(cid, str(exc), out, config.mode))
+        refused = refused_id_job(cid, "seq_name", origin, out, config.mode)
+        if refused:
+            jobs.append(refused)
             sources.append(origin)
             continue
         m = _NAME.match(cid)
