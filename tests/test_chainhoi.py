@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 import torch
 
+from chainhoi_oracle import Oracle
+
 from hoibench.baselines import joint_data as D
 from hoibench.baselines.chainhoi import graph
 from hoibench.baselines.chainhoi.config import preset
@@ -168,16 +170,7 @@ def test_contact_loss_is_the_gated_squared_distance(template_store, distance):
     cfg = small_config(**{"train.lambda_object": 0.0, "train.contact_distance": distance})
     ts = training_set(template_store, cfg)
     batch = make_batch(ts, cfg, 3, TextConditioner("tokens", 32, ts.vocab), "cpu")
-
-    class Oracle(torch.nn.Module):           # predicts the clean batch exactly
-        def encode_text(self, t, p):
-            return t
-        def encode_object(self, p):
-            return p
-        def forward(self, xt, t, keep, text, pad, obj, valid):
-            return batch["x0"]
-
-    losses = _fixed_loss(Oracle(), GaussianDiffusion(cfg.diffusion), batch, cfg, ts)
+    losses = _fixed_loss(Oracle(batch["x0"]), GaussianDiffusion(cfg.diffusion), batch, cfg, ts)
     assert float(losses["diffusion"]) == 0.0
     raw = batch["x0"].double() * torch.from_numpy(ts.stats.std).double() + torch.from_numpy(ts.stats.mean).double()
     total, count = 0.0, 0

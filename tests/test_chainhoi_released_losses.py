@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 import torch
 
+from chainhoi_oracle import Oracle
+
 from hoibench.baselines import joint_data as D
 from hoibench.baselines.chainhoi import released_losses as RL
 from hoibench.baselines.chainhoi.pointnet2 import PointNet2MSG, ball_query
@@ -152,20 +154,9 @@ def test_training_batches_carry_meshes_and_per_joint_contacts(template_store):
     name = ts.items[0].object_name
     v, f = ts.meshes[name]
     assert {tuple(p) for p in D.vertex_points(v, 512, name).tolist()} <= {tuple(p) for p in v.astype(np.float32).tolist()}
-
-    class Oracle(torch.nn.Module):
-        def encode_text(self, t, p):
-            return t
-
-        def encode_object(self, p):
-            return p
-
-        def forward(self, xt, t, keep, text, pad, obj, valid):
-            return batch["x0"]
-
     mean, std = torch.from_numpy(ts.stats.mean).double(), torch.from_numpy(ts.stats.std).double()
     batch = {k: (v.double() if torch.is_tensor(v) and v.is_floating_point() else v) for k, v in batch.items()}
-    out = RL.losses(Oracle(), GaussianDiffusion(cfg.diffusion), batch, cfg, mean, std, torch.Generator().manual_seed(1))
+    out = RL.losses(Oracle(batch["x0"]), GaussianDiffusion(cfg.diffusion), batch, cfg, mean, std, torch.Generator().manual_seed(1))
     assert float(out["diffusion"]) == 0.0 and float(out["object"]) == 0.0
     raw = batch["x0"] * std + mean
     joints = RL.joint_positions(raw).numpy()

@@ -310,6 +310,22 @@ def start_run(out: str | Path, device: str, threads: int | None, log: Callable[[
 
 
 
+def collect_losses(window: dict[str, list[float]], losses: dict[str, torch.Tensor]) -> None:
+    """Add one step's loss values to ``window``, the losses since the last curve row."""
+    for k, v in losses.items():
+        window.setdefault(k, []).append(float(v.detach()))
+
+
+def close_window(window: dict[str, list[float]], curve: list, step: int, start: int, t_start: float) -> str:
+    """Append the curve row of ``window`` (each loss's mean at ``step``) to ``curve``; return
+    the log line's tail: the losses and the steps per second since ``start`` (at ``t_start``)."""
+    row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
+    curve.append(row)
+    rate = (step - start) / max(time.perf_counter() - t_start, 1e-9)
+    parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
+    return f"loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s"
+
+
 def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, step: int, curve: list, window: dict,
               cpath: Path, ident: dict, out: Path, t0: float, tag: str, log: Callable[[str], None],
               stop_after: int | None = None) -> TrainResult | None:
@@ -341,15 +357,11 @@ def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, ste
         opt.step()
         ema.update(model)
         step += 1
-        for k, v in losses.items():
-            window.setdefault(k, []).append(float(v.detach()))
+        collect_losses(window, losses)
         if step % train.log_every == 0 or step == train.steps:
-            row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
-            curve.append(row)
+            progress = close_window(window, curve, step, start, tl)
             window = {}
-            rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
-            parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
-            log(f"{tag} step {step}/{train.steps} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
+            log(f"{tag} step {step}/{train.steps} {progress}")
         if step % train.checkpoint_every == 0 or step == train.steps:
             _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
             saved = step

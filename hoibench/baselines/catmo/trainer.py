@@ -46,8 +46,8 @@ from ...core.io import atomic_torch_save, atomic_write_json, clean_stale_tmp
 from ...representations import hml263
 from .. import checkpoint as ckpt
 from ..text import TextConditioner
-from ..trainer import (TrainingDiverged, TrainResult, _existing, _seed, drop_checkpoint, plot_panels, read_checkpoint,
-                       finished_run, start_run)
+from ..trainer import (TrainingDiverged, TrainResult, _existing, _seed, close_window, collect_losses, drop_checkpoint,
+                       finished_run, plot_panels, read_checkpoint, start_run)
 from . import data as CD
 from .config import CatmoConfig, preset
 from .gpt import corrupt, interleave
@@ -374,15 +374,11 @@ def _run_stages(model: CATMO, steps: Steps, cfg: CatmoConfig, steps_of: dict[str
             opt.step()
             step += 1
             taken += 1
-            for k, v in losses.items():
-                window.setdefault(k, []).append(float(v.detach()))
+            collect_losses(window, losses)
             if step % cfg.train.log_every == 0 or step == total:
-                row = {"step": step, **{k: float(np.mean(v)) for k, v in window.items()}}
-                curve.append(row)
+                progress = close_window(window, curve, step, start, tl)
                 window = {}
-                rate = (step - start) / max(time.perf_counter() - tl, 1e-9)
-                parts = " ".join(f"{k} {v:.4g}" for k, v in row.items() if k not in ("step", "loss"))
-                log(f"{tag} {stage} {step}/{total} loss {row['loss']:.4f} ({parts}) {rate:.2f} steps/s")
+                log(f"{tag} {stage} {step}/{total} {progress}")
             if step == total:
                 _save(cpath, stage_i + 1, 0, model, None, curves, window, ident)
                 saved = step

@@ -25,6 +25,8 @@ import hashlib
 import torch
 from torch import nn
 
+from ..layers import farthest_point_sample
+
 LEVELS = (
     (1024, (0.05, 0.1), (16, 32), ((16, 16, 32), (32, 32, 64))),
     (256, (0.1, 0.2), (16, 32), ((64, 64, 128), (64, 96, 128))),
@@ -39,20 +41,6 @@ def shared_mlp(widths: list[int]) -> nn.Sequential:
     for a, b in zip(widths[:-1], widths[1:]):
         layers += [nn.Conv2d(a, b, 1, bias=False), nn.BatchNorm2d(b), nn.ReLU(True)]
     return nn.Sequential(*layers)
-
-
-def farthest_points(xyz: torch.Tensor, n: int) -> torch.Tensor:
-    """(B, n) indices: farthest-point sampling from index 0 (ties: lowest index)."""
-    B, N, _ = xyz.shape
-    idx = torch.zeros(B, n, dtype=torch.long, device=xyz.device)
-    dist = torch.full((B, N), float("inf"), device=xyz.device)
-    cur = torch.zeros(B, dtype=torch.long, device=xyz.device)
-    ar = torch.arange(B, device=xyz.device)
-    for i in range(n):
-        idx[:, i] = cur
-        dist = torch.minimum(dist, ((xyz - xyz[ar, cur][:, None]) ** 2).sum(-1))
-        cur = dist.argmax(-1)
-    return idx
 
 
 def ball_query(xyz: torch.Tensor, centres: torch.Tensor, radius: float, nsample: int) -> torch.Tensor:
@@ -84,7 +72,7 @@ class SetAbstractionMSG(nn.Module):
     @torch.no_grad()
     def grouping(self, xyz: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """(centre indices (B, S), [ball indices (B, S, k) per radius]) of xyz (B, N, 3)."""
-        c = farthest_points(xyz, self.npoint)
+        c = farthest_point_sample(xyz, self.npoint)
         centres = _gather(xyz, c)
         return c, [ball_query(xyz, centres, r, k) for r, k in zip(self.radii, self.nsamples)]
 
