@@ -18,6 +18,7 @@ import stat
 import tempfile
 import zipfile
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -235,6 +236,19 @@ MAX_CLIP_BYTES = 256 * 1024 ** 2         # one clip or sample array file of a st
 def read_json_file(path: str | os.PathLike, max_bytes: int = MAX_JSON_BYTES, what: str = "JSON file") -> object:
     """:func:`read_regular_file` + :func:`load_json_bytes`."""
     return load_json_bytes(read_regular_file(path, max_bytes, what), path)
+
+
+def read_json_object(path: str | os.PathLike, max_bytes: int = MAX_JSON_BYTES, what: str = "JSON file",
+                     fields: Sequence[tuple[str, type]] = ()) -> dict:
+    """The JSON object of :func:`read_json_file` with every ``(name, type)`` of ``fields``
+    present and of that type; ``ValueError`` naming the file (and the field) otherwise."""
+    obj = read_json_file(path, max_bytes, what)
+    if not isinstance(obj, dict):
+        raise ValueError(f"{path}: expected a JSON object")
+    for key, t in fields:
+        if not isinstance(obj.get(key), t):
+            raise ValueError(f"{path}: field {key}: missing or not a JSON {t.__name__}")
+    return obj
 
 
 def read_text_file(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "text file") -> str:

@@ -88,22 +88,24 @@ register_backend(Backend(
                   ImportFile("mean", "InterAct: mean_train_markersbps.npy (615,)"),
                   ImportFile("std", "InterAct: std_train_markersbps.npy (615,)"),
                   ImportFile("bps_basis", "InterAct: bps_basis_set_128_1.npy (128, 3)"))))
-register_backend(Backend("t2m", "contrastive", "card.json", ".published_t2m:load_t2m",
-                         "Guo et al.'s text-motion matching evaluator (text-to-motion's finest.tar, GloVe, meta)",
-                         importer=".published_t2m:import_t2m",
-                         import_files=(ImportFile("checkpoint", "text-to-motion's finest.tar"),
-                                       ImportFile("glove", "the glove/ folder (our_vab_data.npy, our_vab_words.pkl, "
-                                                           "our_vab_idx.pkl)"),
-                                       ImportFile("meta", "the evaluator's meta/ folder (mean.npy, std.npy)"))))
 
-register_backend(Backend("chois", "contrastive", "card.json", ".chois_t2m:load_chois",
-                         "CHOIS's text-motion matching evaluator (t2m architecture on OMOMO joints24, 120 frames)",
-                         importer=".chois_t2m:import_chois",
-                         import_files=(ImportFile("checkpoint", "CHOIS: text_motion_features/model/finest.tar"),
-                                       ImportFile("glove", "CHOIS: the glove_840B/ folder (our_vab_data.npy, "
-                                                           "our_vab_words.pkl, our_vab_idx.pkl)"),
-                                       ImportFile("meta", "CHOIS: a folder with mean.npy and std.npy (72,) from "
-                                                          "t2m_mean_std_jpos.p (docs/evaluator.md)"))))
+#: the backends of Guo et al.'s matching architecture: name, loader, importer, description and
+#: what each imported file (checkpoint, GloVe folder, meta statistics) is
+_T2M_ARCHITECTURE = (
+    ("t2m", ".published_t2m:load_t2m", ".published_t2m:import_t2m",
+     "Guo et al.'s text-motion matching evaluator (text-to-motion's finest.tar, GloVe, meta)",
+     ("text-to-motion's finest.tar", "the glove/ folder (our_vab_data.npy, our_vab_words.pkl, our_vab_idx.pkl)",
+      "the evaluator's meta/ folder (mean.npy, std.npy)")),
+    ("chois", ".chois_t2m:load_chois", ".chois_t2m:import_chois",
+     "CHOIS's text-motion matching evaluator (t2m architecture on OMOMO joints24, 120 frames)",
+     ("CHOIS: text_motion_features/model/finest.tar",
+      "CHOIS: the glove_840B/ folder (our_vab_data.npy, our_vab_words.pkl, our_vab_idx.pkl)",
+      "CHOIS: a folder with mean.npy and std.npy (72,) from t2m_mean_std_jpos.p (docs/evaluator.md)")),
+)
+for _name, _loader, _importer, _description, _files in _T2M_ARCHITECTURE:
+    register_backend(Backend(_name, "contrastive", "card.json", _loader, _description, importer=_importer,
+                             import_files=tuple(ImportFile(option, text)
+                                                for option, text in zip(("checkpoint", "glove", "meta"), _files))))
 
 
 def list_backends() -> list[Backend]:

@@ -30,7 +30,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text, load_json_bytes, read_regular_file
-from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError, StoreMismatchError
+from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError, StoreMismatchError, read_evaluator_file
 
 FORMAT = "hoibench-evaluator-1"
 WEIGHTS = "weights.safetensors"
@@ -272,10 +272,7 @@ def verify_folder(folder: str | Path) -> tuple[dict, bytes]:
     if card.get("format") != FORMAT:
         raise EvaluatorIntegrityError(f"{folder / CARD}: field format: {card.get('format')!r} is not {FORMAT!r} "
                                       f"(written by another hoibench version?)")
-    try:
-        data = read_regular_file(wpath, MAX_WEIGHTS_BYTES, "evaluator weights")
-    except ValueError as exc:
-        raise CorruptEvaluatorFile(str(exc)) from None
+    data = read_evaluator_file(wpath, MAX_WEIGHTS_BYTES, "evaluator weights", CorruptEvaluatorFile)
     check_safetensors(data, wpath)
     recorded = card["evaluator_id"]
     ok, actual = id_matches(data, card)

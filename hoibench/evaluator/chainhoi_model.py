@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .embed import EMBED_THREADS, CardBacked, as_clip_list, deterministic
+from .embed import EMBED_THREADS, CardBacked, as_clip_list, deterministic, embed_captions
 
 #: the human feature columns the motion branch reads (hml263)
 MOTION_DIM = 263
@@ -164,12 +164,5 @@ class ChainHOIEvaluator(CardBacked):
 
     def embed_text(self, texts: Sequence[str], tokens=None, batch_size: int = 128) -> np.ndarray:
         """(N, 512) float32 unit embeddings of captions (``tokens`` is ignored)."""
-        if isinstance(texts, str):
-            raise ValueError("texts: expected a list of strings, got one string")
-        texts = list(texts)
-        out = np.zeros((len(texts), self.embed_dim), np.float32)
-        with deterministic(self.threads), torch.inference_mode():
-            for s in range(0, len(texts), batch_size):
-                chunk = texts[s:s + batch_size]
-                out[s:s + len(chunk)] = self.net.text(self.tokenize(chunk)).cpu().numpy()
-        return out
+        return embed_captions(texts, self.embed_dim, self.threads, batch_size,
+                              lambda chunk: self.net.text(self.tokenize(chunk)))

@@ -17,7 +17,7 @@ columns): the evaluator normalises them with the statistics named in its card. R
 from __future__ import annotations
 
 import contextlib
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
@@ -45,6 +45,22 @@ def deterministic(threads: int | None):
         torch.use_deterministic_algorithms(prev_det, warn_only=prev_warn)
         if threads:
             torch.set_num_threads(prev_threads)
+
+
+def embed_captions(texts: Sequence[str], width: int, threads: int | None, batch_size: int,
+                   encode: Callable[[list[str]], torch.Tensor]) -> np.ndarray:
+    """(N, width) float32 rows of ``encode`` (captions to a torch tensor of embeddings) over
+    ``texts`` in batches of ``batch_size``, under :func:`deterministic` and inference mode;
+    a ValueError for a single string."""
+    if isinstance(texts, str):
+        raise ValueError("texts: expected a list of strings, got one string")
+    texts = list(texts)
+    out = np.zeros((len(texts), width), np.float32)
+    with deterministic(threads), torch.inference_mode():
+        for s in range(0, len(texts), batch_size):
+            chunk = texts[s:s + batch_size]
+            out[s:s + len(chunk)] = encode(chunk).float().cpu().numpy()
+    return out
 
 
 def as_clip_list(features, lengths=None) -> list[np.ndarray]:
@@ -182,14 +198,6 @@ class Evaluator(CardBacked):
         """(N, 512) float32 embeddings of captions. ``tokens`` (HumanML3D ``word/POS`` lists,
         read by the published ``t2m`` evaluator) is accepted for a uniform call and ignored:
         this evaluator reads the caption text."""
-        if isinstance(texts, str):
-            raise ValueError("texts: expected a list of strings, got one string")
-        texts = list(texts)
-        out = np.zeros((len(texts), self.embed_dim), np.float32)
-        with deterministic(self.threads), torch.inference_mode():
-            self.model.eval()
-            for s in range(0, len(texts), batch_size):
-                chunk = texts[s:s + batch_size]
-                pooled = self.model.text.pooled(self.tokenize(chunk))
-                out[s:s + len(chunk)] = self.model.text.project(pooled).float().cpu().numpy()
-        return out
+        self.model.eval()
+        return embed_captions(texts, self.embed_dim, self.threads, batch_size,
+                              lambda chunk: self.model.text.project(self.model.text.pooled(self.tokenize(chunk))))

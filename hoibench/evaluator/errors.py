@@ -35,3 +35,13 @@ class SanityGateError(EvaluatorError):
 
 class StoreMismatchError(EvaluatorError):
     """An evaluator trained on another dataset, representation, normalisation or split."""
+
+
+def read_evaluator_file(path, max_bytes: int, what: str, error: type[EvaluatorError] = EvaluatorError) -> bytes:
+    """The bytes of the regular file ``path`` (at most ``max_bytes``,
+    :func:`hoibench.core.io.read_regular_file`); its refusal raised as ``error``."""
+    from ..core.io import read_regular_file
+    try:
+        return read_regular_file(path, max_bytes, what)
+    except ValueError as exc:
+        raise error(str(exc)) from None

@@ -28,7 +28,7 @@ import torch
 
 from ..core.io import read_regular_file
 from .card import WEIGHTS, CARD, FORMAT, check_safetensors, compute_id, changed_parts
-from .embed import EMBED_THREADS, as_clip_list, deterministic
+from .embed import EMBED_THREADS, as_clip_list, deterministic, embed_captions
 from .errors import CorruptEvaluatorFile, EvaluatorIntegrityError
 from .interact_features import ROW_WIDTH, clip_rows
 from .interact_model import MotionEncoder, TextEncoder
@@ -158,16 +158,11 @@ class InteractEvaluator:
     def embed_text(self, texts: Sequence[str], tokens=None, batch_size: int = 128) -> np.ndarray:
         """(N, 256) float32 ``.loc`` embeddings of captions (``tokens`` is not used: the
         DistilBERT tokenizer reads the caption itself; no truncation, as in InterAct)."""
-        if isinstance(texts, str):
-            raise ValueError("texts: expected a list of strings, got one string")
-        texts = list(texts)
-        out = np.zeros((len(texts), self.embed_dim), np.float32)
-        with deterministic(self.threads), torch.inference_mode():
-            for s in range(0, len(texts), batch_size):
-                enc = self.tokenizer(texts[s:s + batch_size], return_tensors="pt", padding=True)
-                out[s:s + len(enc["input_ids"])] = self.text(enc["input_ids"].to(self.device),
-                                                             enc["attention_mask"].to(self.device)).cpu().numpy()
-        return out
+        return embed_captions(texts, self.embed_dim, self.threads, batch_size, self._encode_captions)
+
+    def _encode_captions(self, chunk: list[str]) -> torch.Tensor:
+        enc = self.tokenizer(chunk, return_tensors="pt", padding=True)
+        return self.text(enc["input_ids"].to(self.device), enc["attention_mask"].to(self.device))
 
 
 def split_state(tensors: dict) -> tuple[dict, dict, dict]:

@@ -337,19 +337,14 @@ _CONFIG_INTS = ("width", "layers", "heads", "ff", "max_positions", "output_dim",
 def verify_chainhoi_folder(folder: str | Path) -> tuple[dict, bytes]:
     """(card, weights bytes) of a ``chainhoi`` folder whose id, card fields and copied
     tokenizer files check out; one-line :class:`EvaluatorIntegrityError` otherwise."""
-    from ..core.io import read_json_file, read_regular_file
+    from ..core.io import read_json_object, read_regular_file
     from .card import CARD, FORMAT, MAX_WEIGHTS_BYTES, WEIGHTS, changed_parts, check_safetensors, compute_id
     folder = Path(folder)
     cpath = folder / CARD
     try:
-        card = read_json_file(cpath, 64 * 1024 ** 2, "evaluator card")
+        card = read_json_object(cpath, 64 * 1024 ** 2, "evaluator card", _CARD_FIELDS)
     except ValueError as exc:
         raise CorruptEvaluatorFile(str(exc)) from None
-    if not isinstance(card, dict):
-        raise CorruptEvaluatorFile(f"{cpath}: expected a JSON object")
-    for key, t in _CARD_FIELDS:
-        if not isinstance(card.get(key), t):
-            raise CorruptEvaluatorFile(f"{cpath}: field {key}: missing or not a JSON {t.__name__}")
     if card.get("format") != FORMAT or card.get("backend") != BACKEND:
         raise EvaluatorIntegrityError(f"{cpath}: fields format/backend: {card.get('format')!r}/"
                                       f"{card.get('backend')!r}, expected {FORMAT!r}/{BACKEND!r}")

@@ -48,7 +48,7 @@ from torch import nn
 from torch.nn.utils.rnn import pack_padded_sequence
 
 from .embed import EMBED_THREADS, CardBacked, as_clip_list, deterministic
-from .errors import CorruptEvaluatorFile, EvaluatorError, EvaluatorIntegrityError
+from .errors import CorruptEvaluatorFile, EvaluatorError, EvaluatorIntegrityError, read_evaluator_file
 from .t2m_text import MAX_TOKENS, POS_SLOTS, SEQ_LEN, WORD_DIM, Vocabulary, read_glove
 
 BACKEND = "t2m"
@@ -174,15 +174,11 @@ def read_checkpoint(path: str | Path, dims: T2MDims = T2MDims(),
                     contacts: int = FOOT_CONTACTS) -> tuple[dict[str, torch.Tensor], dict]:
     """The three encoders' tensors of a ``finest.tar`` (prefixed ``part.``) and its
     ``epoch``/``iter``; read with ``torch.load(weights_only=True)``, every shape checked."""
-    from ..core.io import read_regular_file
     path = Path(path)
     if not path.exists():
         raise EvaluatorError(f"--checkpoint {path}: no such file (text-to-motion's "
                              f"checkpoints/t2m/text_mot_match/model/finest.tar)")
-    try:
-        raw = read_regular_file(path, MAX_CHECKPOINT_BYTES, "checkpoint")
-    except ValueError as exc:
-        raise EvaluatorError(str(exc)) from None
+    raw = read_evaluator_file(path, MAX_CHECKPOINT_BYTES, "checkpoint")
     from .safe_checkpoint import not_a_checkpoint
     why = not_a_checkpoint(raw[:4096])
     if why:

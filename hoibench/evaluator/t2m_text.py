@@ -30,7 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from ..core.io import read_regular_file
-from .errors import EvaluatorError
+from .errors import EvaluatorError, read_evaluator_file
 
 #: part-of-speech slots of the one-hot, in order (text-to-motion's ``POS_enumerator``)
 POS_SLOTS = ("VERB", "NOUN", "DET", "ADP", "NUM", "AUX", "PRON", "ADJ", "ADV",
@@ -88,10 +88,7 @@ def read_plain_pickle(path: str | Path):
     path = Path(path)
     if not path.is_file():
         raise EvaluatorError(f"{path}: is missing")
-    try:
-        raw = read_regular_file(path, MAX_PICKLE_BYTES, "vocabulary pickle")
-    except ValueError as exc:
-        raise EvaluatorError(str(exc)) from None
+    raw = read_evaluator_file(path, MAX_PICKLE_BYTES, "vocabulary pickle")
     try:
         obj = _PlainUnpickler(io.BytesIO(raw)).load()
     except pickle.UnpicklingError as exc:
