@@ -144,3 +144,32 @@ def test_evaluate_keeps_per_clip_data_and_clip_intervals_and_compare_paired_read
     assert set(fid) >= {"diff", "ci95", "p", "p_holm", "verdict"} and fid["diff"] > 0
     assert pair["metrics"]["jitter_mps3"]["verdict"] == "A better"            # 5 cm noise jitters every frame
     assert "A better" in capsys.readouterr().out
+
+
+def test_legacy_protocols_embed_the_windows_the_physical_metrics_see(annotated_store_with_evaluator, tmp_path):
+    """ChainHOI's loader feeds its evaluator the cropped motions: under a legacy protocol with
+    crop_embeddings, each clip is embedded on the replication-0 window of length_crop."""
+    from hoibench.datasets.store import Store
+    from hoibench.evaluator.backends import load_evaluator
+    from hoibench.metrics.legacy_rules import length_window
+    from hoibench.scoring.evaluate import evaluate
+    from hoibench.scoring.hoi import _real_features
+    from hoibench.scoring.submission_write import from_store
+    from hoibench.tracks.protocol import get_protocol
+    _, data, ev = annotated_store_with_evaluator
+    sub = from_store(data, tmp_path / "gt")
+    store, model = Store(data), load_evaluator(ev, allow_failed_gate=True)
+    cropped, whole = {}, {}
+    for proto, into in ((get_protocol("synthetic-legacy"), cropped), (get_protocol("synthetic-legacy@1.2"), whole)):
+        evaluate(sub, data, ev, protocol=proto, allow_protocol_mismatch=True, clip_data=into)
+    proto = get_protocol("synthetic-legacy")
+    assert proto.crop_embeddings and not get_protocol("synthetic-legacy@1.2").crop_embeddings
+    frames = {c["id"]: c["frames"] for c in store.manifest["clips"]}
+    ids = [str(i) for i in cropped["ids"]][:6]
+    for i, cid in enumerate(ids):
+        start, length = length_window(frames[cid], "unit4_random", proto.seed_for(f"length_crop/{cid}", 0))
+        rows = _real_features(store, cid, model)
+        want = model.embed_motion([rows[start:start + length]])[0]
+        np.testing.assert_allclose(cropped["real"][i], want, atol=1e-5)
+        np.testing.assert_allclose(cropped["motion"][0, i], want, atol=1e-3)     # the GT sample, re-encoded
+        assert not np.allclose(whole["real"][i], want, atol=1e-5) or length >= len(rows), cid

@@ -122,7 +122,7 @@ def floor_height(joints) -> float:
     floor. No static frame: 0. (The returned value is the median itself; the 0.01 m
     ``offset_floor_height`` is computed and unused.)"""
     j = _arr(joints, "joints", 3)
-    heights, static = [], []
+    heights = []
     for toe in TOES:
         seq = j[:, toe]
         vel = np.linalg.norm(seq[1:] - seq[:-1], axis=1)

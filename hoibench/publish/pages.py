@@ -177,18 +177,32 @@ def _any_k1(entries: list[dict], cols: list[str]) -> bool:
 _MD_SPECIAL = re.compile(r"([\\`\[\]|])")
 
 
+_UNSAFE_SCHEME = re.compile(r"(?i)\b(javascript|vbscript|data|file):(?=\S)")
+_MD_LINK = re.compile(r"(\]\(\s*)([^)\s]*)")
+
+
+def _defanged(text: str, colon: str) -> str:
+    """``text`` with every link whose target is not http(s) or relative pointed at ``#`` and
+    the colon of a script-like scheme (``javascript:``, ``vbscript:``, ``data:``, ``file:``)
+    written as ``colon``, so that no renderer turns it into a link."""
+    text = _MD_LINK.sub(lambda m: m.group(1) + (m.group(2) if safe_link(m.group(2)) else "#"), text)
+    return _UNSAFE_SCHEME.sub(lambda m: m.group(1) + colon, text)
+
+
 def md_text(text) -> str:
     """Entry text (method, citation, flags) for a README table cell: one line, HTML escaped
-    (no tag, image or script survives), and the Markdown punctuation that makes links, images,
-    code or cells (backslash, backtick, brackets, pipe) backslash-escaped."""
-    one = " ".join(str(text).split())
-    return _MD_SPECIAL.sub(r"\\\1", html.escape(one, quote=False))
+    (no tag, image or script survives), the Markdown punctuation that makes links, images,
+    code or cells (backslash, backtick, brackets, pipe) backslash-escaped, and no link but
+    http(s) or relative ones (:func:`_defanged`), as on the HTML page."""
+    one = _defanged(" ".join(str(text).split()), "&#58;")
+    return _MD_SPECIAL.sub(r"\\\1", html.escape(one, quote=False)).replace("&amp;#58;", "&#58;")
 
 
 def csv_text(text) -> str:
     """Entry text for a CSV cell: a cell a spreadsheet would read as a formula (leading ``=``,
-    ``+``, ``-``, ``@``, tab or carriage return) gets a leading apostrophe."""
-    text = str(text)
+    ``+``, ``-``, ``@``, tab or carriage return) gets a leading apostrophe; links other than
+    http(s) or relative ones are defanged (:func:`_defanged`)."""
+    text = _defanged(str(text), " :")
     return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
 
 

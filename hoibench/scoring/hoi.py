@@ -126,12 +126,13 @@ def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_eva
 
 
 def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
-            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None, cache=None) -> Iterator:
+            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None, cache=None, crop=None) -> Iterator:
     """Yield the physical-metric inputs of every (id, sample) in ``ks_physical``, loading one
     file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``.
     ``windows(id, k)``: the legacy length windows of the replications using sample k;
     ``cache``: what validation read and encoded (:class:`~hoibench.scoring.read_cache.ReadCache`),
-    used instead of reading and encoding again."""
+    used instead of reading and encoding again; ``crop(id)``: the rows the evaluator embeds
+    (None: all)."""
     from ..metrics.physical import clip_input_factory
     from .submission import encode_sample
 
@@ -156,6 +157,9 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
                                                     encode_sample(arrays, k, mode, fps))
             if not np.isfinite(feats).all():      # validate refuses these; never embed them
                 raise ValueError(f"{cid}: sample {k} encodes to non-finite features")
+            rows = crop(cid) if crop is not None else None
+            if rows is not None and rows.start < len(feats):
+                feats = feats[rows]
             pending.append((k, i, feats))
             if len(pending) >= EMBED_BATCH:
                 flush()
@@ -166,6 +170,18 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
             yield inp
         del arrays
     flush()
+
+
+def embedding_window(proto, cid: str, frames: int) -> slice | None:
+    """The rows of clip ``cid`` the evaluator embeds under a protocol with ``crop_embeddings``:
+    its replication-0 window of ``physical.length_crop`` (the physical metrics' own seeded
+    draw, :func:`hoibench.metrics.legacy_rules.replication_windows`); None: the whole clip."""
+    if not getattr(proto, "crop_embeddings", False):
+        return None
+    from ..metrics.legacy_rules import replication_windows
+    rule = proto.physical_config().length_crop
+    (_, start, length), = replication_windows(cid, int(frames), rule, [0], proto.seed_for)
+    return slice(start, start + length)
 
 
 def _text_encoder(ev) -> dict:
@@ -264,7 +280,9 @@ class HOIScorer(Scorer):
         if no_text:
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
-        self.st.real_all = ev.embed_motion([_real_features(store, cid, ev) for cid in test_ids])
+        crop = lambda cid, f: f if (w := embedding_window(proto, cid, self.st.rows[cid]["frames"])) is None \
+            or w.start >= len(f) else f[w]  # noqa: E731
+        self.st.real_all = ev.embed_motion([crop(cid, _real_features(store, cid, ev)) for cid in test_ids])
         all_caps = sorted({c for caps in captions.values() for c in caps})
         # the store's HumanML3D tokens of each caption (first line wins), for evaluators that read them
         toks: dict[str, tuple] = {}
@@ -344,8 +362,9 @@ class HOIScorer(Scorer):
             windows = lambda cid, k: replication_windows(  # noqa: E731
                 cid, int(self.st.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
         st = self.st
+        crop = (lambda cid: embedding_window(proto, cid, st.rows[cid]["frames"])) if proto.crop_embeddings else None
         return _stream(sub, ids, st.ks_physical, st.ks_embed, self.ev, self.store, load_groups(self.store.root),
-                       proto, st.mode, st.fps, st.gen, windows, st.cache)
+                       proto, st.mode, st.fps, st.gen, windows, st.cache, crop)
 
     def update(self, out) -> None:
         key, stats = out

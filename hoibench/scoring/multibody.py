@@ -39,7 +39,7 @@ import numpy as np
 from .. import __version__
 from ..bodies.multibody import MultiBodyClip
 from ..bodies.capsules import object_fields, pair_contact_frames, pair_penetration
-from .multibody_samples import clip_from_sample, multibody_limits
+from .multibody_samples import clip_from_sample, multibody_limits, sample_arrays
 from .pipeline import EvaluationRefused, Scorer
 from .results import RESULT_FORMAT, half_width_95, metric_entry
 

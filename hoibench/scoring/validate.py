@@ -458,6 +458,10 @@ def main_validate(sub: str | Path, data: str | Path, protocol: str | None = None
         for p in rep.problems:
             print(p)
         state = "complete" if rep.complete else "INCOMPLETE (will not be scored as complete)"
+        whole = [p for p in rep.errors if p.id == "*"]
+        if not rep.complete and whole and len(rep.valid_ids) == len(rep.test_ids):
+            state = (f"INCOMPLETE: every sample file is valid, but {len(whole)} error(s) of the whole submission "
+                     f"({whole[0].field}) keep it from being scored as complete")
         print(f"{sub}: {len(rep.errors)} error(s), {len(rep.warnings)} warning(s); "
               f"{len(rep.valid_ids)} of {len(rep.test_ids)} test ids valid; {state}")
     return 0 if rep.complete else 1

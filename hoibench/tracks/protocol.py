@@ -87,6 +87,10 @@ class Protocol:
     mm_pairs: int | None = None
     physical: dict | None = None
     embedding_loop: str = "hoibench"
+    #: the evaluator embeds what the physical metrics see: each clip cut to its replication-0
+    #: window of ``physical.length_crop`` (ChainHOI's data loader feeds its evaluator the
+    #: cropped motions); absent = whole clips
+    crop_embeddings: bool = False
     #: optional top-level mappings metrics read (``physics``: :func:`hoibench.metrics.catalog.settings_keys`)
     settings: dict = field(default_factory=dict, compare=False)
     #: a preview version: scored only when named with its version (``id@version``), never the
@@ -110,6 +114,8 @@ class Protocol:
         d = {k: getattr(self, k) for k in KIND_FIELDS[self.kind]}
         if self.kind == "hoi" and self.embedding_loop != "hoibench":
             d["embedding_loop"] = self.embedding_loop    # absent = hoibench's loop (older hashes unchanged)
+        if self.kind == "hoi" and self.crop_embeddings:
+            d["crop_embeddings"] = True                  # absent = whole clips (older hashes unchanged)
         for key, mapping in sorted(self.settings.items()):   # absent = none (older hashes unchanged)
             d[key] = copy.deepcopy(mapping)
         d["metrics"] = list(self.metrics)
@@ -225,6 +231,16 @@ def _need(d: dict, key: str, kind, where: str):
     return v
 
 
+def _crop_embeddings(d: dict, phys: dict, where: str) -> bool:
+    """The optional ``crop_embeddings`` flag: a bool, and only with a ``physical.length_crop``."""
+    v = d.get("crop_embeddings", False)
+    if not isinstance(v, bool):
+        raise ValueError(f"{where}: field 'crop_embeddings' must be true or false, got {v!r}")
+    if v and phys.get("length_crop", "none") == "none":
+        raise ValueError(f"{where}: field 'crop_embeddings' needs a physical.length_crop other than none")
+    return v
+
+
 def _embedding_loop(d: dict, where: str) -> str:
     """The ``embedding_loop`` a protocol names: ``hoibench`` (default: seeded pools and draws,
     :mod:`hoibench.metrics.embedding`) or a paper's released loop
@@ -336,7 +352,7 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
         mm_pairs=_positive(_need(mm, "pairs", int, f"{w}: multimodality"), "pairs", w),
         physical=phys, metrics=metrics, description=str(d.get("description", "")).strip(),
         changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w, kind="hoi", track=track,
-        embedding_loop=_embedding_loop(d, w))
+        embedding_loop=_embedding_loop(d, w), crop_embeddings=_crop_embeddings(d, phys, w))
     if proto.mm_samples <= proto.mm_pairs:
         raise ValueError(f"{w}: multimodality.samples must exceed multimodality.pairs")
     proto.physical_config()          # the physical settings must be valid too
