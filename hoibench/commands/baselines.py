@@ -146,7 +146,8 @@ def _cmd_import(args) -> int:
         print("  human-only: the results carry no object motion for this human-object store; submission.json has "
               "flags.human_only, so evaluate scores the embedding metrics, FSR and jitter on the human and "
               "reports the object metrics (CD, OCD, PS, penetration, ...) as not applicable; the leaderboard marks "
-              "the row human-only (for object metrics import with --format hoidiff or chois)")
+              "the row human-only (for object metrics: `hoibench import hoidiff ...` or `hoibench import chois ...`, "
+              "the format is the first argument)")
     if rep["unmatched_entries"]:
         print(f"  unmatched: {len(rep['unmatched_entries'])} entries (e.g. {rep['unmatched_entries'][0]!r})")
     if rep["ambiguous_texts"]:

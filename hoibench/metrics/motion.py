@@ -1,7 +1,7 @@
 """Motion-quality metrics on joint positions: foot skating (three definitions) and jitter.
 
 All functions take one clip, joints (T, 22, 3) in the canonical frame (metres, y-up, floor at
-y = 0, DESIGN section 3) and return counts, so that clips pool exactly (sums of integers):
+y = 0; docs/representations.md) and return counts, so that clips pool exactly (sums of integers):
 
 * :func:`foot_skating_counts` -- ChainHOI's FSR (``legacy``) and hoibench's ``clean``
   variant: the feet are joints 10 (L_foot) and 11 (R_foot); foot-frame ``(t, f)`` for

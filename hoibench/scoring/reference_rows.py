@@ -9,7 +9,7 @@ gt-noise            the clip's joints and object translation plus i.i.d. Gaussia
                     ``sigma`` metres per coordinate and frame (seeded by ``(seed, clip id)``);
                     the object rotation unchanged. 1 cm and 3 cm are the documented rows.
 static-first-pose   the clip's first frame held for every frame: body and object still
-mean-pose           the mean train pose and a static object (:mod:`hoibench.baselines.trivial`)
+mean-pose           the mean train pose and a static object (:mod:`hoibench.scoring.mean_pose`)
 mismatched-texts    another test clip's motion (ground truth, its own length) under this
                     clip's id and caption: a derangement of the sorted test ids seeded by
                     ``seed``, so no clip keeps its own motion; R-precision falls to chance while

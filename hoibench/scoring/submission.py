@@ -5,7 +5,7 @@ A submission is a directory, or a ``.zip`` of one (read in place, never extracte
     submission.json            {"method", "version", "url", "representation", "fps",
                                 "flags": {"uses_gt_length", "samples_per_prompt",
                                           "checkpoint_selection"}}
-    samples/<test_id>.npz      joints    (K, T, 22, 3) float32, metres, y-up (DESIGN section 3)
+    samples/<test_id>.npz      joints    (K, T, 22, 3) float32, metres, y-up (docs/protocol.md)
                                obj_rot   (K, T, 3, 3)  or  obj_rotvec (K, T, 3)   (one of them)
                                obj_trans (K, T, 3)     object pose v = R v_template + t
                                hml263    (K, T-1 or T, 263)  optional
@@ -52,16 +52,12 @@ from .submission_read import (BYTES_PER_VALUE, DEFAULT_MAX_SAMPLES_PER_PROMPT, F
                               SAMPLES_DIR, SUBMISSION_JSON, VALUES_PER_FRAME, ArrayHeader, Problem, Submission,
                               SubmissionError, SubmissionLimits, limits_for, load_npz, max_frames, npz_headers,
                               zip_directory_size)
-from .submission_read import _READ_ERRORS, _fmt_bytes, _read_npy_header, _reason, _unsafe_member  # noqa: F401
 from .submission_write import check_output_free, from_store, main_submission_from_store, write_submission
 from .validate import (ACCEPTED_DTYPES, FLAG_FIELDS, REQUIRED_FIELDS, UP_AXIS_MIN_CLIPS, ValidationReport,
                        main_validate, submission_context, validate, validation_report)
-from .validate import _check_clip, _check_meta, _expect_shape, _is_number  # noqa: F401
 from .validate_arrays import (BODY_HEIGHT_RANGE_M, MAX_ABS_COORD_M, MAX_FEATURE_ABS, MAX_OBJECT_DISTANCE_FRAME_M,
                               MAX_OBJECT_DISTANCE_M, MAX_ROTVEC_RAD, MAX_SPEED_MPS, MEAN_BODY_HEIGHT_M, ClipContext,
                               check_arrays, encode_sample)
-from .validate_arrays import _VALUE_BOUNDS, _check_encodes, _check_joints, _check_object_trans  # noqa: F401
-from .validate_arrays import _check_rotations  # noqa: F401
 
 __all__ = ["Problem", "SubmissionError", "ArrayHeader", "Submission", "ValidationReport", "npz_headers", "load_npz",
            "validate", "validation_report", "write_submission", "from_store", "main_validate",

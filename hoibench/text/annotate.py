@@ -1,4 +1,4 @@
-"""Contact-aware text annotation of a processed store (DESIGN section 6).
+"""Contact-aware text annotation of a processed store (docs/annotator.md).
 
 For every clip the annotator turns the contact timeline (per-joint labels -> segments per
 body part, :func:`hoibench.bodies.contact.contact_timeline`) and the clip's action labels into
