@@ -64,7 +64,7 @@ def scores_of(result: dict, info: dict) -> dict[str, float]:
 
 def detailed_html(result: dict, info: dict) -> str:
     """A self-contained page: the result as ``hoibench evaluate`` prints it, and its notes."""
-    from ..scoring.hoi import format_result
+    from ..scoring.report import format_result
     rows = "".join(f"<li>{html.escape(str(n))}</li>" for n in result.get("notes", []))
     title = html.escape(f"{info.get('title', info['track'])}: {result.get('submission', {}).get('method') or ''}")
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title></head><body>"
