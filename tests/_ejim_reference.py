@@ -12,82 +12,17 @@ import torch.nn.functional as F
 from torch import nn
 
 from hoibench.baselines.ejim.config import ModelConfig
+from hoibench.baselines import scan as _scan
+from hoibench.baselines.ejim import mamba as _mamba
+from hoibench.baselines.ejim import model as _model
 from hoibench.baselines.layers import ConditionEncoders, sinusoidal
 
+# unchanged by the fused scan: taken from the package (their code is the reference's)
+linear_scan, linear_scan_reference = _scan.linear_scan, _scan.linear_scan_reference
+HUMAN, WIDTH, LIMB_GROUPS, limb_order, update_mask = (_model.HUMAN, _model.WIDTH, _model.LIMB_GROUPS,
+                                                      _model.limb_order, _model.update_mask)
+
 # ---------------------------------------------------------------- scan (hoibench/baselines/scan.py)
-def _blelloch_scan(a: torch.Tensor, b: torch.Tensor, reverse: bool = False) -> torch.Tensor:
-    """h along dim 1 (no autograd): Blelloch's work-efficient scan, in place on strided views.
-
-    Up-sweep: for step = 1, 2, 4, ... combine each block end ``i`` (``(i + 1) % 2 step == 0``)
-    with the end of the block before it, ``i - step``; afterwards position ``i`` holds the
-    aggregate of the block of size lowbit(i + 1) ending at ``i``. Down-sweep: for step = n/4,
-    ..., 1 complete every position ``i`` with ``(i + 1)`` an odd multiple (>= 3) of ``step``
-    from the finished prefix at ``i - step``. The length is padded to a power of two with
-    identity pairs (a = 1, b = 0), which leaves the earlier prefixes unchanged.
-    """
-    if reverse:
-        a, b = a.flip(1), b.flip(1)
-    L = a.shape[1]
-    n = 1 << max(L - 1, 0).bit_length()
-    if n != L:
-        pad = list(a.shape)
-        pad[1] = n - L
-        A, H = torch.cat([a, a.new_ones(pad)], 1), torch.cat([b, b.new_zeros(pad)], 1)
-    else:
-        A, H = a.clone(), b.clone()
-    step = 1
-    while step < n:
-        left, right = slice(step - 1, n, 2 * step), slice(2 * step - 1, n, 2 * step)
-        H[:, right] += A[:, right] * H[:, left]
-        A[:, right] *= A[:, left]
-        step *= 2
-    step = n // 4
-    while step >= 1:
-        src, dst = slice(2 * step - 1, n - step, 2 * step), slice(3 * step - 1, n, 2 * step)
-        H[:, dst] += A[:, dst] * H[:, src]
-        step //= 2
-    H = H[:, :L]
-    return H.flip(1) if reverse else H
-
-
-class _LinearScan(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, a, b):
-        h = _blelloch_scan(a, b)
-        ctx.save_for_backward(a, h)
-        return h
-
-    @staticmethod
-    def backward(ctx, grad_h):
-        a, h = ctx.saved_tensors
-        # g_t = grad_t + a_{t+1} g_{t+1}: a reverse scan with factors a shifted one step left
-        a_next = torch.cat([a[:, 1:], torch.zeros_like(a[:, :1])], 1)
-        g = _blelloch_scan(a_next, grad_h, reverse=True)
-        h_prev = torch.cat([torch.zeros_like(h[:, :1]), h[:, :-1]], 1)
-        return g * h_prev, g
-
-
-def linear_scan(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """``h_t = a_t h_{t-1} + b_t`` along dim 1 of (B, L, ...) tensors (parallel, differentiable)."""
-    if a.shape != b.shape:
-        raise ValueError(f"linear_scan: a {tuple(a.shape)} and b {tuple(b.shape)} differ in shape")
-    if a.shape[1] == 0:
-        return b.clone()
-    if torch.is_grad_enabled() and (a.requires_grad or b.requires_grad):
-        return _LinearScan.apply(a, b)
-    return _blelloch_scan(a, b)
-
-
-def linear_scan_reference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """The same recurrence step by step (a Python loop over time): the tests' reference."""
-    h = torch.zeros_like(b[:, 0])
-    out = []
-    for t in range(a.shape[1]):
-        h = a[:, t] * h + b[:, t]
-        out.append(h)
-    return torch.stack(out, 1)
-
-
 def selective_scan(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,
                    D: torch.Tensor | None = None, scan=linear_scan) -> torch.Tensor:
     """Mamba-1 S6. u, delta: (b, L, d); A: (d, n) (negative); B, C: (b, L, n); D: (d,).
@@ -116,24 +51,9 @@ def _gather(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     return torch.gather(x, 1, index[..., None].expand_as(x))
 
 
-class MambaBlock(nn.Module):
-    def __init__(self, d_model: int, d_state: int = 16, expand: int = 2, d_conv: int = 4, dropout: float = 0.0):
-        super().__init__()
-        inner = expand * d_model
-        self.dt_rank = math.ceil(d_model / 16)
-        self.d_state = d_state
-        self.norm = nn.LayerNorm(d_model)
-        self.in_proj = nn.Linear(d_model, 2 * inner)
-        self.conv = nn.Conv1d(inner, inner, d_conv, groups=inner, padding=d_conv - 1)
-        self.x_proj = nn.Linear(inner, self.dt_rank + 2 * d_state, bias=False)
-        self.dt_proj = nn.Linear(self.dt_rank, inner)
-        dt = torch.exp(torch.rand(inner) * (math.log(0.1) - math.log(1e-3)) + math.log(1e-3)).clamp(min=1e-4)
-        with torch.no_grad():
-            self.dt_proj.bias.copy_(dt + torch.log(-torch.expm1(-dt)))        # softplus^-1(dt)
-        self.A_log = nn.Parameter(torch.log(torch.arange(1, d_state + 1, dtype=torch.float32)).repeat(inner, 1))
-        self.D = nn.Parameter(torch.ones(inner))
-        self.out_proj = nn.Linear(inner, d_model)
-        self.drop = nn.Dropout(dropout)
+class MambaBlock(_mamba.MambaBlock):
+    """The package's parameters (one state dict loads into both); the forward before the
+    fused scan."""
 
     def forward(self, x: torch.Tensor, valid: torch.Tensor | None = None, reverse: bool = False,
                 prefix: int = 0) -> torch.Tensor:
@@ -170,44 +90,6 @@ class BiMamba(nn.Module):
 
 
 # ---------------------------------------------------------------- model (hoibench/baselines/ejim/model.py)
-HUMAN = 23            # nodes 0..22 (22 = virtual foot-ground node)
-WIDTH = 12
-#: limb groups of the spatial scan, each read after its own learnable separator token
-LIMB_GROUPS: tuple[tuple[int, ...], ...] = (
-    (0, 3, 6, 9, 12, 15),        # torso and head
-    (1, 4, 7, 10, 22),           # left leg + foot-ground node
-    (2, 5, 8, 11, 22),           # right leg + foot-ground node
-    (13, 16, 18, 20),            # left arm
-    (14, 17, 19, 21),            # right arm
-)
-
-
-def limb_order() -> tuple[list[int], list[int]]:
-    """(sequence, separator positions): the spatial scan's token order as indices into the 23
-    human tokens, -1 for a separator; and where each group's separator sits."""
-    seq, seps = [], []
-    for g in LIMB_GROUPS:
-        seps.append(len(seq))
-        seq.append(-1)
-        seq.extend(g)
-    return seq, seps
-
-
-def update_mask(masked: torch.Tensor, scores: torch.Tensor, k: int, keep_visible: int = 1) -> torch.Tensor:
-    """Progressive masking: mask the ``k`` visible joints with the lowest ``scores`` (per row,
-    ties broken by joint index), keeping at least ``keep_visible`` joints visible.
-    ``masked``, ``scores``: (..., 23); returns the new bool mask (True = masked)."""
-    if k <= 0:
-        return masked
-    visible = (~masked).sum(-1, keepdim=True)
-    n = (visible - keep_visible).clamp(min=0).clamp(max=k)             # how many to mask per row
-    s = scores.masked_fill(masked, float("inf"))
-    order = torch.argsort(s, dim=-1, stable=True)
-    rank = torch.empty_like(order)
-    rank.scatter_(-1, order, torch.arange(order.shape[-1], device=order.device).expand_as(order))
-    return masked | (rank < n)
-
-
 class DIB(nn.Module):
     """Dynamic Interaction Block: per-frame attention over [object; human tokens], masked joints
     excluded as keys and left unchanged; pre-norm, residual, feed-forward on visible tokens."""
