@@ -94,7 +94,7 @@ def _quiet_stdout() -> None:
     pipe whose reader has gone would answer that with "Exception ignored ... BrokenPipeError"."""
     import os
     try:
-        null = os.open(os.devnull, os.O_WRONLY)
+        null = os.open(os.devnull, os.O_WRONLY)  # read-ok: the null device, opened for writing
         os.dup2(null, sys.stdout.fileno())
         os.close(null)
     except (OSError, ValueError, AttributeError):

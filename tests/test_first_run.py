@@ -95,6 +95,14 @@ def scored(monkeypatch):
 
     def fake(*a, **k):
         calls.append((a, k))
+        if k.get("lead") is not None:            # the real evaluate leads with the foreign-store line
+            from hoibench.datasets.store import Store
+            from hoibench.scoring.submission import Submission
+            from hoibench.scoring.validate import foreign_ids_line
+            with Submission(a[0]) as sub:
+                line = foreign_ids_line(a[0], a[1], list(sub.ids), Store(a[1]).clip_ids("test"))
+            if line:
+                k["lead"](line)
         return {**_result(), "kind": "hoi"}
     monkeypatch.setattr(ev_mod, "evaluate", fake)
     monkeypatch.setattr(ev_mod, "format_result", lambda r: "TABLE")

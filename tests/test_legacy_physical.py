@@ -280,8 +280,8 @@ def test_clean_protocols_are_unchanged():
 
 def test_legacy_protocols_carry_the_reference_rules():
     b, o, s = (P.get_protocol(x) for x in ("behave-legacy", "omomo-legacy", "synthetic-legacy"))
-    assert b.version == o.version == s.version == "1.2"
-    assert all(p.changelog[-1].startswith("1.2: ") for p in (b, o, s))
+    assert b.version == o.version == s.version == "1.3" and b.crop_embeddings and o.crop_embeddings
+    assert all(p.changelog[-2].startswith("1.2: ") and p.changelog[-1].startswith("1.3: ") for p in (b, o, s))
     cb, co, cs = b.physical_config(), o.physical_config(), s.physical_config()
     assert (cb.ocd_members, cb.contact_joints, cb.contact_gt_rule, cb.contact_gt_threshold_m, cb.fsr_frame,
             cb.fsr_feet_to_floor, cb.length_crop, cb.fsr_canonical_mode) == \

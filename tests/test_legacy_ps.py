@@ -226,7 +226,7 @@ def test_legacy_protocols_carry_the_reference_rules_and_clean_ones_are_unchanged
                       ("synthetic-legacy", "reference")):
         p = pr.get_protocol(pid)
         c = p.physical_config()
-        assert p.version == "1.2" and p.changelog[-1].startswith("1.2:")
+        assert p.version == "1.3" and p.changelog[-2].startswith("1.2:") and p.changelog[-1].startswith("1.3:")
         assert (c.ps_sign, c.cd_edge, c.mesh_repair) == ("closest_face", edge, False)
     clean = {"behave-clean": "3d9bb579152fb66826fe300d8bce23bc2f87bfd034d48ff3c53b2a94b2561036",
              "omomo-clean": "4465b4d470fc1febec277d71905a6241494b5b93362fbcc0fbeb91c6d586e8c4",

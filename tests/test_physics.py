@@ -159,7 +159,8 @@ def test_clean_protocols_get_a_new_version_and_the_old_ones_still_load():
     from hoibench.tracks.protocol import get_protocol
     for pid, old, new in (("synthetic-clean", "1.1", "1.2"), ("behave-clean", "1.1", "1.2"),
                           ("omomo-clean", "1.1", "1.2"), ("interact-clean", "1.0", "1.1")):
-        p, q = get_protocol(pid), get_protocol(f"{pid}@{old}")
+        p, q = get_protocol(f"{pid}@{new}"), get_protocol(f"{pid}@{old}")
+        assert get_protocol(pid) == q and p.preview and not q.preview          # a preview is never the default
         assert p.version == new and set(P.NAMES) <= set(p.metrics)
         assert p.settings_for("physics") == P.DEFAULTS
         assert q.version == old and not set(P.NAMES) & set(q.metrics) and q.settings_for("physics") == {}

@@ -97,7 +97,7 @@ def load_checkpoint(path: str | Path, what: str = "checkpoint") -> dict:
     if not path.is_file():
         raise CheckpointReadError(f"{what} {path}: not a regular file")
     try:
-        with open(path, "rb") as f:
+        with open(path, "rb") as f:  # read-ok: its first 4 KiB, to tell a page or text from an archive
             why = not_a_checkpoint(f.read(4096))
     except OSError as exc:
         raise CheckpointReadError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None

@@ -23,6 +23,8 @@ import numpy as np
 
 #: the suffix of the per-clip file written beside ``result.json``
 SUFFIX = ".clips.npz"
+#: the largest per-clip file read (10,000 clips x K = 30 x 512 float32 embeddings is 0.6 GB)
+MAX_CLIP_DATA_BYTES = 1 << 30
 
 
 def clip_arrays(ids: Sequence[str], motion: np.ndarray, real: np.ndarray, text_sets: Sequence[np.ndarray],
@@ -66,11 +68,11 @@ def read_clip_data(result: dict, result_path: str | Path) -> dict[str, np.ndarra
     if not isinstance(ref, dict) or not isinstance(ref.get("file"), str):
         raise ValueError(f"{result_path}: field per_clip_data: absent (scored before per-clip data was kept, or "
                          f"written without --out); evaluate the submission again with --out")
+    from ..core.io import read_regular_file
     path = Path(result_path).resolve().parent / Path(ref["file"]).name
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise ValueError(f"{path}: per_clip_data.file: cannot read it ({e.strerror}); keep it beside the result") from None
+    if not path.is_file():
+        raise ValueError(f"{path}: per_clip_data.file: not found; keep it beside the result")
+    data = read_regular_file(path, MAX_CLIP_DATA_BYTES, "per-clip data")
     if hashlib.sha256(data).hexdigest() != ref.get("sha256"):
         raise ValueError(f"{path}: per_clip_data.sha256: the file does not match the result (changed or replaced)")
     import io
