@@ -1,5 +1,5 @@
 # Two entry points on a fresh machine:
-#   make demo   install, then run the main job on the embedded synthetic data (~14 min on 2 cores)
+#   make demo   install, then run the main job on the embedded synthetic data (~9 min on 2 idle cores)
 #   make test   install, then run the test suite
 # torch is installed first, pinned to the local CPU build, so pip never resolves a CUDA build.
 
