@@ -14,7 +14,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "hoibench"
 #: tuples of metric names that are a track's configuration (which columns a page shows,
 #: which metrics it plots), not metadata of the metrics themselves
-TRACK_CONFIG_NAMES = ("_COLUMNS", "columns", "headline")
+TRACK_CONFIG_NAMES = ("_COLUMNS", "columns", "_HEADLINE", "headline")
 #: class attributes that would repeat the catalogue's metadata on a metric class
 METADATA_ATTRIBUTES = {"higher_is_better", "units", "paper_column", "direction"}
 

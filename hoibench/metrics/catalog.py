@@ -166,24 +166,9 @@ def unavailable(name: str) -> str | None:
     return None
 
 
-def per_clip_columns() -> tuple[str, ...]:
-    """The per-clip table's metric columns (registration order)."""
-    return tuple(n for n, i in METRICS.items() if i.per_clip and i.kind in ("embedding", "physical", "clip"))
-
-
 def object_metrics() -> tuple[str, ...]:
     """The metrics that need an object ("not applicable" on human-only clips)."""
     return tuple(n for n, i in METRICS.items() if i.needs_object)
-
-
-def direction_of(name: str) -> str | None:
-    info = METRICS.get(name)
-    return info.direction if info else None
-
-
-def unit_of(name: str) -> str | None:
-    info = METRICS.get(name)
-    return info.unit if info else None
 
 
 #: a negative FID above this is the sqrtm numerics' rounding below zero (FID is a squared
@@ -356,4 +341,5 @@ register(MetricInfo("text_rank", "clip", "lower", "rank", "clip",
 del _k
 
 __all__ = ["MetricInfo", "METRICS", "DIRECTIONS", "GROUPS", "ARROWS", "FID_ROUNDING", "register", "get_metric_info",
-           "metric_names", "metrics_for", "settings_keys", "check_settings", "unavailable", "per_clip_columns", "object_metrics", "direction_of", "unit_of", "shown_value"]
+           "metric_names", "metrics_for", "settings_keys", "check_settings", "unavailable", "object_metrics",
+           "shown_value"]

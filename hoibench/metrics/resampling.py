@@ -31,13 +31,6 @@ def bootstrap_weights(n: int, resamples: int, seed: int) -> np.ndarray:
     return out
 
 
-def weighted_mean(values: np.ndarray, w: np.ndarray) -> float:
-    """``sum(w v) / sum(w)`` over the clips where ``v`` is defined (NaN when none is)."""
-    v = np.asarray(values, np.float64)
-    ok = np.isfinite(v) & (w > 0)
-    return float(np.dot(w[ok], v[ok]) / w[ok].sum()) if ok.any() else float("nan")
-
-
 def _centred(x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     keep = w > 0
     x, w = np.asarray(x, np.float64)[keep], w[keep].astype(np.float64)
@@ -104,5 +97,5 @@ def bootstrap_p(differences: np.ndarray) -> float:
     return float(min(1.0, 2 * min(lo, hi)))
 
 
-__all__ = ["bootstrap_weights", "weighted_mean", "weighted_fid", "retrieval_per_clip", "resampled_diversity",
+__all__ = ["bootstrap_weights", "weighted_fid", "retrieval_per_clip", "resampled_diversity",
            "holm", "bootstrap_p"]

@@ -281,16 +281,6 @@ def _has_fid_r1(entries: list[dict]) -> bool:
     return any("fid" in e["metrics"] and "r_precision_top1" in e["metrics"] for e in entries)
 
 
-def _headline(track: str) -> tuple[str, ...]:
-    """The metrics a track's page plots (its registry entry's ``headline``)."""
-    from ..tracks.registry import get_track
-    from ..tracks.track import Track
-    try:
-        return get_track(track).headline
-    except KeyError:
-        return Track.__dataclass_fields__["headline"].default
-
-
 _COLOR_NAMES = {"ground-truth": "blue", "ranked": "orange", "reference": "grey", "reported": "light grey"}
 
 
@@ -333,7 +323,8 @@ def _figures(track: str, entries: list[dict]) -> dict[str, bytes]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    cols = [c for c in _headline(track) if any(c in e["metrics"] for e in entries)]
+    from ..tracks.registry import headline_of
+    cols = [c for c in headline_of(track) if any(c in e["metrics"] for e in entries)]
     out = {}
     rk = ranks(entries)
     fig, axes = plt.subplots(1, max(1, len(cols)), figsize=(3.6 * max(1, len(cols)), 0.35 * len(entries) + 2.0),

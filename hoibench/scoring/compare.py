@@ -91,16 +91,6 @@ def compare(paths: list[str | Path], names: list[str] | None = None) -> str:
     return "\n".join(lines)
 
 
-def _headline(result: dict) -> tuple[str, ...]:
-    """The plotted metrics: the result's track's ``headline`` (the default track's otherwise)."""
-    from ..tracks.registry import get_track
-    from ..tracks.track import Track
-    try:
-        return get_track(str(result.get("track"))).headline
-    except KeyError:
-        return Track.__dataclass_fields__["headline"].default
-
-
 def plot(paths: list[str | Path], out: str | Path, names: list[str] | None = None) -> Path:
     """Bars with CI error bars of the first result's track's headline metrics (its registry
     entry's ``headline``; FID, R@1, CD and FSR for a single-body track) for each result."""
@@ -111,7 +101,8 @@ def plot(paths: list[str | Path], out: str | Path, names: list[str] | None = Non
     from ..core.io import atomic_save_figure
     results = [load_result(p) for p in paths]
     names = names or [_method(r, p) for r, p in zip(results, paths)]
-    metrics = [m for m in _headline(results[0]) if any(_mc(r, m) for r in results)]
+    from ..tracks.registry import headline_of
+    metrics = [m for m in headline_of(str(results[0].get("track"))) if any(_mc(r, m) for r in results)]
     fig, axes = plt.subplots(1, len(metrics), figsize=(3.2 * len(metrics), 0.4 * len(names) + 1.8), squeeze=False)
     for ax, m in zip(axes[0], metrics):
         vals = [(_mc(r, m) or (float("nan"), 0.0)) for r in results]

@@ -131,8 +131,8 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
     file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``.
     ``windows(id, k)``: the legacy length windows of the replications using sample k;
     ``cache``: what validation read and encoded (:class:`~hoibench.scoring.read_cache.ReadCache`),
-    used instead of reading and encoding again; ``crop(id)``: the rows the evaluator embeds
-    (None: all)."""
+    used instead of reading and encoding again; ``crop(id, rows)``: the rows the evaluator
+    embeds (None: all)."""
     from ..metrics.physical import clip_input_factory
     from .submission import encode_sample
 
@@ -157,9 +157,8 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
                                                     encode_sample(arrays, k, mode, fps))
             if not np.isfinite(feats).all():      # validate refuses these; never embed them
                 raise ValueError(f"{cid}: sample {k} encodes to non-finite features")
-            rows = crop(cid) if crop is not None else None
-            if rows is not None and rows.start < len(feats):
-                feats = feats[rows]
+            if crop is not None:
+                feats = crop(cid, feats)
             pending.append((k, i, feats))
             if len(pending) >= EMBED_BATCH:
                 flush()
@@ -172,16 +171,17 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
     flush()
 
 
-def embedding_window(proto, cid: str, frames: int) -> slice | None:
-    """The rows of clip ``cid`` the evaluator embeds under a protocol with ``crop_embeddings``:
+def embedded_rows(proto, cid: str, frames: int, feats: np.ndarray) -> np.ndarray:
+    """The rows of clip ``cid`` the evaluator embeds: under a protocol with ``crop_embeddings``
     its replication-0 window of ``physical.length_crop`` (the physical metrics' own seeded
-    draw, :func:`hoibench.metrics.legacy_rules.replication_windows`); None: the whole clip."""
+    draw, :func:`hoibench.metrics.legacy_rules.replication_windows`), else (or when the window
+    starts past the rows) all of ``feats``."""
     if not getattr(proto, "crop_embeddings", False):
-        return None
+        return feats
     from ..metrics.legacy_rules import replication_windows
     rule = proto.physical_config().length_crop
     (_, start, length), = replication_windows(cid, int(frames), rule, [0], proto.seed_for)
-    return slice(start, start + length)
+    return feats[start:start + length] if start < len(feats) else feats
 
 
 def _text_encoder(ev) -> dict:
@@ -280,9 +280,8 @@ class HOIScorer(Scorer):
         if no_text:
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
-        crop = lambda cid, f: f if (w := embedding_window(proto, cid, self.st.rows[cid]["frames"])) is None \
-            or w.start >= len(f) else f[w]  # noqa: E731
-        self.st.real_all = ev.embed_motion([crop(cid, _real_features(store, cid, ev)) for cid in test_ids])
+        self.st.real_all = ev.embed_motion([self._embedded(cid, _real_features(store, cid, ev))
+                                            for cid in test_ids])
         all_caps = sorted({c for caps in captions.values() for c in caps})
         # the store's HumanML3D tokens of each caption (first line wins), for evaluators that read them
         toks: dict[str, tuple] = {}
@@ -362,7 +361,7 @@ class HOIScorer(Scorer):
             windows = lambda cid, k: replication_windows(  # noqa: E731
                 cid, int(self.st.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
         st = self.st
-        crop = (lambda cid: embedding_window(proto, cid, st.rows[cid]["frames"])) if proto.crop_embeddings else None
+        crop = self._embedded if proto.crop_embeddings else None
         return _stream(sub, ids, st.ks_physical, st.ks_embed, self.ev, self.store, load_groups(self.store.root),
                        proto, st.mode, st.fps, st.gen, windows, st.cache, crop)
 
@@ -392,8 +391,12 @@ class HOIScorer(Scorer):
             self.st.notes.append(f"MultiModality not computed: {K} sample(s) per prompt, the protocol needs "
                               f"{proto.mm_samples}")
         where = {cid: i for i, cid in enumerate(ids)}
-        self.st.per_clip = self._per_clip(real, text_sets)
-        self.st.clip_arrays = self._clip_data(real, text_sets)
+        phys = self._physical_per_clip()
+        k0 = proto.sample_index(0, K)
+        from .clip_data import clip_arrays
+        from .per_clip import per_clip_table
+        self.st.per_clip = per_clip_table(ids, gen[k0], real, text_sets, phys[k0], k0)
+        self.st.clip_arrays = clip_arrays(ids, gen, real, text_sets, phys)
         if isinstance(self.options.get("clip_data"), dict):
             self.options["clip_data"].update(self.st.clip_arrays)
         self.st.fid_method = "sqrtm" if proto.mode == "legacy" else "eigh"
@@ -453,27 +456,23 @@ class HOIScorer(Scorer):
             rows.append(row)
         return rows
 
-    def _per_clip(self, real: np.ndarray, text_sets: list[np.ndarray]) -> dict:
-        """The per-test-clip table (:mod:`hoibench.scoring.per_clip`) of the sample replication
-        0 scores, with that replication's physical statistics."""
-        from .per_clip import per_clip_table
-        k = self.proto.sample_index(0, self.st.K)
-        source = self.st.physical[0 if self.st.windowed else k].per_clip()
-        phys = {key[0]: row for key, row in source.items() if isinstance(key, tuple) and key[1] == k}
-        return per_clip_table(self.st.ids, self.st.gen[k], real, text_sets, phys, k)
+    def _embedded(self, cid: str, feats: np.ndarray) -> np.ndarray:
+        """The rows of ``cid`` the evaluator embeds (:func:`embedded_rows`)."""
+        return embedded_rows(self.proto, cid, self.st.rows[cid]["frames"], feats)
 
-    def _clip_data(self, real: np.ndarray, text_sets: list[np.ndarray]) -> dict:
-        """What a paired comparison recomputes every metric from (:mod:`hoibench.scoring.clip_data`):
-        per scored clip the motion embedding of every sample, the real motion's, the caption
-        embeddings, and the physical metrics' per-clip values of each scored sample (of
-        replication 0's windows under a length-cropping protocol)."""
-        from .clip_data import clip_arrays
+    def _physical_per_clip(self) -> dict[int, dict[str, dict]]:
+        """``{sample: {id: per-clip physical values}}`` for each scored sample: what the
+        per-clip table (sample of replication 0) and the per-clip data (every sample) show;
+        under a length-cropping protocol, replication 0's windows."""
         st = self.st
-        phys = {}
+        sources: dict[int, dict] = {}
+        out = {}
         for k in st.ks_physical:
-            source = st.physical[0 if st.windowed else k].per_clip()
-            phys[k] = {key[0]: row for key, row in source.items() if isinstance(key, tuple) and key[1] == k}
-        return clip_arrays(st.ids, st.gen, real, text_sets, phys)
+            slot = 0 if st.windowed else k
+            if slot not in sources:
+                sources[slot] = st.physical[slot].per_clip()
+            out[k] = {key[0]: row for key, row in sources[slot].items() if isinstance(key, tuple) and key[1] == k}
+        return out
 
     def _physical_row(self, physical: dict, r: int) -> dict:
         """Replication r's physical metrics: its own length windows' (a length-cropping

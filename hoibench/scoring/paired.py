@@ -22,7 +22,6 @@ made up front and the per-resample work is split in fixed chunks.
 from __future__ import annotations
 
 import hashlib
-from pathlib import Path
 
 import numpy as np
 
@@ -161,15 +160,11 @@ def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamp
     return {"n_clips": n, "metrics": rows}
 
 
-def _method(result: dict, path) -> str:
-    from ..core.errors import printable
-    return printable(str((result.get("submission") or {}).get("method") or Path(path).stem))
-
-
 def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, executor: str = "serial") -> dict:
     """Every result after the first against the first (module docstring); the ``cmp.json`` dict."""
     from ..tracks.protocol import get_protocol
     from .clip_data import read_clip_data
+    from .compare import _method
     from .results import read_result
     if len(paths) < 2:
         raise ValueError("compare --paired: give at least two result files")
@@ -221,7 +216,8 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
     if n < 2:
         return {}
     order = np.arange(n)
-    pools = [[ids.index(c) for c in p] for p in proto.pools(ids, 0)] or [list(range(n))]
+    where = {c: i for i, c in enumerate(ids)}
+    pools = [[where[c] for c in p] for p in proto.pools(ids, 0)] or [list(range(n))]
     side = _Side(arrays, order, pools, int(proto.r_precision_top_k or 3))
     W = bootstrap_weights(n, resamples, seed).astype(np.float64)
     boot = {m: _means(v, W) for m, v in side.per_clip().items()}

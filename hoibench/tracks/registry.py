@@ -33,6 +33,16 @@ def get_track(name: str) -> Track:
     return _TRACKS.get(name)
 
 
+def headline_of(name: str) -> tuple[str, ...]:
+    """The metrics the pages and ``compare --plot`` draw for track ``name`` (its ``headline``;
+    the single-body default for a track the registry does not know)."""
+    from .track import DEFAULT_HEADLINE
+    try:
+        return get_track(name).headline
+    except KeyError:
+        return DEFAULT_HEADLINE
+
+
 def track_for_dataset(dataset: str, multibody: bool = False) -> Track:
     """The track that scores stores of ``dataset``; a dataset no track lists falls back to the
     generic track of its kind (``multibody-synthetic`` settings are not assumed: the caller's
@@ -53,4 +63,5 @@ def track_for_store(store) -> Track:
     return track_for_dataset(str(store.manifest.get("dataset", "")), multibody=store.is_multibody)
 
 
-__all__ = ["track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "track_for_dataset"]
+__all__ = ["track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
+           "track_for_dataset"]

@@ -9,6 +9,8 @@ from ..core.registry import Registry
 
 #: the kinds of store a track may read
 STORE_KINDS = ("hoi", "human", "multibody")
+#: the metrics a single-body track's page plots (a track may name others)
+DEFAULT_HEADLINE = ("fid", "r_precision_top1", "cd", "fsr")
 
 
 @dataclass(frozen=True)
@@ -36,7 +38,7 @@ class Track:
     scorer: str
     renderer: str
     description: str = ""
-    headline: tuple[str, ...] = ("fid", "r_precision_top1", "cd", "fsr")
+    headline: tuple[str, ...] = DEFAULT_HEADLINE
     extras: dict = field(default_factory=dict, compare=False)
 
     @property
