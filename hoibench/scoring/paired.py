@@ -78,16 +78,19 @@ def _means(values: np.ndarray, W: np.ndarray) -> np.ndarray:
 
 
 def _set_level(job: tuple) -> dict[str, np.ndarray]:
-    """FID and Diversity of both sides (and the ground truth's Diversity) on a chunk of draws."""
+    """FID and Diversity of both sides (and the ground truth's Diversity) on a chunk of draws;
+    side A only when ``b_motion`` is None (a single result's clip interval)."""
     start, W, a_motion, b_motion, real, pairs, seed = job
-    out = {k: np.empty(len(W)) for k in ("fid_a", "fid_b", "div_a", "div_b", "div_gt")}
+    sides = (("a", a_motion),) if b_motion is None else (("a", a_motion), ("b", b_motion))
+    names = [f"{m}_{side}" for side, _ in sides for m in ("fid", "div")] + ([] if b_motion is None else ["div_gt"])
+    out = {k: np.empty(len(W)) for k in names}
     for i, w in enumerate(W):
         s = _seed(seed, start + i)
-        out["fid_a"][i] = weighted_fid(real, a_motion, w)
-        out["fid_b"][i] = weighted_fid(real, b_motion, w)
-        out["div_a"][i] = resampled_diversity(a_motion, w, pairs, s)
-        out["div_b"][i] = resampled_diversity(b_motion, w, pairs, s)
-        out["div_gt"][i] = resampled_diversity(real, w, pairs, s)
+        for side, motion in sides:
+            out[f"fid_{side}"][i] = weighted_fid(real, motion, w)
+            out[f"div_{side}"][i] = resampled_diversity(motion, w, pairs, s)
+        if b_motion is not None:
+            out["div_gt"][i] = resampled_diversity(real, w, pairs, s)
     return out
 
 
@@ -223,7 +226,7 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
     boot = {m: _means(v, W) for m, v in side.per_clip().items()}
     if n <= SET_LEVEL_MAX_CLIPS:
         pairs = int(min(proto.diversity_pairs or 300, 300))
-        got = _set_level((0, W, side.motion, side.motion, side.real, pairs, seed))
+        got = _set_level((0, W, side.motion, None, side.real, pairs, seed))
         boot.update(fid=got["fid_a"], diversity=got["div_a"])
     out = {}
     for m, v in boot.items():
