@@ -122,7 +122,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["METRIC_NAMES", "TORCH_SAMPLERS", "LoopResult", "LoopSpec", "LOOPS", "reference_ci", "run_loop",
-           "t2m_loop", "mdm_loop", "chainhoi_loop", "interact_loop"]
+           "t2m_loop", "mdm_loop", "chainhoi_loop", "interact_loop",
+           "interact_released_loop"]
 
 from .catalog import metric_names
 
@@ -585,6 +586,40 @@ def interact_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, repli
     return _collect("interact", reps, notes)
 
 
+def interact_released_loop(text, motion, gt_motion, samples=None, *, ids=None, lengths=None, seed: int = 0,
+                           replications: int = 2, batch_size: int = 64, top_k: int = 3, mm_batches: int = 2,
+                           mm_repeats: int = 2, mm_times: int = 1) -> LoopResult:
+    """InterAct's released evaluation as its script runs it: its test loader
+    (:func:`hoibench.metrics.interact_loop.loader_rows`: clips of 40-300 frames, by length)
+    then :func:`interact_loop` on those rows. ``ids`` (hoibench's InterAct clip ids) and
+    ``lengths`` (frames) select and order the rows; without them the rows are taken as given
+    and a note says so. ``batches`` index the inputs' rows."""
+    from .interact_loop import loader_rows
+    x = _inputs(text, motion, gt_motion, samples)
+    notes = []
+    if ids is None or lengths is None:
+        order = np.arange(len(x.text))
+        notes.append("InterAct's loader (40-300 frames, length order) not applied: no clip ids and lengths given; "
+                     "rows scored as given")
+    else:
+        if len(ids) != len(x.text):
+            raise ValueError(f"ids: expected {len(x.text)} clip ids, got {len(ids)}")
+        rows = loader_rows(ids, lengths)
+        order = rows.order
+        if rows.dropped:
+            notes.append(f"InterAct's loader skips {len(rows.dropped)} of {len(ids)} clips outside 40-300 frames")
+        if len(order) < batch_size:
+            raise ValueError(f"interact-released: {len(order)} clips of 40-300 frames, fewer than one batch of "
+                             f"{batch_size} (InterAct's loader drops the incomplete batch)")
+    sub = None if x.samples is None else x.samples[:, order]
+    res = interact_loop(x.text[order], x.motion[order], x.gt_motion[order], sub, seed=seed,
+                        replications=replications, batch_size=batch_size, top_k=top_k, mm_batches=mm_batches,
+                        mm_repeats=mm_repeats, mm_times=mm_times)
+    res.batches = [{role: [order[b] for b in bs if b is not None] for role, bs in rep.items()}
+                   for rep in res.batches]
+    return LoopResult("interact-released", res.generated, res.real, res.batches, sorted(set(res.notes + notes)))
+
+
 # ===================================================================== registry
 @dataclass(frozen=True)
 class LoopSpec:
@@ -617,6 +652,11 @@ LOOPS: dict[str, LoopSpec] = {s.name: s for s in (
     LoopSpec("interact", interact_loop, 64, "dataset order, drop_last", "Euclidean, numpy float32", 3,
              "300 pairs (50 when <= 300 rows)", "first 2 batches (128, batch 1 re-counted) x 2 x 1", 2, _CI,
              "wzyabcas/InterAct text2interaction/eval/eval_marker_representation.py L42-231"),
+    LoopSpec("interact-released", interact_released_loop, 64,
+             "InterAct's test loader: clips of 40-300 frames by length, drop_last", "Euclidean, numpy float32", 3,
+             "300 pairs (50 when <= 300 rows)", "first 2 batches (128, batch 1 re-counted) x 2 x 1", 2, _CI,
+             "wzyabcas/InterAct text2interaction/eval/eval_marker_representation.py L42-320, "
+             "data_loaders/behave/data/dataset.py L28-167"),
 )}
 
 

@@ -30,7 +30,7 @@ register_track(_hoi("rich-cat", ("rich",), ("rich-cat-clean",),
                     store_kind="human"))
 register_track(Track(
     name="interact", datasets=("interact",), store_kind="hoi", representation="hoi269", submission="hoi",
-    evaluator_kind="interact", columns=HOI_COLUMNS, protocols=("interact-clean",),
+    evaluator_kind="interact", columns=HOI_COLUMNS, protocols=("interact-clean", "interact-legacy"),
     scorer="hoi", renderer="hoi",
     description="InterAct's unified HOI data (BEHAVE, GRAB, OMOMO, InterCap, NeuralDome, IMHD, CHAIRS; "
                 "hoibench prepare interact), 30 fps, scored with InterAct's evaluator (markers + object BPS).",
