@@ -588,12 +588,13 @@ def interact_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, repli
 
 def interact_released_loop(text, motion, gt_motion, samples=None, *, ids=None, lengths=None, seed: int = 0,
                            replications: int = 2, batch_size: int = 64, top_k: int = 3, mm_batches: int = 2,
-                           mm_repeats: int = 2, mm_times: int = 1) -> LoopResult:
+                           mm_repeats: int = 2, mm_times: int = 1, diversity_times: int | None = None) -> LoopResult:
     """InterAct's released evaluation as its script runs it: its test loader
     (:func:`hoibench.metrics.interact_loop.loader_rows`: clips of 40-300 frames, by length)
     then :func:`interact_loop` on those rows. ``ids`` (hoibench's InterAct clip ids) and
     ``lengths`` (frames) select and order the rows; without them the rows are taken as given
-    and a note says so. ``batches`` index the inputs' rows."""
+    and a note says so. ``batches`` index the inputs' rows. ``diversity_times`` is accepted
+    and not used: the loop fixes its own pairs (300, or 50 when at most 300 rows)."""
     from .interact_loop import loader_rows
     x = _inputs(text, motion, gt_motion, samples)
     notes = []
