@@ -1,5 +1,5 @@
 """Representations, raw data, stores and texts: ``hoibench representations``, ``represent``,
-``synth``, ``prepare``, ``datasets``, ``splits``, ``export``, ``annotate``.
+``synth``, ``prepare``, ``datasets`` (``ls``, ``leak-check``), ``splits``, ``export``, ``annotate``.
 
 ``synth`` and ``prepare`` run what the registries say (:mod:`hoibench.datasets.synth_registry`,
 :mod:`hoibench.datasets.catalog`): no branch names a layout or a dataset."""
@@ -234,10 +234,67 @@ def _add_raw(sub) -> None:
     s.add_argument("--strict", action="store_true", help="stop at the first failing sequence")
     s.set_defaults(func=_cmd_prepare)
 
-    s = sub.add_parser("datasets", help="list the raw-data loaders: source, licence, split, verification",
-                       epilog="example: hoibench datasets ls")
-    s.add_argument("action", choices=["ls"], help="ls: one block per loader")
-    s.set_defaults(func=_cmd_datasets)
+    s = sub.add_parser("datasets", help="list the raw-data loaders; check a store for train/test leakage",
+                       epilog="examples: hoibench datasets ls; hoibench datasets leak-check data/interact --out leak")
+    actions = s.add_subparsers(dest="action", required=True, metavar="{ls,leak-check}")
+    a = actions.add_parser("ls", help="one block per loader: source, licence, split, verification",
+                           epilog="example: hoibench datasets ls")
+    a.set_defaults(func=_cmd_datasets)
+    _add_leak_check(actions)
+
+
+def _cmd_leak_check(args) -> int:
+    """``hoibench datasets leak-check``: motion, caption, object and subject overlap of test and train."""
+    from ..core.parallel import _progress_bar
+    from ..datasets.leak_check import leak_check, markdown, write_report
+    bars: list = []
+
+    def progress(name: str, total: int):
+        bar = _progress_bar(name, total)
+        if bar is None:
+            return None
+        bars.append(bar)
+        return bar.update
+
+    try:
+        report = leak_check(args.store, against=args.against, split=args.split, train_split=args.train_split,
+                            threshold_m=args.threshold, jaccard=args.jaccard, progress=progress)
+    finally:
+        for bar in bars:
+            bar.close()
+    print(markdown(report), end="")
+    if args.out is not None:
+        j, m = write_report(report, args.out)
+        print(f"wrote {j} and {m}")
+    return 1 if args.fail_on_leak and report["summary"]["motion_duplicates"] else 0
+
+
+def _add_leak_check(actions) -> None:
+    import argparse
+    from ..datasets import leak_settings as ls
+    a = actions.add_parser(
+        "leak-check", help="near-duplicate motions and captions between a store's test and train splits",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+               "  hoibench datasets leak-check data/interact --out leak        # test against train\n"
+               "  hoibench datasets leak-check data/interact --against data/behave --out leak-behave\n"
+               "motion: root-aligned, heading-canonical MPJPE of the best-aligned overlap (same or mirrored,\n"
+               f"  any time offset, overlap >= {ls.MIN_COVERAGE:g} of the shorter clip); a duplicate is at <= "
+               f"{1000 * ls.THRESHOLD_M:g} mm\n"
+               f"captions: exact, normalised, word {ls.NGRAM}-gram Jaccard >= {ls.JACCARD_THRESHOLD:g}\n"
+               "see docs/datasets.md, 'Leak check'")
+    a.add_argument("store", type=Path, help=H_STORE)
+    a.add_argument("--against", type=Path, default=None,
+                   help="compare with every clip of this store instead of STORE's train split")
+    a.add_argument("--split", default="test", help="the split checked (default test)")
+    a.add_argument("--train-split", default="train", help="the split compared with, without --against (default train)")
+    a.add_argument("--threshold", type=float, default=ls.THRESHOLD_M,
+                   help=f"motion duplicate threshold, metres of MPJPE (default {ls.THRESHOLD_M:g})")
+    a.add_argument("--jaccard", type=float, default=ls.JACCARD_THRESHOLD,
+                   help=f"caption word 3-gram Jaccard threshold (default {ls.JACCARD_THRESHOLD:g})")
+    a.add_argument("--out", type=Path, default=None, help="write OUT/leak_check.json and OUT/leak_check.md")
+    a.add_argument("--fail-on-leak", action="store_true", help="exit status 1 when a motion duplicate is found")
+    a.set_defaults(func=_cmd_leak_check)
 
 
 def _add_stores(sub) -> None:
