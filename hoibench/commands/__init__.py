@@ -7,7 +7,7 @@ Handlers are CLI glue (checks of options, printing, exit codes); the work is don
 library functions of the pipeline stages they call."""
 from __future__ import annotations
 
-from . import baselines, challenge, data, demo, evaluators, leaderboard, publish, scoring
+from . import audit, baselines, challenge, data, demo, evaluators, leaderboard, publish, scoring
 
 #: the command modules, in ``hoibench --help`` order
-MODULES = (data, scoring, evaluators, baselines, publish, leaderboard, challenge, demo)
+MODULES = (data, scoring, evaluators, audit, baselines, publish, leaderboard, challenge, demo)

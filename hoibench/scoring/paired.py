@@ -237,5 +237,46 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
     return out
 
 
-__all__ = ["paired_compare", "compare_pair", "check_same_scale", "format_paired", "clip_intervals", "MIN_RESAMPLES",
-           "CLIP_RESAMPLES"]
+def per_clip_draws(arrays: dict, proto, W: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """One result's per-clip metrics (R-precision top-k, MM-Dist, the physical ones) on every
+    row of the draw counts ``W`` (B, N) and on all its clips: ``(draws {metric: (B,)}, full
+    {metric: value})``, in the forms of :func:`compare_pair` (sample 0; each clip's first
+    caption under the replication-0 pools of the result's own ids). Two results with the same
+    ids and ``W`` are paired draw by draw: ``b - a`` per row is :func:`compare_pair`'s
+    bootstrap of the difference."""
+    side, W = _draw_side(arrays, proto, W)
+    ones = np.ones((1, W.shape[1]))
+    per_clip = side.per_clip()
+    return ({m: _means(v, W) for m, v in per_clip.items()},
+            {m: float(_means(v, ones)[0]) for m, v in per_clip.items()})
+
+
+def set_level_draws(arrays: dict, proto, W: np.ndarray, seed: int = 0,
+                    executor: str = "serial") -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """FID and Diversity of one result (sample 0's embeddings) on every row of ``W`` and on
+    all its clips, as :func:`per_clip_draws` returns them; the Diversity pairs of draw ``i``
+    are seeded by ``(seed, i)`` as in :func:`compare_pair`. Draws run in fixed chunks on
+    ``executor`` (the same numbers on every executor)."""
+    from ..core.parallel import map_units
+    side, W = _draw_side(arrays, proto, W)
+    pairs = int(min(proto.diversity_pairs or 300, 300))
+    jobs = [(s, W[s:s + _CHUNK], side.motion, None, side.real, pairs, seed) for s in range(0, len(W), _CHUNK)]
+    chunks = list(map_units(_set_level, jobs, executor))
+    whole = _set_level((0, np.ones((1, W.shape[1])), side.motion, None, side.real, pairs, seed))
+    return ({"fid": np.concatenate([c["fid_a"] for c in chunks]),
+             "diversity": np.concatenate([c["div_a"] for c in chunks])},
+            {"fid": float(whole["fid_a"][0]), "diversity": float(whole["div_a"][0])})
+
+
+def _draw_side(arrays: dict, proto, W: np.ndarray) -> tuple[_Side, np.ndarray]:
+    ids = [str(x) for x in arrays["ids"]]
+    n = len(ids)
+    if n < 2 or np.shape(W)[1:] != (n,):
+        raise ValueError(f"W: expected draw counts of shape (B, {n}) over at least 2 clips, got {np.shape(W)}")
+    where = {c: i for i, c in enumerate(ids)}
+    pools = [[where[c] for c in p] for p in proto.pools(ids, 0)] or [list(range(n))]
+    return _Side(arrays, np.arange(n), pools, int(proto.r_precision_top_k or 3)), np.asarray(W, np.float64)
+
+
+__all__ = ["paired_compare", "compare_pair", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
+           "set_level_draws", "MIN_RESAMPLES", "CLIP_RESAMPLES"]
