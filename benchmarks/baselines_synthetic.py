@@ -30,9 +30,11 @@ from hoibench.baselines.registry import get_spec
 from hoibench.baselines.sampler import sample
 from hoibench.baselines.trainer import train
 from hoibench.scoring.mean_pose import write_mean_pose_submission
+from hoibench.scoring.clip_data import write_clip_data
 from hoibench.scoring.evaluate import evaluate
 from hoibench.core.io import atomic_write_json, atomic_write_text
 from hoibench.publish.leaderboard import entry_from_result, write_entry
+from hoibench.publish.significance import attach_clip_data
 from hoibench.scoring.submission import from_store
 
 COLUMNS = [("fid", "FID", "down"), ("r_precision_top1", "R@1", "up"), ("r_precision_top3", "R@3", "up"),
@@ -46,11 +48,11 @@ NOTES = {"gt": "the test clips themselves: the ceiling of every metric",
          "ref:static-first-pose": "reference row: each clip's first frame held still (body and object)",
          "ref:mismatched-texts": "reference row: the ground-truth motions reassigned to other clips' texts "
                                  "(a seeded derangement)",
-         "chainhoi": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md",
-         "ejim": "hoibench's implementation from the paper, tiny config (CPU), docs/baselines.md",
+         "chainhoi": "hoibench's implementation from the paper, tiny config, docs/baselines.md",
+         "ejim": "hoibench's implementation from the paper, tiny config, docs/baselines.md",
          "ejim-micro": "hoibench's implementation from the paper, micro config (0.04 M parameters: ChainHOI "
-                       "tiny's training time on CPU), docs/baselines.md",
-         "catmo": "hoibench's implementation from the paper (object head: hoibench's extension), tiny config (CPU), "
+                       "tiny's training time on one CPU thread), docs/baselines.md",
+         "catmo": "hoibench's implementation from the paper (object head: hoibench's extension), tiny config, "
                   "docs/baselines.md"}
 CATMO_UNTRAINED = {k: 0 for k in ("train.vq_steps", "train.contact_steps", "text.movement_ae_steps",
                                   "text.match_steps", "train.gpt_steps", "object.steps")}
@@ -138,14 +140,22 @@ def main() -> None:
         if res_path.exists():
             result = json.loads(res_path.read_text())
         else:
-            result = evaluate(sub, args.data, args.evaluator, executor=args.executor)
+            clips: dict = {}
+            result = evaluate(sub, args.data, args.evaluator, executor=args.executor, clip_data=clips)
             result["baseline_timings_s"] = timing
+            if clips:
+                write_clip_data(result, clips, res_path)
             atomic_write_json(res_path, result)
         results[label] = result
         if args.entries is not None:
             meta = json.loads((sub / "submission.json").read_text())
-            entry = entry_from_result(result, method=label, track=args.track, submission_meta=meta,
-                                      notes=NOTES.get("ejim-micro" if label == "EJIM micro" else kind, ""))
+            note = NOTES.get("ejim-micro" if label == "EJIM micro" else kind, "")
+            hw = ((meta.get("source") or {}).get("training") or {}).get("hardware")
+            if hw:
+                note += f"; trained on {hw}" + (" and sampled there (benchmarks/tiny_baselines_cuda.sh)"
+                                                if "cuda" in hw else "")
+            entry = entry_from_result(result, method=label, track=args.track, submission_meta=meta, notes=note)
+            attach_clip_data(entry, result, res_path, args.entries)
             entry["role"] = ("ground-truth" if kind == "gt" else
                              "reference" if (kind == "mean-pose" or kind.startswith("ref:") or "untrained" in label)
                              else "baseline")

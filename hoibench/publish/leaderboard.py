@@ -357,6 +357,8 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         submission_meta = submission_meta_of(result, result_path)
     entry = entry_from_result(result, method=method, track=track, submission_meta=submission_meta, notes=notes)
     entry["role"] = role
+    from .significance import attach_clip_data
+    attach_clip_data(entry, result, result_path, track_dir / "entries")
     return write_entry(entry, track_dir / "entries")
 
 

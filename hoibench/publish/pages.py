@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text, read_text_file
 from ..metrics.catalog import ARROWS, METRICS, shown_value
+from .significance import SIGNIFICANCE_NOTE, rank_text, track_significance, vs_above_detail, vs_above_text
 from .leaderboard import (BANDS, LeaderboardError, band, comparable, comparable_citations, load_track, order,
                           ranks, shares_evaluator_text_encoder, table_columns, title, training_of)
 
@@ -251,14 +252,16 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
     carry a rank."""
     cols = _columns(entries)
     cells = _cells_text(entries)
+    sig = _has_significance(entries)
+    sig_head, sig_rule = (" | rank 95% | vs row above", "|---:|---") if sig else ("", "")
     lines = [f"# {track} leaderboard", ""] + ([md_about(about.strip()), ""] if about.strip() else []) + [
         _context(entries) + f". Cells: {cells}. ↑ higher is better, "
         "↓ lower is better, ≈GT closest to the ground truth.", "",
         "Rows: " + "; ".join(f"{BAND_LEGEND[b]}" for b, _, _ in _bands(entries)) + ".", "",
-        "| # | method | flags | " + " | ".join(_header(c) for c in cols) + " | training |",
-        "|---:|---|---|" + "|".join("---:" for _ in cols) + "|---|"]
+        "| # | method | flags | " + " | ".join(_header(c) for c in cols) + sig_head + " | training |",
+        "|---:|---|---|" + "|".join("---:" for _ in cols) + sig_rule + "|---|"]
     for b, head, rows in _bands(entries):
-        lines.append(f"| | ***{head}*** | |" + " |" * (len(cols) + 1))
+        lines.append(f"| | ***{head}*** | |" + " |" * (len(cols) + 1 + 2 * sig))
         for r, e in rows:
             m = md_text(e["method"])
             name = f"**{m}**" if b == "ground-truth" else (f"*{m}*" if b == "reference" else m)
@@ -266,14 +269,33 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
                 name += f" ({md_text(e.get('citation'))})"
             k = _replication_k(e)
             lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))} | "
-                         + " | ".join(fmt(e["metrics"].get(c), k, c) for c in cols) + f" | {md_text(budget(e))} |")
+                         + " | ".join(fmt(e["metrics"].get(c), k, c) for c in cols)
+                         + (f" | {rank_text(e.get('_sig'))} | {md_text(vs_above_text(e.get('_sig')))}" if sig else "")
+                         + f" | {md_text(budget(e))} |")
     units = "; ".join(f"{title(c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else []) \
-        + (["", f"CI {CLIPS_NOTE}."] if _any_clips(entries, cols) else [])
+        + (["", f"CI {CLIPS_NOTE}."] if _any_clips(entries, cols) else []) \
+        + (["", f"{SIGNIFICANCE_NOTE}."] if sig else [])
     lines += ["", "Bar and point colours: " + ", ".join(f"{_COLOR_NAMES[b]} {b.replace('-', ' ')}"
                                                        for b, _, _ in _bands(entries)) + ".", "",
               "![metrics](metrics.png)", ""] + (["![FID vs R@1](fid_vs_r1.png)", ""] if _has_fid_r1(entries) else [])
     return "\n".join(lines)
+
+
+def _has_significance(entries: list[dict]) -> bool:
+    """Whether some row carries a rank interval or a paired test (:func:`with_significance`)."""
+    return any(e.get("_sig") for e in entries)
+
+
+def with_significance(track_dir: str | Path, entries: list[dict]) -> list[dict]:
+    """``entries`` (display order) with ``_sig`` set on the ranked rows that kept per-clip
+    data (:func:`hoibench.publish.significance.track_significance` on the track's headline
+    metrics); unchanged when none did."""
+    if not any(isinstance(e.get("per_clip_data"), dict) for e in entries):
+        return entries
+    from ..tracks.registry import headline_of
+    sig = track_significance(track_dir, entries, headline_of(Path(track_dir).name))
+    return [dict(e, _sig=sig[e["_file"]]) if e["_file"] in sig else e for e in entries]
 
 
 def _has_fid_r1(entries: list[dict]) -> bool:
@@ -286,12 +308,14 @@ _COLOR_NAMES = {"ground-truth": "blue", "ranked": "orange", "reference": "grey",
 
 def write_csv(entries: list[dict]) -> str:
     names = sorted({k for e in entries for k in e["metrics"]})
+    sig = _has_significance(entries)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["rank", "band", "method", "role", "source", "citation", "complete", "samples_per_prompt",
                 "evaluator_id", "protocol", "protocol_version", "toolkit_version", "train_steps", "train_parameters",
                 "train_wall_seconds", "train_hardware", "conditioner_text_encoder"]
-               + [f"{n}{s}" for n in names for s in ("", "_ci95")])
+               + [f"{n}{s}" for n in names for s in ("", "_ci95")]
+               + (["rank_ci95", "vs_above_distinguishable", "vs_above"] if sig else []))
     for r, e in zip(ranks(entries), entries):
         row = ["" if r is None else r, band(e)] + [csv_text(e.get(k) or "") for k in ("method", "role", "source",
                                                                                      "citation")] \
@@ -303,6 +327,10 @@ def write_csv(entries: list[dict]) -> str:
         for n in names:
             m = e["metrics"].get(n)
             row += ["", ""] if m is None else [repr(float(m["mean"])), repr(float(m.get("ci95") or 0.0))]
+        if sig:
+            vs = (e.get("_sig") or {}).get("vs_above")
+            rank = rank_text(e.get("_sig"))
+            row += ["" if rank == "-" else rank, "" if not vs else vs["distinguishable"], csv_text(vs_above_detail(e.get("_sig")))]
         w.writerow(row)
     return buf.getvalue()
 
@@ -502,7 +530,8 @@ def _legend(entries: list[dict], cols: list[str]) -> str:
     swatches = " ".join(f'<span class="swatch" style="background:{COLORS[b]}"></span>{e_(b.replace("-", " "))}'
                         for b in bands)
     k1 = (f"<li>{e_(K1_NOTE)}</li>" if _any_k1(entries, cols) else "") + \
-        (f"<li>{e_(CLIPS_NOTE)}</li>" if _any_clips(entries, cols) else "")
+        (f"<li>{e_(CLIPS_NOTE)}</li>" if _any_clips(entries, cols) else "") + \
+        (f"<li>{e_(SIGNIFICANCE_NOTE)}.</li>" if _has_significance(entries) else "")
     return (f'<div class="legend"><b>Legend</b><ul>{rows}{k1}<li>Each cell: {html.escape(_cells_text(entries, "html"), quote=False)}.'
             f"</li><li>Bar and point colours in the plots: {swatches}.</li></ul></div>")
 
@@ -513,11 +542,13 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
     method name, a legend, and the plots."""
     cols = _columns(entries)
     e_ = html.escape
+    sig = _has_significance(entries)
+    n_extra = 2 if sig else 0
     head = "".join(f'<th data-col="{i + 3}" title="{e_((_info(c).summary + " (" + _info(c).units + ")") if _info(c) else c)}">'
                    f"{e_(_header(c))}</th>" for i, c in enumerate(cols))
     bodies = []
     for b, heading, members in _bands(entries):
-        rows = [f'<tr class="band"><th colspan="{len(cols) + 4}">{e_(heading)}</th></tr>']
+        rows = [f'<tr class="band"><th colspan="{len(cols) + 4 + n_extra}">{e_(heading)}</th></tr>']
         for r, e in members:
             cls = {"ground-truth": "gt", "reported": "reported", "reference": "reference"}.get(b, "ranked")
             name = e_(e["method"])
@@ -533,6 +564,10 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
                 ci_html = f"<small>± {e_(ci)}</small>" if ci else ""
                 cells.append(f'<td data-v="{float(m["mean"]) if m else ""}">{e_(mean)}{ci_html}</td>')
             flags = e_(", ".join(_flags(e, entries)))
+            if sig:
+                rank, vs = rank_text(e.get("_sig")), vs_above_text(e.get("_sig"))
+                cells.append(f'<td data-v="{e_(rank)}">{e_(rank)}</td><td class="flags" data-v="{e_(vs)}" '
+                             f'title="{e_(vs_above_detail(e.get("_sig")))}">{e_(vs)}</td>')
             rows.append(f'<tr class="{cls}"><td data-v="{r or ""}">{r or ""}</td>'
                         f'<td class="name" data-v="{e_(e["method"])}">{name}</td>'
                         f'<td class="flags" data-v="{flags}">{flags}</td>{"".join(cells)}'
@@ -541,6 +576,9 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
     units = "; ".join(f"{e_(title(c))}: {e_(_info(c).units)}" for c in cols if _info(c))
+    sig_head = (f'<th data-col="{len(cols) + 3}" title="{e_(SIGNIFICANCE_NOTE)}">rank 95%</th>'
+                f'<th class="flags" data-col="{len(cols) + 4}" title="{e_(SIGNIFICANCE_NOTE)}">vs row above</th>'
+                if sig else "")
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{e_(track)} leaderboard - hoibench</title>
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -549,7 +587,7 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
 <p>{e_(_context(entries))}. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.
 Click a column to sort (inside each band). Units: {units}.</p>
 {_legend(entries, cols)}
-<div class="wrap"><table><thead><tr><th data-col="0">#</th><th class="name" data-col="1">method</th><th class="flags" data-col="2">flags</th>{head}<th data-col="{len(cols) + 3}">training</th></tr></thead>
+<div class="wrap"><table><thead><tr><th data-col="0">#</th><th class="name" data-col="1">method</th><th class="flags" data-col="2">flags</th>{head}{sig_head}<th data-col="{len(cols) + 3 + n_extra}">training</th></tr></thead>
 {chr(10).join(bodies)}
 </table></div>
 {imgs}
@@ -569,7 +607,7 @@ def build(track_dir: str | Path) -> dict[str, Path]:
     """Render ``track_dir``'s entries into README.md (``about.md``, when present, above the
     table), leaderboard.csv, index.html and the PNG plots (atomically). Returns the paths."""
     track_dir = Path(track_dir)
-    entries = order(load_track(track_dir))
+    entries = with_significance(track_dir, order(load_track(track_dir)))
     if not entries:
         raise LeaderboardError(f"{track_dir}/entries: no entries to render")
     track = track_dir.name

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text
 from .leaderboard import LeaderboardError, load_track, order, track_dirs
-from .pages import _figures, page, write_csv
+from .pages import _figures, page, with_significance, write_csv
 
 _STYLE = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
           "table{border-collapse:collapse;width:100%}td,th{border-bottom:1px solid #ddd;padding:.4em .6em;"
@@ -71,7 +71,7 @@ def build_site(root: str | Path, out: str | Path) -> dict[str, Path]:
     written: dict[str, Path] = {}
     summaries = []
     for t in tracks:
-        entries = order(load_track(t))
+        entries = with_significance(t, order(load_track(t)))
         if not entries:
             continue
         figures = _figures(t.name, entries)
