@@ -245,7 +245,7 @@ def _add_raw(sub) -> None:
 
 def _cmd_leak_check(args) -> int:
     """``hoibench datasets leak-check``: motion, caption, object and subject overlap of test and train."""
-    from ..core.parallel import _progress_bar
+    from ..core.parallel import LineProgress, _progress_bar
     from ..datasets.leak_check import leak_check, markdown, write_report
     bars: list = []
 
@@ -259,9 +259,13 @@ def _cmd_leak_check(args) -> int:
     try:
         report = leak_check(args.store, against=args.against, split=args.split, train_split=args.train_split,
                             threshold_m=args.threshold, jaccard=args.jaccard, progress=progress)
-    finally:
-        for bar in bars:
-            bar.close()
+    except BaseException:
+        for bar in bars:              # a terminal bar is closed; a line log says nothing more
+            if not isinstance(bar, LineProgress):
+                bar.close()
+        raise
+    for bar in bars:
+        bar.close()
     print(markdown(report), end="")
     if args.out is not None:
         j, m = write_report(report, args.out)
