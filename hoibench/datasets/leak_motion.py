@@ -44,8 +44,8 @@ import numpy as np
 
 from ..core.skeleton import JOINT_INDEX, JOINT_NAMES
 
-from .leak_settings import (ANALYSIS_FPS, BLOCK, MIN_COVERAGE, OFFSETS_PER_PAIR, PCA_DIMS, RERANK_PER_CLIP,
-                            STRIDE, SUBFRAME_OFFSETS, SUBSAMPLE, THRESHOLD_M, WINDOW, WINDOW_RADIUS_M)
+from .leak_settings import (ANALYSIS_FPS, BLOCK, MIN_COVERAGE, OFFSETS_PER_PAIR, PCA_DIMS, REFINE_BELOW_M,
+                            RERANK_PER_CLIP, STRIDE, SUBFRAME_OFFSETS, SUBSAMPLE, THRESHOLD_M, WINDOW, WINDOW_RADIUS_M)
 
 __all__ = ["ANALYSIS_FPS", "THRESHOLD_M", "WINDOW", "STRIDE", "MIN_COVERAGE", "Match", "match_sets",
            "overlap_distance", "canonicalise", "mirror", "resample", "windows", "search"]
@@ -126,11 +126,13 @@ def _starts(T: int, which: str) -> np.ndarray:
     return np.arange(0, last + 1, STRIDE)
 
 
-def windows(clips: Sequence[np.ndarray], which: str, variants: Sequence[int] = (0,)) -> Windows:
-    """Descriptors (full dimension) of every clip's ``which`` windows, for each variant; a clip
-    shorter than WINDOW is padded with its last frame."""
+def windows(clips: Sequence[np.ndarray], which: str, variants: Sequence[int] = (0,),
+            basis: tuple[np.ndarray, np.ndarray] | None = None) -> Windows:
+    """Descriptors of every clip's ``which`` windows, for each variant (full dimension, or
+    projected on ``basis`` = (mean, axes) clip by clip); a clip shorter than WINDOW is padded
+    with its last frame."""
     keep = np.arange(0, WINDOW, SUBSAMPLE)
-    scale = 1.0 / np.sqrt(len(keep) * 22)
+    scale = np.float32(1.0 / np.sqrt(len(keep) * 22))
     descs, cl, st, va = [], [], [], []
     for v in variants:
         for i, j in enumerate(clips):
@@ -139,25 +141,34 @@ def windows(clips: Sequence[np.ndarray], which: str, variants: Sequence[int] = (
             if v:
                 j = mirror(j)
             s = _starts(len(j), which)
-            seg = j[s[:, None] + keep[None, :]]                   # (n, K, 22, 3)
-            descs.append(canonicalise(seg).reshape(len(s), -1) * scale)
+            d = canonicalise(j[s[:, None] + keep[None, :]]).reshape(len(s), -1) * scale   # (n, K * 66)
+            descs.append(d if basis is None else (d - basis[0]) @ basis[1])
             cl.append(np.full(len(s), i)), st.append(s), va.append(np.full(len(s), v))
     if not descs:
-        return Windows(np.zeros((0, len(keep) * 66), np.float32), *(np.zeros(0, int),) * 3)
+        dim = len(keep) * 66 if basis is None else basis[1].shape[1]
+        return Windows(np.zeros((0, dim), np.float32), *(np.zeros(0, int),) * 3)
     return Windows(np.concatenate(descs).astype(np.float32), np.concatenate(cl), np.concatenate(st),
                    np.concatenate(va))
 
 
-def pca_basis(desc: np.ndarray, dims: int = PCA_DIMS, sample: int = 20000) -> tuple[np.ndarray, np.ndarray]:
-    """(mean (D,), basis (D, d)): the first ``dims`` principal axes of ``desc`` (every n-th row
-    when there are more than ``sample``), orthonormal columns."""
-    rows = desc[:: max(1, len(desc) // sample)].astype(np.float64)
+def pca_basis(desc: np.ndarray, dims: int = PCA_DIMS) -> tuple[np.ndarray, np.ndarray]:
+    """(mean (D,), axes (D, d)): the first ``dims`` principal axes of the rows of ``desc``
+    (orthonormal columns, each signed so that its largest entry is positive)."""
+    rows = desc.astype(np.float64)
     mean = rows.mean(0) if len(rows) else np.zeros(desc.shape[1])
     x = rows - mean
-    w, v = np.linalg.eigh(x.T @ x)                       # ascending eigenvalues
-    basis = v[:, ::-1][:, :dims]
-    basis = basis * np.where(basis[np.abs(basis).argmax(0), np.arange(basis.shape[1])] < 0, -1.0, 1.0)
-    return mean.astype(np.float32), np.ascontiguousarray(basis, dtype=np.float32)
+    _, v = np.linalg.eigh(x.T @ x)                       # ascending eigenvalues
+    axes = v[:, ::-1][:, :dims]
+    axes = axes * np.where(axes[np.abs(axes).argmax(0), np.arange(axes.shape[1])] < 0, -1.0, 1.0)
+    return mean.astype(np.float32), np.ascontiguousarray(axes, dtype=np.float32)
+
+
+def fit_basis(ref: Sequence[np.ndarray], sample: int = 20000) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pca_basis` of the grid windows of every n-th reference clip (n such that about
+    ``sample`` windows are used; all of them for a small set)."""
+    per = max(1.0, float(np.mean([len(j) for j in ref])) / STRIDE) if len(ref) else 1.0
+    step = max(1, int(len(ref) * per // sample))
+    return pca_basis(windows(list(ref)[::step], "grid").desc)
 
 
 def search(q: np.ndarray, r: np.ndarray, radius: float,
@@ -168,8 +179,9 @@ def search(q: np.ndarray, r: np.ndarray, radius: float,
     if len(q) == 0 or len(r) == 0:
         return np.zeros(0, int), np.zeros(0, int), np.zeros(0, np.float32)
     rn = (r * r).sum(1)
-    for b0 in range(0, len(q), BLOCK):
-        qb = q[b0:b0 + BLOCK]
+    block = max(16, min(BLOCK, (1 << 24) // len(r)))            # at most 16M distances at once
+    for b0 in range(0, len(q), block):
+        qb = q[b0:b0 + block]
         d2 = (qb * qb).sum(1)[:, None] + rn[None, :] - 2.0 * (qb @ r.T)
         np.maximum(d2, 0, out=d2)
         near = np.argmin(d2, axis=1)
@@ -197,8 +209,7 @@ class Match:
 def _candidates(qw: Windows, rw: Windows, radius: float, swapped: bool, progress) -> np.ndarray:
     """Rows (query clip, ref clip, variant, offset, window distance) of every window pair found;
     with ``swapped`` the rows of ``qw`` are reference windows and those of ``rw`` query windows."""
-    mean, basis = pca_basis(qw.desc if swapped else rw.desc)
-    a, b, d = search((qw.desc - mean) @ basis, (rw.desc - mean) @ basis, radius, progress)
+    a, b, d = search(qw.desc, rw.desc, radius, progress)
     if swapped:
         a, b, qw, rw = b, a, rw, qw
     return np.stack([qw.clip[a], rw.clip[b], qw.variant[a], rw.start[b] - qw.start[a], d], 1).astype(np.float64)
@@ -242,8 +253,9 @@ def match_sets(query: Sequence[np.ndarray], ref: Sequence[np.ndarray], *, radius
     least WINDOW frames). ``exclude``: (query, ref) pairs never matched (one clip on both sides);
     ``progress(name, total)`` makes a bar."""
     bar = progress or (lambda name, n: None)
-    qh, rg = windows(query, "head", (0, 1)), windows(ref, "grid")
-    rh, qg = windows(ref, "head"), windows(query, "grid", (0, 1))
+    basis = fit_basis(ref)
+    qh, rg = windows(query, "head", (0, 1), basis), windows(ref, "grid", (0,), basis)
+    rh, qg = windows(ref, "head", (0,), basis), windows(query, "grid", (0, 1), basis)
     rows = np.concatenate([_candidates(qh, rg, radius, False, bar("leak-check index", len(qh.desc))),
                            _candidates(rh, qg, radius, True, bar("leak-check index (reverse)", len(rh.desc)))])
     if len(exclude) and len(rows):
@@ -257,8 +269,12 @@ def match_sets(query: Sequence[np.ndarray], ref: Sequence[np.ndarray], *, radius
         qc, rc, v, off = int(qc), int(rc), int(v), float(off)
         a, b = (mirror(query[qc]) if v else query[qc]), ref[rc]
         need = max(min(WINDOW, len(a), len(b)), int(np.ceil(MIN_COVERAGE * min(len(a), len(b)))))
-        tries = [overlap_distance(a, b, off + d) + (off + d,) for d in SUBFRAME_OFFSETS]
+        tries = [overlap_distance(a, b, off + d) + (off + d,) for d in (-1.0, 0.0, 1.0)]
         tries = [t for t in tries if t[1] >= need]
+        if tries and min(tries)[0] < REFINE_BELOW_M:       # sub-frame steps around the best whole frame
+            whole = min(tries)[2]
+            tries += [overlap_distance(a, b, whole + d) + (whole + d,) for d in SUBFRAME_OFFSETS]
+            tries = [t for t in tries if t[1] >= need]
         if tries:
             dist, n, o = min(tries)
             m = Match(qc, rc, "mirror" if v else "same", o, n, dist)
