@@ -1,10 +1,12 @@
 """Motion near-duplicates between two sets of clips (what ``hoibench datasets leak-check`` runs).
 
 Every clip's joints (T, 22, 3) are resampled by time to :data:`ANALYSIS_FPS` and compared
-in a **root-aligned, heading-canonical** frame: a segment is moved so that its first frame's
-pelvis is at x = z = 0 (height kept) and turned about the vertical (y) axis so that its
-first frame faces +z (facing = ``across x up``, ``across`` = (left hip - right hip) +
-(left shoulder - right shoulder), as HumanML3D's canonicalisation).
+root-aligned: the index's short windows are **canonicalised** (:func:`canonicalise`: the first
+frame's pelvis moved to x = z = 0, height kept, and the first frame turned about the vertical
+(y) axis to face +z; facing = ``across x up``, ``across`` = (left hip - right hip) + (left
+shoulder - right shoulder), as HumanML3D's canonicalisation); the exact distance aligns whole
+overlaps by least squares (below), which a heading estimated from one frame would not match
+over several metres of walking.
 
 **Distance** between a query clip ``a`` and a reference clip ``b`` at frame offset ``o``
 (query frame ``t`` against reference frame ``t + o``), variant ``v`` in {``same``,
@@ -12,15 +14,18 @@ first frame faces +z (facing = ``across x up``, ``across`` = (left hip - right h
 
     D_o(a, b) = mean over the overlap frames t and joints j of |A_t,j - B_t+o,j|   (metres)
 
-with ``A``, ``B`` the overlapping segments, each canonicalised at the overlap's first frame:
-the mean per-joint position error (MPJPE) of the best-aligned overlap; a fractional offset
-interpolates ``b`` linearly (offsets are tried in quarter frames around each candidate). A
-clip's distance to a reference clip is the ``min`` over variants and offsets whose overlap
-covers at least :data:`MIN_COVERAGE` of the shorter clip and :data:`WINDOW` frames (a short
-shared stretch, such as standing still at the start, is no duplicate); a pair is a duplicate
-when it is at most ``threshold_m`` (:data:`THRESHOLD_M`). A renamed copy is at 0, a mirrored
-copy at 0 under ``mirror``, a shifted crop at 0 at its offset (a shift by a fraction of a frame:
-the residual of a quarter-frame grid and of linear interpolation).
+with ``A`` the overlapping segment of ``a`` turned about the vertical axis and moved on the
+floor (one rotation and one xz translation for the whole segment, the least-squares fit to
+``B``: :func:`align_about_y`; heights are kept): the mean per-joint position error (MPJPE)
+of the best-aligned overlap, invariant to where and facing which way a copy was placed. A
+fractional offset interpolates ``b`` linearly (an offset from the index that is within
+``REFINE_BELOW_M`` is refined: the frames before and after, then quarter frames around the best). A clip's distance to a reference clip is the ``min``
+over variants and offsets whose overlap covers at least :data:`MIN_COVERAGE` of the shorter
+clip and :data:`WINDOW` frames (a short shared stretch, such as standing still at the start,
+is no duplicate); a pair is a duplicate when it is at most ``threshold_m``
+(:data:`THRESHOLD_M`). A renamed copy is at 0, a mirrored copy at 0 under ``mirror``, a
+shifted crop at 0 at its offset (a shift by a fraction of a frame: the residual of the
+quarter-frame grid and of linear interpolation).
 
 **Index** (the candidates the exact distance re-ranks): windows of :data:`WINDOW` frames,
 each canonicalised at its own first frame, every :data:`SUBSAMPLE`-th frame kept, scaled so
@@ -43,12 +48,11 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..core.skeleton import JOINT_INDEX, JOINT_NAMES
-
 from .leak_settings import (ANALYSIS_FPS, BLOCK, MIN_COVERAGE, OFFSETS_PER_PAIR, PCA_DIMS, REFINE_BELOW_M,
                             RERANK_PER_CLIP, STRIDE, SUBFRAME_OFFSETS, SUBSAMPLE, THRESHOLD_M, WINDOW, WINDOW_RADIUS_M)
 
 __all__ = ["ANALYSIS_FPS", "THRESHOLD_M", "WINDOW", "STRIDE", "MIN_COVERAGE", "Match", "match_sets",
-           "overlap_distance", "canonicalise", "mirror", "resample", "windows", "search"]
+           "overlap_distance", "align_about_y", "canonicalise", "mirror", "resample", "windows", "search"]
 
 #: joint index -> its left/right counterpart (itself on the midline)
 MIRROR_JOINTS: tuple[int, ...] = tuple(
@@ -91,20 +95,36 @@ def canonicalise(seg: np.ndarray) -> np.ndarray:
     return np.stack([c * x - s * z, seg[..., 1], s * x + c * z], axis=-1).astype(np.float32)
 
 
+def align_about_y(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a`` (..., 3) moved by the rotation about y and the xz translation that bring it closest to
+    ``b`` in least squares (heights unchanged): with both xz centred,
+    ``theta = atan2(sum(a_z b_x - a_x b_z), sum(a_x b_x + a_z b_z))``,
+    ``x' = cos(theta) x + sin(theta) z``, ``z' = -sin(theta) x + cos(theta) z``."""
+    a = np.asarray(a, np.float64)
+    b = np.asarray(b, np.float64)
+    ca, cb = a[..., [0, 2]].reshape(-1, 2).mean(0), b[..., [0, 2]].reshape(-1, 2).mean(0)
+    ax, az = a[..., 0] - ca[0], a[..., 2] - ca[1]
+    bx, bz = b[..., 0] - cb[0], b[..., 2] - cb[1]
+    theta = np.arctan2((az * bx - ax * bz).sum(), (ax * bx + az * bz).sum())
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([c * ax + s * az + cb[0], a[..., 1], -s * ax + c * az + cb[1]], -1)
+
+
 def overlap_distance(a: np.ndarray, b: np.ndarray, offset: float) -> tuple[float, int]:
     """(MPJPE in metres, overlap frames) of query ``a`` against reference ``b`` with query frame
     t on reference time t + ``offset`` frames (a fractional offset interpolates ``b`` linearly
-    between frames); (inf, 0) when they do not overlap."""
+    between frames), after :func:`align_about_y` of the overlapping segments; (inf, 0) when
+    they do not overlap."""
     k = int(np.floor(offset))
     f = float(offset - k)
     t0 = max(0, -k)
     n = min(len(a), len(b) - k - (1 if f > 0 else 0)) - t0
     if n <= 0:
         return float("inf"), 0
-    B = b[t0 + k:t0 + k + n]
+    B = b[t0 + k:t0 + k + n].astype(np.float64)
     if f > 0:
         B = (1 - f) * B + f * b[t0 + k + 1:t0 + k + 1 + n]
-    A, B = canonicalise(a[t0:t0 + n]), canonicalise(B)
+    A = align_about_y(a[t0:t0 + n], B)
     return float(np.linalg.norm(A - B, axis=-1).mean()), int(n)
 
 
@@ -179,18 +199,18 @@ def search(q: np.ndarray, r: np.ndarray, radius: float,
     if len(q) == 0 or len(r) == 0:
         return np.zeros(0, int), np.zeros(0, int), np.zeros(0, np.float32)
     rn = (r * r).sum(1)
+    qn = (q * q).sum(1)
     block = max(16, min(BLOCK, (1 << 24) // len(r)))            # at most 16M distances at once
     for b0 in range(0, len(q), block):
-        qb = q[b0:b0 + block]
-        d2 = (qb * qb).sum(1)[:, None] + rn[None, :] - 2.0 * (qb @ r.T)
-        np.maximum(d2, 0, out=d2)
-        near = np.argmin(d2, axis=1)
-        hit = d2 <= radius * radius
-        hit[np.arange(len(qb)), near] = True
+        m = (-2.0 * q[b0:b0 + block]) @ r.T                     # |q - r|^2 - |q|^2, row by row
+        m += rn[None, :]
+        near = np.argmin(m, axis=1)
+        hit = m <= (radius * radius - qn[b0:b0 + block])[:, None]
+        hit[np.arange(len(m)), near] = True
         a, b = np.nonzero(hit)
-        qi.append(a + b0), ri.append(b), dd.append(np.sqrt(d2[a, b]))
+        qi.append(a + b0), ri.append(b), dd.append(np.sqrt(np.maximum(m[a, b] + qn[a + b0], 0)))
         if progress is not None:
-            progress(len(qb))
+            progress(len(m))
     return np.concatenate(qi), np.concatenate(ri), np.concatenate(dd).astype(np.float32)
 
 
@@ -269,12 +289,12 @@ def match_sets(query: Sequence[np.ndarray], ref: Sequence[np.ndarray], *, radius
         qc, rc, v, off = int(qc), int(rc), int(v), float(off)
         a, b = (mirror(query[qc]) if v else query[qc]), ref[rc]
         need = max(min(WINDOW, len(a), len(b)), int(np.ceil(MIN_COVERAGE * min(len(a), len(b)))))
-        tries = [overlap_distance(a, b, off + d) + (off + d,) for d in (-1.0, 0.0, 1.0)]
-        tries = [t for t in tries if t[1] >= need]
-        if tries and min(tries)[0] < REFINE_BELOW_M:       # sub-frame steps around the best whole frame
+        tries = [t for t in [overlap_distance(a, b, off) + (off,)] if t[1] >= need]
+        if tries and tries[0][0] < REFINE_BELOW_M:          # near: the next frames, then sub-frame steps
+            tries += [t for t in (overlap_distance(a, b, off + d) + (off + d,) for d in (-1.0, 1.0)) if t[1] >= need]
             whole = min(tries)[2]
-            tries += [overlap_distance(a, b, whole + d) + (whole + d,) for d in SUBFRAME_OFFSETS]
-            tries = [t for t in tries if t[1] >= need]
+            tries += [t for t in (overlap_distance(a, b, whole + d) + (whole + d,) for d in SUBFRAME_OFFSETS)
+                      if t[1] >= need]
         if tries:
             dist, n, o = min(tries)
             m = Match(qc, rc, "mirror" if v else "same", o, n, dist)
