@@ -6,7 +6,8 @@ severity on the README store's test split, scored with the tiny evaluator, paire
         --out WORK/audit [--executor processes:2] [--families a,b] [--resamples 2000]
     python benchmarks/audit.py --build WORK --evaluator ...   # build the README store first (120 clips, seed 0)
 
-Prints the wall time of the audit (and of its stages, from the audit's own log line), the
+Prints the wall time and the CPU time (this process and its workers) of the audit (and its
+stages' wall times, from the audit's own log line), the
 number of scored sets and clips, the load average before and after (``os.getloadavg``), and
 the process's peak memory. The audit's files land in ``--out``.
 """
@@ -18,6 +19,12 @@ import resource
 import sys
 import time
 from pathlib import Path
+
+
+def _cpu_s() -> float:
+    """User + system CPU seconds of this process and its finished children (the pool's workers)."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def _build(work: Path) -> Path:
@@ -47,13 +54,16 @@ def main(argv=None) -> None:
     families = args.families.split(",") if args.families else list(FAMILIES)
     load0 = os.getloadavg()
     t0 = time.perf_counter()
+    c0 = _cpu_s()
     doc = run_audit(data, args.evaluator, args.out, families=families, resamples=args.resamples,
                     executor=args.executor, overwrite=True)
     wall = time.perf_counter() - t0
+    cpu = _cpu_s() - c0
     load1 = os.getloadavg()
     n = doc["provenance"]["test_clips"]
     print(f"audit of {len(conditions(families))} corrupted sets x {n} test clips ({len(families)} families), "
-          f"executor {args.executor}: {wall:.1f} s ({wall / 60:.1f} min)")
+          f"executor {args.executor}: {wall:.1f} s ({wall / 60:.1f} min) wall, {cpu:.1f} s CPU (this process and "
+          f"its workers: what the audit costs on idle cores, over their number when it parallelises)")
     print(f"load average before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, after {load1[0]:.2f} {load1[1]:.2f} "
           f"{load1[2]:.2f}; {os.cpu_count()} cores; peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
 
