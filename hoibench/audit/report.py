@@ -45,8 +45,7 @@ def heatmap_png(doc: dict) -> bytes:
     rho = np.array([[np.nan if doc["summary"][m][f]["spearman_worse"] is None else doc["summary"][m][f]["spearman_worse"]
                      for f in families] for m in metrics], dtype=float)
     fig, ax = plt.subplots(figsize=(max(7.0, 2.6 + 0.62 * len(families)), 1.9 + 0.3 * len(metrics)), dpi=110)
-    cmap = matplotlib.colormaps["RdBu_r"].copy()
-    cmap.set_bad("#d9d9d9")
+    cmap = matplotlib.colormaps["RdBu_r"].with_extremes(bad="#d9d9d9")
     im = ax.imshow(np.ma.masked_invalid(rho), cmap=cmap, vmin=-1, vmax=1, aspect="auto")
     for i, m in enumerate(metrics):
         for j, f in enumerate(families):
