@@ -38,6 +38,8 @@ def test_shipped_protocols_fix_the_design_numbers():
     chois = [protos.pop(i) for i in ("omomo-chois", "omomo-chois-clean")]
     for p in chois:                   # CHOIS's own protocol: its 30 fps evaluator, text-to-motion's loop
         assert p.fps == 30 and p.embedding_loop == "t2m" and p.dataset == "omomo", p.ref
+    ia = protos.pop("interact-legacy")  # InterAct's released evaluation: its loader and loop, 2 repeats
+    assert (ia.replications, ia.embedding_loop, ia.r_precision_pool_size, ia.fps) == (2, "interact-released", 64, 30)
     for p in protos.values():
         if p is t2m:
             continue
