@@ -143,7 +143,20 @@ def test_evaluate_keeps_per_clip_data_and_clip_intervals_and_compare_paired_read
     fid = pair["metrics"]["fid"]
     assert set(fid) >= {"diff", "ci95", "p", "p_holm", "verdict"} and fid["diff"] > 0
     assert pair["metrics"]["jitter_mps3"]["verdict"] == "A better"            # 5 cm noise jitters every frame
-    assert "A better" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "A better" in out
+    # slices: every scored clip has a label per slice, the tables count every clip once
+    sl = res["slices"]
+    ids = set(np.load(tmp_path / "gt.clips.npz")["ids"].tolist())
+    for name in ("object", "verb", "contact", "source", "text_length", "motion_length"):
+        assert set(sl["labels"][name]) == ids
+        assert sum(row["n"] for row in sl["tables"][name].values()) == len(ids)
+    objects = {}
+    for cid, obj in sl["labels"]["object"].items():
+        objects.setdefault(obj, []).append(cid)
+    assert set(objects) <= {str(np.load(data / "clips" / f"{c}.npz")["object_name"]) for c in ids}
+    assert pair["slices"] and all(g["n"] >= 3 for g in pair["slices"])
+    assert "slices where they differ most" in out
 
 
 def test_legacy_protocols_embed_the_windows_the_physical_metrics_see(annotated_store_with_evaluator, tmp_path):

@@ -32,7 +32,8 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     id, ``id@version``, a YAML path or a :class:`~hoibench.tracks.protocol.Protocol`. ``lead``:
     called with the one line that says the submission was made for another store (most of its
     ids belong to no test split here), before scoring. ``clip_data``: a dict the scorer fills
-    with the result's per-clip arrays (:mod:`hoibench.scoring.clip_data`; single-body tracks).
+    with the result's per-clip arrays (:mod:`hoibench.scoring.clip_data`; single-body tracks);
+    the result then carries per-slice tables (``slices``, :mod:`hoibench.scoring.slices`).
     """
     from ..core.parallel import map_units
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
@@ -69,7 +70,11 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
         units = scorer.stream(sub, ids)          # sets up the unit's settings before the map
         for out in map_units(scorer.unit, units, executor, **scorer.map_options):
             scorer.update(out)
-    return scorer.summary(scorer.replications())
+    result = scorer.summary(scorer.replications())
+    if clip_data:
+        from .slices import result_slices
+        result["slices"] = result_slices(store, clip_data, proto)
+    return result
 
 
 def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str | Path,

@@ -182,10 +182,26 @@ def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, e
     for r, arr, p in zip(results[1:], arrays[1:], paths[1:]):
         pair = compare_pair(results[0], arrays[0], r, arr, proto, resamples, seed, executor)
         pairs.append({"a": _method(results[0], paths[0]), "b": _method(r, p), "a_file": str(paths[0]),
-                      "b_file": str(p), **pair})
+                      "b_file": str(p), **pair, "slices": _slice_gaps(results[0], arrays[0], r, arr, proto)})
     return {"format": "hoibench-compare-1", "resamples": resamples, "seed": seed, "alpha": ALPHA,
             "protocol": f"{results[0]['protocol']}@{results[0]['protocol_version']}",
             "evaluator_id": results[0].get("evaluator_id"), "pairs": pairs}
+
+
+def _slice_gaps(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto) -> list[dict]:
+    """The slices where B and A differ most (:func:`hoibench.scoring.slices.slice_differences`
+    on the shared clips, every per-clip metric); empty when A carries no slice labels."""
+    from .slices import slice_differences
+    labels = (a.get("slices") or {}).get("labels")
+    if not isinstance(labels, dict):
+        return []
+    va, vb = clip_values(a_arrays, proto), clip_values(b_arrays, proto)
+    ia = {str(c): i for i, c in enumerate(a_arrays["ids"])}
+    ib = {str(c): i for i, c in enumerate(b_arrays["ids"])}
+    shared = sorted(set(ia) & set(ib))
+    sa = {m: np.asarray(v)[[ia[c] for c in shared]] for m, v in va.items()}
+    sb = {m: np.asarray(v)[[ib[c] for c in shared]] for m, v in vb.items()}
+    return slice_differences(labels, shared, sa, sb, sorted(set(sa) & set(sb)))
 
 
 def format_paired(cmp: dict) -> str:
@@ -197,6 +213,11 @@ def format_paired(cmp: dict) -> str:
         for m, row in pair["metrics"].items():
             lines.append(f"  {m:26s} {row['diff']:+11.4g} [{row['ci95'][0]:+.3g}, {row['ci95'][1]:+.3g}]  "
                          f"p {row['p_holm']:.3g}  {row['verdict']}")
+        if pair.get("slices"):
+            lines.append("  slices where they differ most (mean of B - A over the slice's clips; z in standard "
+                         "errors of the split's per-clip differences):")
+            lines += [f"    {g['slice']}={g['label']} ({g['n']} clips): {g['metric']} {g['diff']:+.4g} (z {g['z']:+.1f})"
+                      for g in pair["slices"]]
     return "\n".join(lines)
 
 
@@ -278,5 +299,13 @@ def _draw_side(arrays: dict, proto, W: np.ndarray) -> tuple[_Side, np.ndarray]:
     return _Side(arrays, np.arange(n), pools, int(proto.r_precision_top_k or 3)), np.asarray(W, np.float64)
 
 
-__all__ = ["paired_compare", "compare_pair", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
+def clip_values(arrays: dict, proto) -> dict[str, np.ndarray]:
+    """One result's per-clip metric values (sample 0), aligned with ``arrays["ids"]``: the
+    forms :func:`per_clip_draws` averages (R-precision top-k hits and MM-Dist of each clip's
+    first caption under the replication-0 pools, the physical metrics' per-clip values)."""
+    side, _ = _draw_side(arrays, proto, np.ones((1, len(arrays["ids"]))))
+    return side.per_clip()
+
+
+__all__ = ["paired_compare", "compare_pair", "clip_values", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
            "set_level_draws", "MIN_RESAMPLES", "CLIP_RESAMPLES"]

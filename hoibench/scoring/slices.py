@@ -1,0 +1,166 @@
+"""Per-slice tables: where on the test split a method is good or bad, and where two methods
+differ most.
+
+Each scored test clip gets one label per slice, read from the store (never from the
+submission):
+
+- ``object``: the clip's object template name (``none`` for a human-only clip);
+- ``verb``: the first action of the clip's annotation (``annotations/<id>.json``), else the
+  main verb of its first caption (the first word tagged VERB that is not an auxiliary);
+- ``contact``: which body parts touch the object in the ground truth's contact labels
+  (``hands`` = wrists 20, 21 and elbows 18, 19; ``feet`` = ankles and toes 7, 8, 10, 11;
+  ``sitting/lying`` = pelvis, hips, spine, neck, head 0-3, 6, 9, 12, 15), joined by ``+``;
+  ``none`` without contact;
+- ``source``: the capture dataset (``provenance.source_dataset`` of a merged store, else the
+  clip's ``dataset``);
+- ``text_length``: words of the first caption, in :data:`TEXT_BINS`;
+- ``motion_length``: seconds, in :data:`MOTION_BINS`.
+
+A slice table holds, for each label, the number of clips and the mean of every per-clip
+metric over them (R-precision top-k and MM-Dist in :func:`~hoibench.scoring.paired.
+per_clip_draws`'s per-clip form, the physical metrics' per-clip values; sample 0). Set-level
+metrics (FID, Diversity) are not sliced: a slice of a few clips has no meaningful covariance.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+
+SLICES = ("object", "verb", "contact", "source", "text_length", "motion_length")
+#: upper bounds (inclusive) of the text-length bins, words
+TEXT_BINS = ((8, "<= 8 words"), (15, "9-15 words"), (10 ** 9, ">= 16 words"))
+#: upper bounds (exclusive) of the motion-length bins, seconds
+MOTION_BINS = ((3.0, "< 3 s"), (6.0, "3-6 s"), (float("inf"), ">= 6 s"))
+_PARTS = (("hands", (18, 19, 20, 21)), ("feet", (7, 8, 10, 11)), ("sitting/lying", (0, 1, 2, 3, 6, 9, 12, 15)))
+#: the fewest shared clips a slice label needs to be named by compare
+MIN_SLICE_CLIPS = 3
+
+
+def _bin(value: float, bins) -> str:
+    return next(label for bound, label in bins if value <= bound) if bins is TEXT_BINS else \
+        next(label for bound, label in bins if value < bound)
+
+
+def contact_label(contacts: np.ndarray | None) -> str:
+    """The ``contact`` label of a (T, J) boolean contact map (module docstring)."""
+    if contacts is None or np.asarray(contacts).size == 0:
+        return "none"
+    touched = np.asarray(contacts, bool).any(0)
+    parts = [name for name, joints in _PARTS if any(j < len(touched) and touched[j] for j in joints)]
+    return "+".join(parts) or "none"
+
+
+def first_verb(caption) -> str:
+    """The main verb lemma of a caption (its tagged tokens; ``?`` when it has none)."""
+    from ..audit.captions import _main_verb
+    from ..audit.words import words
+    ws = words(caption.text, caption.tokens)
+    i = _main_verb(ws, ())
+    return ws[i].lemma if i is not None else "?"
+
+
+def _annotation_actions(path) -> list:
+    """The ``actions`` list of an annotation file (empty when absent or unreadable)."""
+    import json
+    from ..core.io import read_text_file
+    if not path.is_file():
+        return []
+    try:
+        got = json.loads(read_text_file(path, what="annotation file")).get("actions", [])
+    except (ValueError, AttributeError):
+        return []
+    return got if isinstance(got, list) else []
+
+
+def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
+    """``{slice: {clip id: label}}`` for the test ids ``ids`` of ``store`` (module docstring)."""
+    import json
+    from ..evaluator.text import read_captions
+    out: dict[str, dict[str, str]] = {s: {} for s in SLICES}
+    for cid in ids:
+        z = store.load(cid)
+        caps = read_captions(store.root, cid) or []
+        prov = json.loads(str(z["provenance"])) if "provenance" in z else {}
+        actions = _annotation_actions(store.root / "annotations" / f"{cid}.json")
+        verb = next((str(a.get("action")) for a in actions if isinstance(a, dict) and a.get("action")), None)
+        frames = len(z["joints"]) if "joints" in z else 0
+        out["object"][cid] = str(z["object_name"]) if "object_name" in z and str(z["object_name"]) else "none"
+        out["verb"][cid] = verb or (first_verb(caps[0]) if caps else "?")
+        out["contact"][cid] = contact_label(z["contacts"] if "contacts" in z else None)
+        out["source"][cid] = str(prov.get("source_dataset") or (z["dataset"] if "dataset" in z else "?"))
+        out["text_length"][cid] = _bin(len(caps[0].text.split()), TEXT_BINS) if caps else "no text"
+        out["motion_length"][cid] = _bin(frames / float(z["fps"]), MOTION_BINS) if frames else "?"
+    return out
+
+
+def slice_tables(labels: Mapping[str, Mapping[str, str]], ids: Sequence[str],
+                 per_clip: Mapping[str, np.ndarray]) -> dict[str, dict[str, dict[str, float]]]:
+    """``{slice: {label: {"n": clips, metric: mean, ...}}}`` of the per-clip metric arrays
+    ``per_clip`` (aligned with ``ids``; NaN clips left out of a metric's mean)."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for s, by_clip in labels.items():
+        groups: dict[str, list[int]] = {}
+        for i, cid in enumerate(ids):
+            groups.setdefault(by_clip.get(cid, "?"), []).append(i)
+        table = {}
+        for label in sorted(groups):
+            idx = np.array(groups[label])
+            row: dict[str, float] = {"n": int(len(idx))}
+            for m, v in per_clip.items():
+                vals = np.asarray(v, float)[idx]
+                vals = vals[np.isfinite(vals)]
+                if len(vals):
+                    row[m] = float(vals.mean())
+            table[label] = row
+        out[s] = table
+    return out
+
+
+def result_slices(store, arrays: Mapping[str, np.ndarray], proto) -> dict:
+    """The ``slices`` block of a result: ``{"labels": {slice: {id: label}}, "tables": {slice:
+    {label: {"n", metric: mean}}}, "over", "metrics"}`` from its per-clip arrays
+    (:mod:`hoibench.scoring.clip_data`)."""
+    from .paired import clip_values
+    ids = [str(x) for x in arrays["ids"]]
+    labels = clip_labels(store, ids)
+    values = clip_values(dict(arrays), proto)
+    return {"labels": labels, "tables": slice_tables(labels, ids, values), "over": "test clips, sample 0",
+            "metrics": sorted(values)}
+
+
+def slice_differences(a_labels: Mapping[str, Mapping[str, str]], ids: Sequence[str],
+                      a_vals: Mapping[str, np.ndarray], b_vals: Mapping[str, np.ndarray],
+                      metrics: Sequence[str], top: int = 5) -> list[dict]:
+    """The slice labels where B and A differ most on ``metrics`` (per-clip values aligned with
+    ``ids``, the shared clips): for each (slice, label, metric) with at least
+    :data:`MIN_SLICE_CLIPS` clips, ``diff`` = mean(B - A) over the label's clips and ``z`` =
+    diff / (sd of the per-clip differences over all shared clips / sqrt(n)); the ``top``
+    largest ``|z|``, largest first (ties by name)."""
+    from ..metrics.catalog import METRICS
+    rows = []
+    for m in metrics:
+        if m not in a_vals or m not in b_vals:
+            continue
+        d = np.asarray(b_vals[m], float) - np.asarray(a_vals[m], float)
+        ok = np.isfinite(d)
+        sd = float(d[ok].std(ddof=1)) if ok.sum() > 1 else 0.0
+        for s, by_clip in a_labels.items():
+            groups: dict[str, list[int]] = {}
+            for i, cid in enumerate(ids):
+                if ok[i]:
+                    groups.setdefault(by_clip.get(cid, "?"), []).append(i)
+            for label, idx in sorted(groups.items()):
+                if len(idx) < MIN_SLICE_CLIPS or len(groups) < 2:
+                    continue
+                diff = float(d[idx].mean())
+                z = diff / (sd / np.sqrt(len(idx))) if sd > 0 else 0.0
+                rows.append({"slice": s, "label": label, "metric": m, "n": len(idx), "diff": diff, "z": float(z),
+                             "a": float(np.nanmean(np.asarray(a_vals[m], float)[idx])),
+                             "b": float(np.nanmean(np.asarray(b_vals[m], float)[idx])),
+                             "direction": METRICS[m].direction if m in METRICS else None})
+    rows.sort(key=lambda r: (-abs(r["z"]), r["slice"], r["label"], r["metric"]))
+    return rows[:top]
+
+
+__all__ = ["SLICES", "clip_labels", "contact_label", "result_slices", "slice_differences", "slice_tables"]
