@@ -207,3 +207,37 @@ def test_bad_arguments_give_one_line_naming_the_field(scored, tmp_path, capsys):
                  "--families", "jitter"]) == 2                           # an audit is there already
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "--out" in err and "--overwrite" in err
+
+
+def test_a_mirrored_or_swapped_clip_poses_its_mirrored_or_new_template(scored):
+    from hoibench.audit.corruptions import split_context
+    from hoibench.audit.runner import corrupted_split, ground_truth
+    from hoibench.datasets.store import Store
+    data = scored[0]
+    store = Store(data)
+    clips, captions = ground_truth(store, store.clip_ids("test"))
+    ctx = split_context(clips, captions)
+    mirrored = corrupted_split(store, clips, captions, "mirror", 1.0, 0, ctx, {})
+    for cid, a in clips.items():
+        name, v, f = mirrored.templates[cid]
+        v0, f0 = store.object_template(str(a["object_name"]))
+        assert name == str(a["object_name"])
+        np.testing.assert_array_equal(v, v0 * np.array([-1.0, 1.0, 1.0], dtype=v0.dtype))
+        np.testing.assert_array_equal(f, f0[:, ::-1])                     # normals still point out
+    swapped = corrupted_split(store, clips, captions, "object_swap", 1.0, 0, ctx, {})
+    for cid, (name, v, _) in swapped.templates.items():
+        assert name != str(clips[cid]["object_name"])
+        np.testing.assert_array_equal(v, store.object_template(name)[0])
+
+
+def test_object_families_need_an_object_on_every_test_clip():
+    from types import SimpleNamespace
+    from hoibench.audit.runner import check_objects
+    store = SimpleNamespace(root="human-store", manifest={"clips": [
+        {"id": "a", "split": "test", "object": "box"}, {"id": "b", "split": "test", "object": ""},
+        {"id": "c", "split": "train"}]})
+    assert check_objects(store, ["jitter", "object_float", "noun_swap"], explicit=False) == ["jitter", "noun_swap"]
+    with pytest.raises(ValueError, match=r"--families object_float: test clip b of human-store has no object"):
+        check_objects(store, ["jitter", "object_float"], explicit=True)
+    store.manifest["clips"][1]["object"] = "stool"
+    assert check_objects(store, ["object_float"], explicit=True) == ["object_float"]

@@ -30,7 +30,7 @@ import numpy as np
 from .. import __version__
 from .analysis import ALPHA, Draws, audited_metrics, family_summary, paired_tests
 from .corruptions import FAMILIES
-from .runner import DEFAULT_SEED, Condition, conditions, load_setup, score_conditions
+from .runner import DEFAULT_SEED, Condition, check_objects, conditions, load_setup, score_conditions
 
 #: the format tag of ``audit.json``
 AUDIT_FORMAT = "hoibench-audit-1"
@@ -134,6 +134,10 @@ def run_audit(data: str | Path, evaluator: str | Path, out: str | Path, protocol
     chosen = check_audit_args(data, evaluator, out, families, seed, resamples, overwrite, executor)
     t0 = time.perf_counter()
     setup = load_setup(data, evaluator, protocol, allow_failed_gate)
+    kept = check_objects(setup.store, chosen, explicit=bool(families))
+    if kept != chosen:
+        log(f"audit: {data} has test clips without an object; left out: {', '.join(f for f in chosen if f not in kept)}")
+        chosen = kept
     scored = score_conditions(setup, chosen, seed, executor)
     t1 = time.perf_counter()
     doc = audit_document(setup, scored, chosen, str(data), seed, resamples, executor)

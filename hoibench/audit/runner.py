@@ -5,7 +5,8 @@ severities, the test split's ground truth is corrupted (:func:`~hoibench.audit.c
 seeded) and scored as an in-memory submission (K = 1) by the single-body scorer's own stages
 (:class:`hoibench.scoring.hoi.HOIScorer`): motion families change the joints and object poses,
 from which the evaluator's hoi269 rows and the physical metrics are recomputed exactly as for
-a submission (an ``object_swap`` also swaps the template the physical metrics pose); text
+a submission (an ``object_swap`` also swaps the template the physical metrics pose, a
+``mirror`` mirrors it: :func:`~hoibench.audit.motion.mirror_template`); text
 families change the caption lines the evaluator encodes. The ground truth's statistics
 (embeddings, caption embeddings, the gate) are computed once; a condition whose corrupted
 arrays and captions equal the ground truth's (every severity 0) is scored once; per-clip
@@ -30,6 +31,8 @@ import numpy as np
 from ..scoring.hoi import HOIScorer
 from ..scoring.pipeline import EvaluationRefused
 from .corruptions import FAMILIES, apply, split_context
+from .motion import mirror_template
+from .streams import selected
 
 #: the default seed of the corruptions and the paired bootstrap
 DEFAULT_SEED = 0
@@ -47,7 +50,7 @@ class Condition:
 @dataclass
 class Corrupted:
     """A corrupted test split as the scorer reads it: ``samples`` (id -> K = 1 sample arrays),
-    ``templates`` (id -> (object name, vertices, faces) where the object was swapped),
+    ``templates`` (id -> (object name, vertices, faces) where the object was swapped or mirrored),
     ``captions`` (id -> caption lines)."""
 
     samples: dict
@@ -63,7 +66,8 @@ class Corrupted:
                 a = np.ascontiguousarray(self.samples[cid][k])
                 h.update(f"{k}{a.dtype}{a.shape}".encode())
                 h.update(a.tobytes())
-            h.update(repr(self.templates.get(cid, ("",))[0]).encode())
+            for part in self.templates.get(cid, ()):
+                h.update(part.encode() if isinstance(part, str) else np.ascontiguousarray(part).tobytes())
             h.update(repr([(c.text, c.tokens) for c in self.captions.get(cid, [])]).encode())
         return h.hexdigest()
 
@@ -84,9 +88,7 @@ class AuditScorer(HOIScorer):
     """The ``hoi`` scorer over an in-memory submission. With ``base`` (a prepared scorer's
     state) it takes the ground truth's statistics from it instead of recomputing them, and
     ``text_sets`` (caption embeddings per test clip, in test-split order) replaces the
-    captions' embeddings; ``templates`` replaces the object template of swapped clips."""
-
-    map_options = {"window": None}
+    captions' embeddings; ``templates`` replaces the object template of swapped or mirrored clips."""
 
     def __init__(self, store, proto, ev, track, corrupted: Corrupted, label: str, options: dict,
                  base: HOIScorer | None = None, text_sets: list | None = None):
@@ -170,14 +172,17 @@ def corrupted_split(store, clips: Mapping[str, Mapping], captions: Mapping, fami
     objects' templates (read once into ``template_cache``), the caption lines."""
     new_clips, new_caps = apply(family, severity, clips, captions, seed, ctx)
     samples, templates = {}, {}
+    # a mirrored clip's object is its mirrored template posed by the mirrored pose (mirror_arrays)
+    mirrored = set(selected(clips, severity, seed, "mirror")) if family == "mirror" else set()
     for cid, arrays in new_clips.items():
         samples[cid] = {k: np.asarray(arrays[k], np.float32)[None] for k in ("joints", "obj_rot", "obj_trans")
                         if k in arrays}
         name = str(arrays.get("object_name", ""))
-        if name and name != str(clips[cid].get("object_name", "")):
+        if name and (name != str(clips[cid].get("object_name", "")) or cid in mirrored):
             if name not in template_cache:
                 template_cache[name] = store.object_template(name)
-            templates[cid] = (name, *template_cache[name])
+            v, f = template_cache[name]
+            templates[cid] = (name, *(mirror_template(v, f) if cid in mirrored else (v, f)))
     return Corrupted(samples, {cid: list(v) for cid, v in new_caps.items()}, templates)
 
 
@@ -205,7 +210,7 @@ def _physical_job(job: tuple) -> tuple[str, Any]:
 def _unit_digest(inp) -> str:
     """sha256 of what a physical unit reads that can differ between conditions."""
     h = hashlib.sha256(repr((inp.key, inp.object_name, inp.windows)).encode())
-    for a in (inp.joints, inp.obj_rot, inp.obj_trans, inp.template_vertices):
+    for a in (inp.joints, inp.obj_rot, inp.obj_trans, inp.template_vertices, inp.template_faces):
         if a is not None:
             a = np.ascontiguousarray(a)
             h.update(f"{a.dtype}{a.shape}".encode())
@@ -248,6 +253,25 @@ def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_fai
     HOIScorer.check_fit(store, proto, peek_card(evaluator, track.evaluator_kind), options)
     ev = load_evaluator(evaluator, kind=track.evaluator_kind, **HOIScorer.evaluator_options)
     return Setup(store, proto, ev, track, options)
+
+
+def object_families(families: Sequence[str]) -> list[str]:
+    """The families of ``families`` that move or swap the object (:mod:`hoibench.audit.objects`)."""
+    from . import objects
+    return [f for f in families if FAMILIES[f].fn.__module__ == objects.__name__]
+
+
+def check_objects(store, families: Sequence[str], explicit: bool) -> list[str]:
+    """``families`` less the object families when a test clip has no object (a human-only
+    store): ValueError naming the clip when they were asked for by name."""
+    lacking = [c["id"] for c in store.manifest["clips"] if c["split"] == "test" and not c.get("object")]
+    need = object_families(families)
+    if not lacking or not need:
+        return list(families)
+    if explicit:
+        raise ValueError(f"--families {need[0]}: test clip {lacking[0]} of {store.root} has no object (the object "
+                         f"families need one on every test clip)")
+    return [f for f in families if f not in need]
 
 
 def conditions(families: Sequence[str]) -> list[Condition]:
@@ -328,4 +352,5 @@ def _same_lines(a: Mapping, b: Mapping) -> bool:
 
 
 __all__ = ["Condition", "Corrupted", "AuditScorer", "Setup", "load_setup", "conditions", "score_conditions",
+           "object_families", "check_objects",
            "ground_truth", "corrupted_split", "caption_sets", "DEFAULT_SEED"]
