@@ -282,8 +282,8 @@ def _add_leak_check(actions) -> None:
         epilog="examples:\n"
                "  hoibench datasets leak-check data/interact --out leak        # test against train\n"
                "  hoibench datasets leak-check data/interact --against data/behave --out leak-behave\n"
-               "motion: root-aligned, heading-canonical MPJPE of the best-aligned overlap (same or mirrored,\n"
-               f"  any time offset, overlap >= {ls.MIN_COVERAGE:g} of the shorter clip); a duplicate is at <= "
+               "motion: MPJPE of the best-aligned overlap (least-squares turn about the vertical and floor shift;\n"
+               f"  same or mirrored, any time offset, overlap >= {ls.MIN_COVERAGE:g} of the shorter clip); duplicate at <= "
                f"{1000 * ls.THRESHOLD_M:g} mm\n"
                f"captions: exact, normalised, word {ls.NGRAM}-gram Jaccard >= {ls.JACCARD_THRESHOLD:g}\n"
                "see docs/datasets.md, 'Leak check'")

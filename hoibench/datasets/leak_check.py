@@ -3,8 +3,8 @@
 Compares the clips of one split (``test``) with a reference set: the store's ``train``
 split, or with ``--against`` every clip of another store, and reports
 
-* **motion** near-duplicates: root-aligned, heading-canonical MPJPE of the best-aligned
-  overlap, over the ``same`` and ``mirror`` variants and every time offset
+* **motion** near-duplicates: MPJPE of the best-aligned overlap (least-squares rotation about
+  the vertical and floor translation), over the ``same`` and ``mirror`` variants and every time offset
   (:mod:`hoibench.datasets.leak_motion`, threshold :data:`~hoibench.datasets.leak_motion.THRESHOLD_M`);
 * **caption** duplicates: exact, normalised, word 3-gram Jaccard
   (:mod:`hoibench.datasets.leak_text`);
@@ -118,7 +118,7 @@ def _motion_row(m: leak_motion.Match, q: ClipSet, r: ClipSet, jaccard: float) ->
     fps = leak_motion.ANALYSIS_FPS
     return {"query": q.ids[m.query], "reference": r.ids[m.ref], "variant": m.variant,
             "distance_m": _r(m.distance_m), "offset_s": _r(m.offset / fps), "overlap_s": _r(m.overlap / fps),
-            "coverage": _r(m.overlap / len(q.joints[m.query])),
+            "coverage": _r(m.overlap / min(len(q.joints[m.query]), len(r.joints[m.ref]))),
             "objects": [q.objects[m.query], r.objects[m.ref]], "subjects": [q.subjects[m.query], r.subjects[m.ref]],
             "caption_match": leak_text.pair_kind(q.captions[m.query], r.captions[m.ref], jaccard)}
 
@@ -157,8 +157,9 @@ def leak_check(store: str | Path, against: str | Path | None = None, split: str 
         "query": {"store": str(store), "split": split, "clips": len(q.ids)},
         "reference": {"store": str(against if against is not None else store),
                       "split": "all" if against is not None else train_split, "clips": len(r.ids)},
-        "settings": {"distance": "root-aligned heading-canonical MPJPE of the best-aligned overlap (m), "
-                                 "variants same and mirror", "threshold_m": threshold_m,
+        "settings": {"distance": "MPJPE (m) of the best-aligned overlap (least-squares rotation about y and xz "
+                                 "translation; variants same and mirror; offsets in quarter frames)",
+                     "threshold_m": threshold_m, "min_coverage": leak_motion.MIN_COVERAGE,
                      "analysis_fps": leak_motion.ANALYSIS_FPS, "window_frames": leak_motion.WINDOW,
                      "stride_frames": leak_motion.STRIDE, "pca_dims": leak_motion.PCA_DIMS,
                      "window_radius_m": leak_motion.WINDOW_RADIUS_M, "caption_ngram": leak_text.NGRAM,
