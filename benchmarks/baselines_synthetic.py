@@ -34,7 +34,7 @@ from hoibench.scoring.clip_data import write_clip_data
 from hoibench.scoring.evaluate import evaluate
 from hoibench.core.io import atomic_write_json, atomic_write_text
 from hoibench.publish.leaderboard import entry_from_result, write_entry
-from hoibench.publish.significance import attach_clip_data
+from hoibench.publish.leaderboard import attach_clip_data
 from hoibench.scoring.submission import from_store
 
 COLUMNS = [("fid", "FID", "down"), ("r_precision_top1", "R@1", "up"), ("r_precision_top3", "R@3", "up"),

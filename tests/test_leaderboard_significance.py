@@ -121,7 +121,7 @@ def test_a_changed_clip_file_is_refused_naming_the_field(track):
 
 
 def test_an_entry_keeps_sample_0_when_all_samples_exceed_the_limit(tmp_path):
-    from hoibench.publish.significance import attach_clip_data
+    from hoibench.publish.leaderboard import attach_clip_data
     from hoibench.scoring.clip_data import read_clip_data, write_clip_data
     rng = np.random.default_rng(1)
     real = rng.normal(size=(N, D))

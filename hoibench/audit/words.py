@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from ..evaluator.text import NOT_ACTION  # the verbs that are not the action (auxiliaries, copulas)
+
 _SPAN = re.compile(r"[A-Za-z]+(?:-[A-Za-z]+)*")
 _VOWELS = re.compile(r"[aeiou]+")
 #: nouns that name the person or a body part, never the object (the POS fallback skips them)
@@ -12,8 +14,6 @@ NOT_OBJECT = frozenset(
     "person people man woman human someone somebody guy girl boy lady individual subject figure character "
     "hand hands arm arms foot feet leg legs head back shoulder shoulders knee knees hip hips body finger "
     "fingers elbow elbows waist chest side front left right time step steps way place floor ground".split())
-#: verbs that are not the action (auxiliaries and copulas)
-NOT_ACTION = frozenset("be have do get".split())
 _IRREGULAR_PAST = {"put": "put", "set": "set", "sit": "sat", "hold": "held", "take": "took", "bring": "brought",
                    "throw": "threw", "catch": "caught", "swing": "swung", "stand": "stood", "get": "got",
                    "hit": "hit", "run": "ran", "go": "went", "make": "made", "lean": "leaned"}

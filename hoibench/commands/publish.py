@@ -25,9 +25,11 @@ def _paired(args) -> int:
     from ..core.io import atomic_write_json
     from ..scoring.evaluate import check_result_free
     from ..scoring.paired import format_paired, paired_compare
+    from ..scoring.slices import slice_gaps
     if args.out is not None:
         check_result_free(args.out, overwrite=True)
-    cmp = paired_compare(args.results, resamples=args.resamples, seed=args.seed, executor=args.executor)
+    cmp = paired_compare(args.results, resamples=args.resamples, seed=args.seed, executor=args.executor,
+                         extra=slice_gaps)
     print(format_paired(cmp))
     if args.out is not None:
         atomic_write_json(args.out, cmp)

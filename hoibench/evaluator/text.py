@@ -45,6 +45,20 @@ class Caption:
         return self.start_s == 0.0 and self.end_s == 0.0
 
 
+#: verb lemmas that are not the action of a caption (auxiliaries and light verbs)
+NOT_ACTION = frozenset("be have do get".split())
+
+
+def main_verb(caption: Caption) -> str | None:
+    """The lemma of the first token tagged VERB that is not in :data:`NOT_ACTION` (None when
+    the line has no tagged verb)."""
+    for tok in caption.tokens:
+        lemma, _, pos = tok.rpartition("/")
+        if pos == "VERB" and lemma and lemma not in NOT_ACTION:
+            return lemma
+    return None
+
+
 def parse_text_file(text: str) -> list[Caption]:
     """Captions of one HumanML3D text file (``caption#tokens#start#end`` lines; a line with
     only a caption is accepted as a whole-clip caption)."""

@@ -357,9 +357,50 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         submission_meta = submission_meta_of(result, result_path)
     entry = entry_from_result(result, method=method, track=track, submission_meta=submission_meta, notes=notes)
     entry["role"] = role
-    from .significance import attach_clip_data
     attach_clip_data(entry, result, result_path, track_dir / "entries")
     return write_entry(entry, track_dir / "entries")
+
+
+#: the largest per-clip file an entry keeps (1 MiB)
+ENTRY_CLIP_BYTES = 1 << 20
+
+
+def _first_sample(arrays: dict) -> dict:
+    """``arrays`` with the embeddings and physical values of sample 0 only."""
+    import numpy as np
+    out = dict(arrays)
+    out["motion"] = arrays["motion"][:1]
+    keep = np.flatnonzero(np.asarray(arrays["physical_samples"]) == 0)[:1]
+    out["physical"] = arrays["physical"][keep]
+    out["physical_samples"] = np.asarray(arrays["physical_samples"])[keep]
+    return out
+
+
+def attach_clip_data(entry: dict, result: dict, result_path: str | Path, entries_dir: str | Path,
+                     max_bytes: int = ENTRY_CLIP_BYTES) -> Path | None:
+    """Copy the per-clip data of ``result`` (read beside ``result_path``, checked by sha256)
+    to ``entries_dir/<slug>.clips.npz`` and record it in ``entry["per_clip_data"]`` (``file``,
+    ``sha256``, ``bytes``, ``samples``: ``all`` or ``sample 0``). None, and nothing recorded,
+    when the result kept none; :class:`LeaderboardError` when even sample 0 exceeds ``max_bytes``."""
+    import hashlib
+    from ..core.io import atomic_write_bytes, npz_bytes
+    from ..scoring.clip_data import read_clip_data
+    if not isinstance(result.get("per_clip_data"), dict):
+        return None
+    try:
+        arrays = read_clip_data(result, result_path)
+    except ValueError as exc:
+        raise LeaderboardError(str(exc)) from None
+    samples, data = "all", npz_bytes(arrays)
+    if len(data) > max_bytes:
+        samples, data = "sample 0", npz_bytes(_first_sample(arrays))
+    if len(data) > max_bytes:
+        raise LeaderboardError(f"{result_path}: field per_clip_data: {len(data):,} bytes for sample 0 alone, over "
+                               f"the {max_bytes:,} an entry keeps")
+    path = atomic_write_bytes(Path(entries_dir) / f"{slug(entry['method'])}.clips.npz", data)
+    entry["per_clip_data"] = {"file": path.name, "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data),
+                              "samples": samples}
+    return path
 
 
 def submission_meta_of(result: dict, result_path: str | Path) -> dict | None:

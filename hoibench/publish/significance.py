@@ -1,9 +1,9 @@
 """Which ranked rows of a leaderboard a paired test tells apart, and how sure each rank is.
 
 Entries keep their result's per-clip data beside them (``entries/<slug>.clips.npz``,
-:func:`attach_clip_data`: the evaluator embeddings of each scored test clip's samples, of its
-ground truth and captions, and the per-clip physical values; at most
-:data:`ENTRY_CLIP_BYTES`: a larger file keeps sample 0 of each prompt only, and the entry's
+:func:`hoibench.publish.leaderboard.attach_clip_data`: the evaluator embeddings of each
+scored test clip's samples, of its ground truth and captions, and the per-clip physical
+values; at most 1 MiB: a larger file keeps sample 0 of each prompt only, and the entry's
 ``per_clip_data.samples`` says so). From them ``leaderboard build`` computes, for the ranked
 rows (methods and baselines) in display order:
 
@@ -21,57 +21,16 @@ The draws depend on the seed and the clip ids only, so a rebuild gives the same 
 """
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
 
-from ..core.io import atomic_write_bytes, npz_bytes
 from .leaderboard import LeaderboardError, band
-
-#: the largest per-clip file an entry keeps (1 MiB)
-ENTRY_CLIP_BYTES = 1 << 20
 #: seeded draws of the paired tests and rank intervals
 RESAMPLES = 2000
 SEED = 0
 #: the metric the ranking (and so the rank interval) uses
 RANK_METRIC = "fid"
-
-
-def _first_sample(arrays: dict) -> dict:
-    """``arrays`` with the embeddings and physical values of sample 0 only."""
-    out = dict(arrays)
-    out["motion"] = arrays["motion"][:1]
-    keep = np.flatnonzero(np.asarray(arrays["physical_samples"]) == 0)[:1]
-    out["physical"] = arrays["physical"][keep]
-    out["physical_samples"] = np.asarray(arrays["physical_samples"])[keep]
-    return out
-
-
-def attach_clip_data(entry: dict, result: dict, result_path: str | Path, entries_dir: str | Path,
-                     max_bytes: int = ENTRY_CLIP_BYTES) -> Path | None:
-    """Copy the per-clip data of ``result`` (read beside ``result_path``, checked by sha256)
-    to ``entries_dir/<slug>.clips.npz`` and record it in ``entry["per_clip_data"]`` (``file``,
-    ``sha256``, ``bytes``, ``samples``: ``all`` or ``sample 0``). None, and nothing recorded,
-    when the result kept none; :class:`LeaderboardError` when even sample 0 exceeds ``max_bytes``."""
-    from ..scoring.clip_data import read_clip_data
-    from .leaderboard import slug
-    if not isinstance(result.get("per_clip_data"), dict):
-        return None
-    try:
-        arrays = read_clip_data(result, result_path)
-    except ValueError as exc:
-        raise LeaderboardError(str(exc)) from None
-    samples, data = "all", npz_bytes(arrays)
-    if len(data) > max_bytes:
-        samples, data = "sample 0", npz_bytes(_first_sample(arrays))
-    if len(data) > max_bytes:
-        raise LeaderboardError(f"{result_path}: field per_clip_data: {len(data):,} bytes for sample 0 alone, over "
-                               f"the {max_bytes:,} an entry keeps")
-    path = atomic_write_bytes(Path(entries_dir) / f"{slug(entry['method'])}.clips.npz", data)
-    entry["per_clip_data"] = {"file": path.name, "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data),
-                              "samples": samples}
-    return path
 
 
 def _arrays(entry: dict, entries_dir: Path) -> dict | None:
@@ -185,5 +144,4 @@ SIGNIFICANCE_NOTE = ("rank 95%: the 2.5th-97.5th percentile of the row's FID ran
                      "Holm-adjusted, 'yes' naming each metric with adjusted p < 0.05")
 
 
-__all__ = ["ENTRY_CLIP_BYTES", "RESAMPLES", "SIGNIFICANCE_NOTE", "attach_clip_data", "rank_text", "track_significance",
-           "vs_above_detail", "vs_above_text"]
+__all__ = ["RESAMPLES", "SIGNIFICANCE_NOTE", "rank_text", "track_significance", "vs_above_detail", "vs_above_text"]

@@ -163,8 +163,11 @@ def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamp
     return {"n_clips": n, "metrics": rows}
 
 
-def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, executor: str = "serial") -> dict:
-    """Every result after the first against the first (module docstring); the ``cmp.json`` dict."""
+def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, executor: str = "serial",
+                   extra=None) -> dict:
+    """Every result after the first against the first (module docstring); the ``cmp.json`` dict.
+    ``extra(a, a_arrays, b, b_arrays, proto)``, when given, returns more fields for each pair
+    (the CLI adds :func:`hoibench.scoring.slices.slice_gaps`)."""
     from ..tracks.protocol import get_protocol
     from .clip_data import read_clip_data
     from .compare import _method
@@ -182,26 +185,11 @@ def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, e
     for r, arr, p in zip(results[1:], arrays[1:], paths[1:]):
         pair = compare_pair(results[0], arrays[0], r, arr, proto, resamples, seed, executor)
         pairs.append({"a": _method(results[0], paths[0]), "b": _method(r, p), "a_file": str(paths[0]),
-                      "b_file": str(p), **pair, "slices": _slice_gaps(results[0], arrays[0], r, arr, proto)})
+                      "b_file": str(p), **pair,
+                      **(extra(results[0], arrays[0], r, arr, proto) if extra is not None else {})})
     return {"format": "hoibench-compare-1", "resamples": resamples, "seed": seed, "alpha": ALPHA,
             "protocol": f"{results[0]['protocol']}@{results[0]['protocol_version']}",
             "evaluator_id": results[0].get("evaluator_id"), "pairs": pairs}
-
-
-def _slice_gaps(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto) -> list[dict]:
-    """The slices where B and A differ most (:func:`hoibench.scoring.slices.slice_differences`
-    on the shared clips, every per-clip metric); empty when A carries no slice labels."""
-    from .slices import slice_differences
-    labels = (a.get("slices") or {}).get("labels")
-    if not isinstance(labels, dict):
-        return []
-    va, vb = clip_values(a_arrays, proto), clip_values(b_arrays, proto)
-    ia = {str(c): i for i, c in enumerate(a_arrays["ids"])}
-    ib = {str(c): i for i, c in enumerate(b_arrays["ids"])}
-    shared = sorted(set(ia) & set(ib))
-    sa = {m: np.asarray(v)[[ia[c] for c in shared]] for m, v in va.items()}
-    sb = {m: np.asarray(v)[[ib[c] for c in shared]] for m, v in vb.items()}
-    return slice_differences(labels, shared, sa, sb, sorted(set(sa) & set(sb)))
 
 
 def format_paired(cmp: dict) -> str:

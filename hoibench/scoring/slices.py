@@ -52,12 +52,10 @@ def contact_label(contacts: np.ndarray | None) -> str:
 
 
 def first_verb(caption) -> str:
-    """The main verb lemma of a caption (its tagged tokens; ``?`` when it has none)."""
-    from ..audit.captions import _main_verb
-    from ..audit.words import words
-    ws = words(caption.text, caption.tokens)
-    i = _main_verb(ws, ())
-    return ws[i].lemma if i is not None else "?"
+    """The main verb lemma of a caption (:func:`hoibench.evaluator.text.main_verb`; ``?`` when
+    it has none)."""
+    from ..evaluator.text import main_verb
+    return main_verb(caption) or "?"
 
 
 def _annotation_actions(path) -> list:
@@ -163,4 +161,20 @@ def slice_differences(a_labels: Mapping[str, Mapping[str, str]], ids: Sequence[s
     return rows[:top]
 
 
-__all__ = ["SLICES", "clip_labels", "contact_label", "result_slices", "slice_differences", "slice_tables"]
+def slice_gaps(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto) -> dict[str, list[dict]]:
+    """``{"slices": [...]}``: the slices where B and A differ most (:func:`slice_differences`
+    on the shared clips, every per-clip metric; empty when A carries no slice labels)."""
+    from .paired import clip_values
+    labels = (a.get("slices") or {}).get("labels")
+    if not isinstance(labels, dict):
+        return {"slices": []}
+    va, vb = clip_values(a_arrays, proto), clip_values(b_arrays, proto)
+    ia = {str(c): i for i, c in enumerate(a_arrays["ids"])}
+    ib = {str(c): i for i, c in enumerate(b_arrays["ids"])}
+    shared = sorted(set(ia) & set(ib))
+    sa = {m: np.asarray(v)[[ia[c] for c in shared]] for m, v in va.items()}
+    sb = {m: np.asarray(v)[[ib[c] for c in shared]] for m, v in vb.items()}
+    return {"slices": slice_differences(labels, shared, sa, sb, sorted(set(sa) & set(sb)))}
+
+
+__all__ = ["SLICES", "slice_gaps", "clip_labels", "contact_label", "result_slices", "slice_differences", "slice_tables"]
