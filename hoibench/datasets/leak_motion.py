@@ -102,12 +102,16 @@ def align_about_y(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ``x' = cos(theta) x + sin(theta) z``, ``z' = -sin(theta) x + cos(theta) z``."""
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)
-    ca, cb = a[..., [0, 2]].reshape(-1, 2).mean(0), b[..., [0, 2]].reshape(-1, 2).mean(0)
-    ax, az = a[..., 0] - ca[0], a[..., 2] - ca[1]
-    bx, bz = b[..., 0] - cb[0], b[..., 2] - cb[1]
-    theta = np.arctan2((az * bx - ax * bz).sum(), (ax * bx + az * bz).sum())
+    ax, az, bx, bz = a[..., 0], a[..., 2], b[..., 0], b[..., 2]
+    max_, maz, mbx, mbz = ax.mean(), az.mean(), bx.mean(), bz.mean()
+    ax, az, bx, bz = ax - max_, az - maz, bx - mbx, bz - mbz
+    theta = np.arctan2(np.vdot(az, bx) - np.vdot(ax, bz), np.vdot(ax, bx) + np.vdot(az, bz))
     c, s = np.cos(theta), np.sin(theta)
-    return np.stack([c * ax + s * az + cb[0], a[..., 1], -s * ax + c * az + cb[1]], -1)
+    out = np.empty_like(a)
+    out[..., 0] = c * ax + s * az + mbx
+    out[..., 1] = a[..., 1]
+    out[..., 2] = -s * ax + c * az + mbz
+    return out
 
 
 def overlap_distance(a: np.ndarray, b: np.ndarray, offset: float) -> tuple[float, int]:
@@ -149,11 +153,18 @@ def _starts(T: int, which: str) -> np.ndarray:
 def windows(clips: Sequence[np.ndarray], which: str, variants: Sequence[int] = (0,),
             basis: tuple[np.ndarray, np.ndarray] | None = None) -> Windows:
     """Descriptors of every clip's ``which`` windows, for each variant (full dimension, or
-    projected on ``basis`` = (mean, axes) clip by clip); a clip shorter than WINDOW is padded
-    with its last frame."""
+    projected on ``basis`` = (mean, axes), about 16k windows at a time); a clip shorter than
+    WINDOW is padded with its last frame."""
     keep = np.arange(0, WINDOW, SUBSAMPLE)
     scale = np.float32(1.0 / np.sqrt(len(keep) * 22))
-    descs, cl, st, va = [], [], [], []
+    out, pending, cl, st, va = [], [], [], [], []
+
+    def flush() -> None:
+        if pending:
+            d = np.concatenate(pending)
+            out.append(d if basis is None else (d - basis[0]) @ basis[1])
+            pending.clear()
+    rows = 0
     for v in variants:
         for i, j in enumerate(clips):
             if len(j) < WINDOW:
@@ -161,13 +172,17 @@ def windows(clips: Sequence[np.ndarray], which: str, variants: Sequence[int] = (
             if v:
                 j = mirror(j)
             s = _starts(len(j), which)
-            d = canonicalise(j[s[:, None] + keep[None, :]]).reshape(len(s), -1) * scale   # (n, K * 66)
-            descs.append(d if basis is None else (d - basis[0]) @ basis[1])
+            pending.append(canonicalise(j[s[:, None] + keep[None, :]]).reshape(len(s), -1) * scale)
             cl.append(np.full(len(s), i)), st.append(s), va.append(np.full(len(s), v))
-    if not descs:
+            rows += len(s)
+            if rows >= 16384:
+                flush()
+                rows = 0
+    flush()
+    if not out:
         dim = len(keep) * 66 if basis is None else basis[1].shape[1]
         return Windows(np.zeros((0, dim), np.float32), *(np.zeros(0, int),) * 3)
-    return Windows(np.concatenate(descs).astype(np.float32), np.concatenate(cl), np.concatenate(st),
+    return Windows(np.concatenate(out).astype(np.float32), np.concatenate(cl), np.concatenate(st),
                    np.concatenate(va))
 
 
@@ -272,7 +287,25 @@ def match_sets(query: Sequence[np.ndarray], ref: Sequence[np.ndarray], *, radius
     least distance among those whose overlap covers MIN_COVERAGE of the shorter clip (and at
     least WINDOW frames). ``exclude``: (query, ref) pairs never matched (one clip on both sides);
     ``progress(name, total)`` makes a bar."""
-    bar = progress or (lambda name, n: None)
+    with _blas_threads():
+        return _match_sets(query, ref, radius, exclude, progress or (lambda name, n: None))
+
+
+def _blas_threads():
+    """BLAS limited to :func:`hoibench.core.threads.default_threads` (the cores not already
+    busy) while matching: on a busy machine two BLAS threads made the search many times slower
+    than one. A no-op without threadpoolctl or under ``OMP_NUM_THREADS``."""
+    from contextlib import nullcontext
+    from ..core.threads import default_threads
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return nullcontext()
+    n = default_threads()
+    return nullcontext() if n is None else threadpool_limits(limits=n, user_api="blas")
+
+
+def _match_sets(query, ref, radius, exclude, bar) -> list[Match]:
     basis = fit_basis(ref)
     qh, rg = windows(query, "head", (0, 1), basis), windows(ref, "grid", (0,), basis)
     rh, qg = windows(ref, "head", (0,), basis), windows(query, "grid", (0, 1), basis)
