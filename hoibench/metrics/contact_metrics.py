@@ -42,6 +42,37 @@ def joint_object_distances(joints, template_vertices, faces, obj_rot, obj_trans,
     return d
 
 
+def joint_contacts(joints, obj_rot, obj_trans, field, thresholds, needed=None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distances (T, 22) of the joints to the posed object where ``needed`` (T', 22)
+    (its first ``min(T, T')`` frames; NaN elsewhere) and the predicted contact labels
+    ``d < tau_j`` (T, 22), with exact distances only where they are needed or where the
+    field's guaranteed bounds ``lo <= d <= hi`` (:meth:`SignedDistance.bracket`) do not decide
+    the label (``hi < tau``: contact, ``lo >= tau``: none).
+
+    The labels equal :func:`predicted_contacts` of :func:`joint_object_distances`, and the
+    distances equal those values where needed (the same points, moved into the template frame
+    the same way, go to the same exact queries); CD and OCD read them only under their masks."""
+    J = np.asarray(joints, dtype=np.float64)
+    local = to_template_frame(J, obj_rot, obj_trans).reshape(-1, 3)
+    tau = np.broadcast_to(np.asarray(thresholds, dtype=np.float64), (sk.NUM_JOINTS,))
+    tau = np.broadcast_to(tau, J.shape[:2]).reshape(-1)
+    lo, hi = field.bracket(local) if len(local) else (np.zeros(0), np.zeros(0))
+    undecided = (lo < tau) & (hi >= tau)
+    want = undecided.copy()
+    if needed is not None:
+        m = np.asarray(needed, dtype=bool)
+        n = min(len(J), len(m))
+        want.reshape(J.shape[:2])[:n] |= m[:n]
+    d = np.full(len(local), np.nan)
+    where = np.flatnonzero(want)
+    if len(where):
+        d[where] = field(local[where])
+    pred = hi < tau
+    pred[undecided] = d[undecided] < tau[undecided]
+    return d.reshape(J.shape[:2]), pred.reshape(J.shape[:2])
+
+
 def body_object_distances(vertices, template_vertices, faces, obj_rot, obj_trans,
                           margin_m: float = 0.05, field=None, chunk_frames: int = 64,
                           **options) -> np.ndarray:

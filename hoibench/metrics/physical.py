@@ -232,16 +232,23 @@ def _core_stats(inp: ClipInput, config: PhysicalConfig) -> dict:
     field_ = signed_distance_field(inp.template_vertices, inp.template_faces, inside_test=config.inside_test,
                                    **({} if config.mesh_repair else {"repair": False}))
     st["inside_test"] = field_.inside_test
-    d = cm.joint_object_distances(J, inp.template_vertices, inp.template_faces, R, t, field=field_)
+    tau = joint_thresholds(inp.object_name, config.contact_mode, joints=J)
+    own = group = None
+    needed = None            # joint-frames whose exact distance CD and OCD read: any GT map's contacts
     if inp.gt_contacts is not None:
         own = lr.select_joints(inp.gt_contacts, config.contact_joints)
         group = tuple(lr.select_joints(g, config.contact_joints) for g in inp.group_contacts)
+        if config.cd_edge == "exact":
+            needed = np.zeros(J.shape[:2], bool)
+            for m in (own, *group):
+                n = min(len(J), len(m))
+                needed[:n] |= m[:n]
+    d, pred = cm.joint_contacts(J, R, t, field_, tau, needed)
+    if own is not None:
         d_cd = d if config.cd_edge == "exact" else \
             cm.reference_joint_distances(J, field_.vertices, field_.faces, R, t, config.cd_edge)
         st["cd_sum"], st["cd_count"] = cm.contact_distance_sums(d_cd, own)
         st["ocd"] = cm.optimal_contact_distance(d_cd, own, group, config.ocd_length_tolerance, config.ocd_members)
-    tau = joint_thresholds(inp.object_name, config.contact_mode, joints=J)
-    pred = cm.predicted_contacts(d, tau)
     if inp.gt_contacts is not None:
         st["iou_inter"], st["iou_union"] = cm.contact_iou_counts(pred, inp.gt_contacts)
     st["hand_frames"], _ = cm.hand_contact_frames(pred)
