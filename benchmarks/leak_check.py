@@ -94,9 +94,9 @@ def timing(args) -> None:
     dup = [m for m in matches if m.distance_m <= lm.THRESHOLD_M]
     found = {m.query - n_test for m in dup if m.query >= n_test and m.ref == sources[m.query - n_test]}
     other = [m for m in dup if m.query < n_test or m.ref != sources[m.query - n_test]]
+    by_kind = ", ".join(f"{k} {sum(1 for i in found if kinds[i] == k)}" for k in ("renamed", "mirrored", "shifted"))
     print(f"motion: {len(query)} query clips x {len(train)} reference clips: {t_motion:.1f} s; planted found "
-          f"{len(found)}/{len(planted)} ({', '.join(f'{k} {sum(1 for i in found if kinds[i] == k)}' for k in ('renamed', 'mirrored', 'shifted'))}); "
-          f"other pairs flagged: {len(other)}")
+          f"{len(found)}/{len(planted)} ({by_kind}); other pairs flagged: {len(other)}")
     near = sorted(m.distance_m for m in matches if m.query < n_test)
     if near:
         print(f"closest pair among the generated (non-planted) test clips: {1000 * near[0]:.1f} mm")

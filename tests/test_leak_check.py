@@ -138,7 +138,7 @@ def test_bad_input_is_one_line(stores, capsys, tmp_path):
     assert f"{only_train / 'manifest.json'}: clips[].split: no clip in split 'test'" in err
     bad = tmp_path / "bad_clip"
     shutil.copytree(clean, bad)
-    victim = Store_first_test(bad)
+    victim = _first_test_id(bad)
     np.savez(bad / "clips" / f"{victim}.npz", joints=np.zeros((5, 21, 3), np.float32), fps=np.float64(20))
     code, _, err = _run(capsys, "datasets", "leak-check", str(bad))
     assert code == 2 and err.count("\n") == 1 and f"{victim}.npz: joints:" in err
@@ -146,7 +146,7 @@ def test_bad_input_is_one_line(stores, capsys, tmp_path):
     assert code == 2 and "--threshold" in err
 
 
-def Store_first_test(root):
+def _first_test_id(root):
     from hoibench.datasets.store import Store
     return Store(root).clip_ids("test")[0]
 

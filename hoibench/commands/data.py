@@ -283,8 +283,8 @@ def _add_leak_check(actions) -> None:
                "  hoibench datasets leak-check data/interact --out leak        # test against train\n"
                "  hoibench datasets leak-check data/interact --against data/behave --out leak-behave\n"
                "motion: MPJPE of the best-aligned overlap (least-squares turn about the vertical and floor shift;\n"
-               f"  same or mirrored, any time offset, overlap >= {ls.MIN_COVERAGE:g} of the shorter clip); duplicate at <= "
-               f"{1000 * ls.THRESHOLD_M:g} mm\n"
+               f"  same or mirrored, any time offset, overlap >= {ls.MIN_COVERAGE:g} of the shorter clip);\n"
+               f"  a duplicate is at <= {1000 * ls.THRESHOLD_M:g} mm\n"
                f"captions: exact, normalised, word {ls.NGRAM}-gram Jaccard >= {ls.JACCARD_THRESHOLD:g}\n"
                "see docs/datasets.md, 'Leak check'")
     a.add_argument("store", type=Path, help=H_STORE)

@@ -83,7 +83,7 @@ def read_side(root: str | Path, split: str | None, progress=None) -> ClipSet:
     st = _open(root)
     ids = _ids(st, split)
     side = ClipSet(str(root), split or "all")
-    tick = progress(f"leak-check read {Path(root).name}", len(ids)) if progress else None
+    tick = progress(f"leak-check read {Path(root).name} ({split or 'all'})", len(ids)) if progress else None
     for cid in ids:
         a = st.load(cid, keys=("joints", "fps", "subject", "object_name", "texts"))
         where = st.root / "clips" / f"{cid}.npz"
@@ -180,7 +180,8 @@ def leak_check(store: str | Path, against: str | Path | None = None, split: str 
 
 
 def _md_pairs(rows: list[dict]) -> list[str]:
-    out = ["| query | reference | variant | distance (mm) | offset (s) | coverage | caption |", "|---|---|---|---|---|---|---|"]
+    out = ["| query | reference | variant | distance (mm) | offset (s) | coverage | caption |",
+           "|---|---|---|---|---|---|---|"]
     out += [f"| {p['query']} | {p['reference']} | {p['variant']} | {1000 * p['distance_m']:.1f} | "
             f"{p['offset_s']:+.2f} | {p['coverage']:.2f} | {p['caption_match'] or '-'} |" for p in rows]
     return out
@@ -200,8 +201,9 @@ def markdown(report: dict, rows: int = 10) -> str:
              f"- caption duplicates: {cap['exact']} exact, {cap['normalised']} normalised, {cap['ngram']} word "
              f"{st['caption_ngram']}-gram Jaccard >= {st['caption_jaccard']}; {s['motion_and_caption']} motion "
              f"duplicates also share a caption",
-             "- nearest distance per clip: " + ("none found" if near is None else
-                                                 f"min {1000 * near['min']:.1f} mm, median {1000 * near['median']:.1f} mm"),
+             "- nearest distance per clip: " + (
+                 "none found" if near is None else
+                 f"min {1000 * near['min']:.1f} mm, median {1000 * near['median']:.1f} mm"),
              ""]
     for what, key in (("objects", "objects"), ("subjects", "subjects")):
         x = report["sets"][key]

@@ -18,14 +18,14 @@ with ``A`` the overlapping segment of ``a`` turned about the vertical axis and m
 floor (one rotation and one xz translation for the whole segment, the least-squares fit to
 ``B``: :func:`align_about_y`; heights are kept): the mean per-joint position error (MPJPE)
 of the best-aligned overlap, invariant to where and facing which way a copy was placed. A
-fractional offset interpolates ``b`` linearly (an offset from the index that is within
-``REFINE_BELOW_M`` is refined: the frames before and after, then quarter frames around the best). A clip's distance to a reference clip is the ``min``
-over variants and offsets whose overlap covers at least :data:`MIN_COVERAGE` of the shorter
-clip and :data:`WINDOW` frames (a short shared stretch, such as standing still at the start,
-is no duplicate); a pair is a duplicate when it is at most ``threshold_m``
-(:data:`THRESHOLD_M`). A renamed copy is at 0, a mirrored copy at 0 under ``mirror``, a
-shifted crop at 0 at its offset (a shift by a fraction of a frame: the residual of the
-quarter-frame grid and of linear interpolation).
+fractional offset interpolates ``b`` linearly: an offset from the index that is within
+``REFINE_BELOW_M`` is refined (the frames before and after, then quarter frames around the
+best). A clip's distance to a reference clip is the ``min`` over variants and offsets whose
+overlap covers at least :data:`MIN_COVERAGE` of the shorter clip and :data:`WINDOW` frames
+(a short shared stretch, such as standing still at the start, is no duplicate); a pair is a
+duplicate when it is at most ``threshold_m`` (:data:`THRESHOLD_M`). A renamed copy is at 0,
+a mirrored copy at 0 under ``mirror``, a shifted crop at 0 at its offset (a shift by a
+fraction of a frame: the residual of the quarter-frame grid and of linear interpolation).
 
 **Index** (the candidates the exact distance re-ranks): windows of :data:`WINDOW` frames,
 each canonicalised at its own first frame, every :data:`SUBSAMPLE`-th frame kept, scaled so

@@ -1,12 +1,14 @@
 """The leak check's settings (no imports: the command line's help reads them while it builds).
 
-Motion: joints resampled to ``ANALYSIS_FPS``; index windows of ``WINDOW`` frames starting every
-``STRIDE`` frames (and at each of the first ``STRIDE`` frames), every ``SUBSAMPLE``-th frame
-kept, projected on ``PCA_DIMS`` principal axes, searched within ``WINDOW_RADIUS_M`` (RMS joint
-error) plus each window's nearest; ``RERANK_PER_CLIP`` reference clips per query clip and
-variant and ``OFFSETS_PER_PAIR`` offsets per pair re-ranked exactly; an offset within
-``REFINE_BELOW_M`` is refined (the frames before and after, then ``SUBFRAME_OFFSETS`` around the best); a duplicate overlaps at least ``MIN_COVERAGE`` of the shorter clip with an MPJPE of
-at most ``THRESHOLD_M``. Text: word ``NGRAM``-grams, duplicate at Jaccard >= ``JACCARD_THRESHOLD``.
+Motion: joints resampled to ``ANALYSIS_FPS``; index windows of ``WINDOW`` frames starting
+every ``STRIDE`` frames (and at each of the first ``STRIDE`` frames), every ``SUBSAMPLE``-th
+frame kept, projected on ``PCA_DIMS`` principal axes, searched within ``WINDOW_RADIUS_M`` (RMS
+joint error) plus each window's nearest; ``RERANK_PER_CLIP`` reference clips per query clip
+and variant and ``OFFSETS_PER_PAIR`` offsets per pair re-ranked exactly; an offset within
+``REFINE_BELOW_M`` is refined (the frames before and after, then ``SUBFRAME_OFFSETS`` around
+the best); a duplicate overlaps at least ``MIN_COVERAGE`` of the shorter clip with an MPJPE
+of at most ``THRESHOLD_M``. Text: word ``NGRAM``-grams, duplicate at Jaccard >=
+``JACCARD_THRESHOLD``.
 """
 from __future__ import annotations
 
