@@ -104,7 +104,7 @@ def test_pages_show_the_columns_and_rebuild_byte_identical(track):
     md = first["README.md"].decode()
     assert "rank 95%" in md and "vs row above" in md
     far_line = next(line for line in md.splitlines() if "| far |" in line)
-    assert "| 3 | yes: FID p" in far_line
+    assert "| 3 | yes: FID p" in far_line and "(above better)" in far_line
     twin_line = next(line for line in md.splitlines() if "| twin |" in line)
     assert f"| 1-2 | no ({N} clips) |" in twin_line
     csv = first["leaderboard.csv"].decode().splitlines()

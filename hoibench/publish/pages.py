@@ -226,6 +226,31 @@ def md_about(text: str) -> str:
     return re.sub(r"\]\(\s*([^)\s]*)", lambda m: "](" + (m.group(1) if safe_link(m.group(1)) else "#"), text)
 
 
+_CODE = re.compile(r"`([^`]+)`")
+_BOLD = re.compile(r"\*\*(.+?)\*\*")
+_LINK = re.compile(r"\[([^\]]+)\]\(\s*([^)\s]*)\s*\)")
+
+
+def about_html(text: str) -> str:
+    """A track's ``about.md`` for index.html: paragraphs, indented code blocks, inline code,
+    bold and links (http(s) or relative only; others keep their text). Everything is
+    HTML-escaped first, so no tag of the file survives."""
+    blocks = [b for b in re.split(r"\n\s*\n", text.strip()) if b.strip()]
+    out = []
+    for b in blocks:
+        lines = b.split("\n")
+        if all(line.startswith("    ") or not line.strip() for line in lines):
+            out.append("<pre>" + html.escape("\n".join(line[4:] for line in lines)) + "</pre>")
+            continue
+        t = html.escape(" ".join(line.strip() for line in lines), quote=True)
+        t = _CODE.sub(r"<code>\1</code>", t)
+        t = _BOLD.sub(r"<b>\1</b>", t)
+        t = _LINK.sub(lambda m: f'<a href="{m.group(2)}">{m.group(1)}</a>' if safe_link(html.unescape(m.group(2)))
+                      else m.group(1), t)
+        out.append(f"<p>{t}</p>")
+    return '<div class="about">' + "\n".join(out) + "</div>" if out else ""
+
+
 def _over_replications(entries: list[dict]) -> bool:
     """Whether the rows' intervals are over the protocol's replications (else over clips or
     samples: each metric block says, ``interval``)."""
@@ -258,8 +283,8 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
         _context(entries) + f". Cells: {cells}. ↑ higher is better, "
         "↓ lower is better, ≈GT closest to the ground truth.", "",
         "Rows: " + "; ".join(f"{BAND_LEGEND[b]}" for b, _, _ in _bands(entries)) + ".", "",
-        "| # | method | flags | " + " | ".join(_header(c) for c in cols) + sig_head + " | training |",
-        "|---:|---|---|" + "|".join("---:" for _ in cols) + sig_rule + "|---|"]
+        "| # | method | flags" + sig_head + " | " + " | ".join(_header(c) for c in cols) + " | training |",
+        "|---:|---|---" + sig_rule + "|" + "|".join("---:" for _ in cols) + "|---|"]
     for b, head, rows in _bands(entries):
         lines.append(f"| | ***{head}*** | |" + " |" * (len(cols) + 1 + 2 * sig))
         for r, e in rows:
@@ -268,9 +293,9 @@ def markdown(track: str, entries: list[dict], about: str = "") -> str:
             if e["source"] == "reported":
                 name += f" ({md_text(e.get('citation'))})"
             k = _replication_k(e)
-            lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))} | "
-                         + " | ".join(fmt(e["metrics"].get(c), k, c) for c in cols)
+            lines.append(f"| {r or ''} | {name} | {md_text(', '.join(_flags(e, entries)))}"
                          + (f" | {rank_text(e.get('_sig'))} | {md_text(vs_above_text(e.get('_sig')))}" if sig else "")
+                         + " | " + " | ".join(fmt(e["metrics"].get(c), k, c) for c in cols)
                          + f" | {md_text(budget(e))} |")
     units = "; ".join(f"{title(c)}: {_info(c).units}" for c in cols if _info(c))
     lines += ["", f"Units: {units}."] + (["", f"CI {K1_NOTE}."] if _any_k1(entries, cols) else []) \
@@ -517,6 +542,8 @@ tr.reported { color: #a0aec0; }
 .legend { font-size: 13px; margin: 0.6em 0 1em; padding: 0.5em 0.8em; background: #f7fafc; border: 1px solid #e2e8f0;
           max-width: 70em; }
 .legend ul { margin: 0.2em 0; padding-left: 1.2em; }
+.about { font-size: 14px; max-width: 70em; }
+.about pre { background: #f7fafc; padding: 0.5em; overflow-x: auto; }
 .swatch { display: inline-block; width: 0.9em; height: 0.9em; vertical-align: middle; margin-right: 0.3em; }
 figure { display: inline-block; margin: 1em 1em 0 0; }
 img { max-width: 100%; }
@@ -536,7 +563,7 @@ def _legend(entries: list[dict], cols: list[str]) -> str:
             f"</li><li>Bar and point colours in the plots: {swatches}.</li></ul></div>")
 
 
-def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
+def page(track: str, entries: list[dict], figures: dict[str, bytes], about: str = "") -> str:
     """index.html: the bands of :func:`_bands` as one table body each (a column click sorts
     inside each band), rank numbers on methods and baselines only, the flags next to the
     method name, a legend, and the plots."""
@@ -544,7 +571,7 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
     e_ = html.escape
     sig = _has_significance(entries)
     n_extra = 2 if sig else 0
-    head = "".join(f'<th data-col="{i + 3}" title="{e_((_info(c).summary + " (" + _info(c).units + ")") if _info(c) else c)}">'
+    head = "".join(f'<th data-col="{i + 3 + n_extra}" title="{e_((_info(c).summary + " (" + _info(c).units + ")") if _info(c) else c)}">'
                    f"{e_(_header(c))}</th>" for i, c in enumerate(cols))
     bodies = []
     for b, heading, members in _bands(entries):
@@ -564,20 +591,21 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
                 ci_html = f"<small>± {e_(ci)}</small>" if ci else ""
                 cells.append(f'<td data-v="{float(m["mean"]) if m else ""}">{e_(mean)}{ci_html}</td>')
             flags = e_(", ".join(_flags(e, entries)))
+            lead = ""
             if sig:
-                rank, vs = rank_text(e.get("_sig")), vs_above_text(e.get("_sig"))
-                cells.append(f'<td data-v="{e_(rank)}">{e_(rank)}</td><td class="flags" data-v="{e_(vs)}" '
-                             f'title="{e_(vs_above_detail(e.get("_sig")))}">{e_(vs)}</td>')
+                rank, vs = rank_text(e.get("_sig")), vs_above_text(e.get("_sig"), short=True)
+                lead = (f'<td data-v="{e_(rank)}">{e_(rank)}</td><td class="flags" data-v="{e_(vs)}" '
+                        f'title="{e_(vs_above_detail(e.get("_sig")))}">{e_(vs)}</td>')
             rows.append(f'<tr class="{cls}"><td data-v="{r or ""}">{r or ""}</td>'
                         f'<td class="name" data-v="{e_(e["method"])}">{name}</td>'
-                        f'<td class="flags" data-v="{flags}">{flags}</td>{"".join(cells)}'
+                        f'<td class="flags" data-v="{flags}">{flags}</td>{lead}{"".join(cells)}'
                         f'<td class="training" data-v="{e_(budget(e))}">{e_(budget(e))}</td></tr>')
         bodies.append(f'<tbody class="band-{b}">\n' + "\n".join(rows) + "\n</tbody>")
     imgs = "".join(f'<figure><img alt="{e_(n)}" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                    f"</figure>" for n, b in figures.items())
     units = "; ".join(f"{e_(title(c))}: {e_(_info(c).units)}" for c in cols if _info(c))
-    sig_head = (f'<th data-col="{len(cols) + 3}" title="{e_(SIGNIFICANCE_NOTE)}">rank 95%</th>'
-                f'<th class="flags" data-col="{len(cols) + 4}" title="{e_(SIGNIFICANCE_NOTE)}">vs row above</th>'
+    sig_head = (f'<th data-col="3" title="{e_(SIGNIFICANCE_NOTE)}">rank 95%</th>'
+                f'<th class="flags" data-col="4" title="{e_(SIGNIFICANCE_NOTE)}">vs row above</th>'
                 if sig else "")
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{e_(track)} leaderboard - hoibench</title>
@@ -586,8 +614,9 @@ def page(track: str, entries: list[dict], figures: dict[str, bytes]) -> str:
 <h1>{e_(track)} leaderboard</h1>
 <p>{e_(_context(entries))}. ↑ higher is better, ↓ lower is better, ≈GT closest to the ground truth.
 Click a column to sort (inside each band). Units: {units}.</p>
+{about_html(about)}
 {_legend(entries, cols)}
-<div class="wrap"><table><thead><tr><th data-col="0">#</th><th class="name" data-col="1">method</th><th class="flags" data-col="2">flags</th>{head}{sig_head}<th data-col="{len(cols) + 3 + n_extra}">training</th></tr></thead>
+<div class="wrap"><table><thead><tr><th data-col="0">#</th><th class="name" data-col="1">method</th><th class="flags" data-col="2">flags</th>{sig_head}{head}<th data-col="{len(cols) + 3 + n_extra}">training</th></tr></thead>
 {chr(10).join(bodies)}
 </table></div>
 {imgs}
@@ -615,7 +644,7 @@ def build(track_dir: str | Path) -> dict[str, Path]:
     about = read_about(track_dir)                 # the track's own words, kept above the table
     out = {"README.md": atomic_write_text(track_dir / "README.md", markdown(track, entries, about) + "\n"),
            "leaderboard.csv": atomic_write_text(track_dir / "leaderboard.csv", write_csv(entries)),
-           "index.html": atomic_write_text(track_dir / "index.html", page(track, entries, figures))}
+           "index.html": atomic_write_text(track_dir / "index.html", page(track, entries, figures, about))}
     for name, data in figures.items():
         out[name] = atomic_write_bytes(track_dir / name, data)
     return out

@@ -110,10 +110,10 @@ def rank_text(sig: dict | None) -> str:
     return f"{iv[0]}" if iv[0] == iv[1] else f"{iv[0]}-{iv[1]}"
 
 
-def vs_above_text(sig: dict | None) -> str:
-    """``yes: FID p 0.001, R@1 p 0.02`` (the headline metrics whose Holm-adjusted p is under
-    the level, and which row each favours), ``no (N clips)``, or ``-`` (no test: the first
-    ranked row, or no per-clip data)."""
+def vs_above_text(sig: dict | None, short: bool = False) -> str:
+    """``yes: FID p 0.001 (above better), ...`` (the headline metrics whose Holm-adjusted p is
+    under the level, and which row each favours; ``short``: their names only), ``no (N
+    clips)``, or ``-`` (no test: the first ranked row, or no per-clip data)."""
     from ..scoring.paired import ALPHA
     from .leaderboard import title
     vs = (sig or {}).get("vs_above")
@@ -121,6 +121,8 @@ def vs_above_text(sig: dict | None) -> str:
         return "-"
     if not vs["distinguishable"]:
         return f"no ({vs['n_clips']} clips)"
+    if short:
+        return "yes: " + ", ".join(title(m) for m, r in vs["metrics"].items() if r["p_holm"] < ALPHA)
     parts = [f"{title(m)} p {r['p_holm']:.2g} ({'this row' if r['verdict'] == 'this row better' else 'above'} "
              f"better)" if "better" in r["verdict"] else f"{title(m)} p {r['p_holm']:.2g}"
              for m, r in vs["metrics"].items() if r["p_holm"] < ALPHA]

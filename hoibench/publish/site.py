@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..core.io import atomic_write_bytes, atomic_write_text
 from .leaderboard import LeaderboardError, load_track, order, track_dirs
-from .pages import _figures, page, with_significance, write_csv
+from .pages import _figures, page, read_about, with_significance, write_csv
 
 _STYLE = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
           "table{border-collapse:collapse;width:100%}td,th{border-bottom:1px solid #ddd;padding:.4em .6em;"
@@ -75,7 +75,7 @@ def build_site(root: str | Path, out: str | Path) -> dict[str, Path]:
         if not entries:
             continue
         figures = _figures(t.name, entries)
-        written[f"{t.name}/index.html"] = atomic_write_text(out / t.name / "index.html", page(t.name, entries, figures))
+        written[f"{t.name}/index.html"] = atomic_write_text(out / t.name / "index.html", page(t.name, entries, figures, read_about(t)))
         written[f"{t.name}/leaderboard.csv"] = atomic_write_text(out / t.name / "leaderboard.csv", write_csv(entries))
         for name, data in figures.items():
             written[f"{t.name}/{name}"] = atomic_write_bytes(out / t.name / name, data)
