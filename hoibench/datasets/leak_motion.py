@@ -292,17 +292,15 @@ def match_sets(query: Sequence[np.ndarray], ref: Sequence[np.ndarray], *, radius
 
 
 def _blas_threads():
-    """BLAS limited to :func:`hoibench.core.threads.default_threads` (the cores not already
-    busy) while matching: on a busy machine two BLAS threads made the search many times slower
-    than one. A no-op without threadpoolctl or under ``OMP_NUM_THREADS``."""
+    """BLAS on one thread while matching (threadpoolctl, when installed): the report is then
+    the same whatever the machine's load (float32 sums can depend on the thread count), and on
+    a busy machine two BLAS threads made the index many times slower than one."""
     from contextlib import nullcontext
-    from ..core.threads import default_threads
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return nullcontext()
-    n = default_threads()
-    return nullcontext() if n is None else threadpool_limits(limits=n, user_api="blas")
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _match_sets(query, ref, radius, exclude, bar) -> list[Match]:
