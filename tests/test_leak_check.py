@@ -190,6 +190,10 @@ def test_distance_invariances_and_subframe_shift():
     best = {m.query: m for m in ms if m.distance_m < leak_motion.THRESHOLD_M}
     assert (best[0].ref, best[0].variant, best[0].offset) == (1, "same", 10.5)
     assert (best[1].ref, best[1].variant, best[1].offset) == (1, "mirror", 5.0)
+    # the reverse: a train clip cropped out of the test clip (query frame t on reference t - 20)
+    ms = leak_motion.match_sets([a], [_walker(seed=2), a[20:52].copy()])
+    hit = [m for m in ms if m.distance_m < leak_motion.THRESHOLD_M]
+    assert [(m.ref, m.variant, m.offset, m.overlap) for m in hit] == [(1, "same", -20.0, 32)]
 
 
 def test_caption_kinds():
