@@ -11,7 +11,7 @@ from typing import Mapping
 import numpy as np
 
 from ..core.geometry import axis_angle_to_matrix, matrix_to_axis_angle
-from ..core.skeleton import FEET, JOINT_INDEX, JOINT_NAMES
+from ..core.skeleton import FEET, MIRROR_JOINTS
 from .checks import (Context, check_arrays, check_clips, check_context, check_rng, check_severity,
                      frame_from_fraction, held_from, motion_only, unchanged)
 from .streams import check_seed, selected
@@ -23,10 +23,6 @@ Arrays = Mapping[str, np.ndarray]
 #: GMD's speed)
 PLANTED_HEIGHT_M = 0.05
 PLANTED_SPEED_MPS = 0.5
-#: joint index -> its left/right counterpart (itself on the midline)
-MIRROR_JOINTS: tuple[int, ...] = tuple(
-    JOINT_INDEX[n.replace("left_", "right_")] if n.startswith("left_") else
-    JOINT_INDEX[n.replace("right_", "left_")] if n.startswith("right_") else i for i, n in enumerate(JOINT_NAMES))
 #: the reflection x -> -x
 MIRROR = np.diag([-1.0, 1.0, 1.0])
 

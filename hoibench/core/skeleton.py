@@ -92,6 +92,11 @@ BODY_PARTS: dict[str, tuple[int, ...]] = {
 }
 
 # HOI joint graph (24 nodes): SMPL bones, a foot-contact node and an object node.
+#: joint index -> its left/right counterpart (itself on the midline): a left-right mirror
+#: reads ``joints[..., MIRROR_JOINTS, :]`` with x negated
+MIRROR_JOINTS: tuple[int, ...] = tuple(
+    JOINT_INDEX[n.replace("left_", "right_")] if n.startswith("left_") else
+    JOINT_INDEX[n.replace("right_", "left_")] if n.startswith("right_") else i for i, n in enumerate(JOINT_NAMES))
 FOOT_CONTACT_NODE = 22
 OBJECT_NODE = 23
 NUM_GRAPH_NODES = 24

@@ -47,17 +47,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..core.skeleton import JOINT_INDEX, JOINT_NAMES
+from ..core.skeleton import JOINT_INDEX, MIRROR_JOINTS
 from .leak_settings import (ANALYSIS_FPS, BLOCK, MIN_COVERAGE, OFFSETS_PER_PAIR, PCA_DIMS, REFINE_BELOW_M,
                             RERANK_PER_CLIP, STRIDE, SUBFRAME_OFFSETS, SUBSAMPLE, THRESHOLD_M, WINDOW, WINDOW_RADIUS_M)
 
 __all__ = ["ANALYSIS_FPS", "THRESHOLD_M", "WINDOW", "STRIDE", "MIN_COVERAGE", "Match", "match_sets",
            "overlap_distance", "align_about_y", "canonicalise", "mirror", "resample", "windows", "search"]
 
-#: joint index -> its left/right counterpart (itself on the midline)
-MIRROR_JOINTS: tuple[int, ...] = tuple(
-    JOINT_INDEX[n.replace("left_", "right_")] if n.startswith("left_") else
-    JOINT_INDEX[n.replace("right_", "left_")] if n.startswith("right_") else i for i, n in enumerate(JOINT_NAMES))
 _LH, _RH, _LS, _RS = (JOINT_INDEX[n] for n in ("left_hip", "right_hip", "left_shoulder", "right_shoulder"))
 
 
