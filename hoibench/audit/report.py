@@ -103,8 +103,8 @@ def card(doc: dict, metric: str) -> str:
         for f in blind:
             r = rows[f]
             why = ("does not change" if r["spearman_worse"] is None else
-                   "moves the wrong way (better with the corruption)" if r["spearman_worse"] <= 0 else
-                   f"weak trend (rho < {BLIND_RHO:g})")
+                   f"no clear trend (|rho| < {BLIND_RHO:g})" if abs(r["spearman_worse"]) < BLIND_RHO else
+                   "moves the wrong way (better with the corruption)")
             spec = FAMILIES[f]
             lines.append(f"| {f} | {spec.corrupts} | {_rho(r['spearman_worse'])} | {why} | "
                          f"{_sev(r['detectable_severity'], spec.unit)} |")
