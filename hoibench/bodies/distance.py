@@ -438,8 +438,11 @@ class SignedDistance:
         it is a lower bound of the distance to the mesh (the mesh lies inside its box)."""
         p = np.asarray(points, dtype=np.float64)
         c, h = 0.5 * (self.box_min + self.box_max), 0.5 * (self.box_max - self.box_min)
-        q = np.abs(p - c) - h
-        return np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(-1), 0.0)
+        # column by column: |max(q, 0)| + min(max_i q_i, 0) with q = |p - c| - h
+        q = [np.abs(p[..., i] - c[i]) - h[i] for i in range(3)]
+        top = np.maximum(np.maximum(q[0], q[1]), q[2])
+        pos = [np.maximum(x, 0.0) for x in q]
+        return np.sqrt(pos[0] * pos[0] + pos[1] * pos[1] + pos[2] * pos[2]) + np.minimum(top, 0.0)
 
     def __call__(self, points) -> np.ndarray:
         """Signed distances (...,) of points (..., 3) in the template frame, metres."""
@@ -571,6 +574,49 @@ class SignedDistance:
             hi[out] = np.inf
         return lo, hi
 
+    def bracket_cell(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Tighter guaranteed bounds ``lo <= d <= hi`` (N,) from the 8 nodes of the grid cell
+        that holds each point: ``lo = max_c (d(n_c) - |p - n_c|)``, ``hi = min_c (d(n_c) +
+        |p - n_c|)`` (plus ``BOUND_SLACK_M``), the same 1-Lipschitz argument as :meth:`bracket`
+        applied to every corner. Near a surface that is flat at the grid's scale the interval
+        is about a third as wide as the nearest node's, so it settles most signs and depths
+        that :meth:`bracket` leaves open, for 8 lookups instead of an exact query. Points whose
+        cell is not entirely in the grid get ``(-inf, inf)`` (intersect with :meth:`bracket`)."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        g = self._grid()
+        origin, h, shape = g.origin, g.step, g.shape
+        n = len(p)
+        base, ok = np.zeros(n), np.ones(n, bool)
+        near, far = [], []                  # per axis: squared offsets to the lower and upper corner
+        for i in range(3):
+            q = p[:, i] - origin[i]
+            q *= 1.0 / h
+            b = np.floor(q)
+            ok &= (b >= 0) & (b <= shape[i] - 2)   # NaN fails both
+            if i:
+                base *= shape[i]
+            base += b
+            q -= b                          # in [0, 1)
+            a = q * h
+            c = a - h
+            near.append(a * a)
+            far.append(c * c)
+        base[~ok] = 0
+        base = base.astype(np.int64)
+        lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
+        strides = (int(shape[1] * shape[2]), int(shape[2]), 1)
+        for cx in (0, 1):
+            for cy in (0, 1):
+                for cz in (0, 1):
+                    r = np.sqrt((far if cx else near)[0] + (far if cy else near)[1] + (far if cz else near)[2])
+                    v = g.values[base + (cx * strides[0] + cy * strides[1] + cz)]
+                    np.maximum(lo, v - r, out=lo)
+                    np.minimum(hi, v + r, out=hi)
+        lo -= self.BOUND_SLACK_M
+        hi += self.BOUND_SLACK_M
+        lo[~ok], hi[~ok] = -np.inf, np.inf
+        return lo, hi
+
     def contains(self, points) -> np.ndarray:
         """Inside test alone (N,) bool for points (N, 3) in the template frame: the sign of
         :meth:`__call__` without the distance (about 3x cheaper with open3d). A point the test
@@ -605,7 +651,7 @@ class SignedDistance:
         if test.endswith("per-component"):
             depth = np.zeros(len(p)) if with_depth else None
             for lo, hi, scene in self._parts:  # only points in the part's box can be inside it
-                idx = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
+                idx = np.flatnonzero(_in_box(p, lo, hi))
                 if len(idx) == 0:
                     continue
                 sub = o3d.core.Tensor(np.ascontiguousarray(p[idx], dtype=np.float32))
@@ -618,7 +664,7 @@ class SignedDistance:
                         depth[idx] = np.maximum(depth[idx], scene.compute_distance(sub, nthreads=_threads()).numpy())
             return inside, depth
         # every other test: a point outside the bounding box is outside
-        inbox = np.flatnonzero(np.all((p >= self.box_min) & (p <= self.box_max), axis=1))
+        inbox = np.flatnonzero(_in_box(p, self.box_min, self.box_max))
         if len(inbox) == 0:
             return inside, None
         q = p[inbox]
@@ -640,6 +686,15 @@ class SignedDistance:
                     res[split] = np.abs(winding_number(q[split], self.vertices, self.faces)) >= 0.5
             inside[inbox] = res
         return inside, None
+
+
+def _in_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``lo <= p <= hi`` on every axis, (N,) bool for points (N, 3) (three 1-D passes)."""
+    inside = (p[:, 0] >= lo[0]) & (p[:, 0] <= hi[0])
+    for i in (1, 2):
+        inside &= p[:, i] >= lo[i]
+        inside &= p[:, i] <= hi[i]
+    return inside
 
 
 _FIELD_CACHE: dict = {}

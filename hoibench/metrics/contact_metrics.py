@@ -118,6 +118,10 @@ class SurfaceFrames:
     touching: np.ndarray | None
 
 
+#: rounds of "resolve each frame's most promising depth candidate" before the rest at once
+DEPTH_ROUNDS = 1
+
+
 def surface_frames(field, points, index=None, shape: tuple[int, int] | None = None,
                    contact_m: float = VERTEX_CONTACT_M, penetration: bool = True,
                    touching: bool = True) -> SurfaceFrames:
@@ -128,16 +132,18 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
     or (N, 3) with ``index`` (N,) their flat indices ``frame * V + vertex`` and ``shape =
     (T, V)`` -- vertices not listed must be known to lie farther than ``contact_m`` from the
     object (e.g. culled body parts). Every point first gets guaranteed bounds ``lo <= d <=
-    hi`` from :meth:`SignedDistance.bracket`; then only
+    hi`` from :meth:`SignedDistance.bracket` (nearest grid node); points whose answer those
+    bounds leave open get the tighter bounds of their grid cell
+    (:meth:`SignedDistance.bracket_cell`, 8 nodes) before any query. Then only
 
-    * where the bounds straddle 0 (points within ~1 grid step of the surface), the inside test
-      alone (:meth:`SignedDistance.contains`);
+    * where the bounds still straddle 0, the inside test alone (:meth:`SignedDistance.contains`);
 
     and exact signed distances (:meth:`SignedDistance.__call__`) only
 
-    * for the deepest point of each frame by its lower bound, then for the inside points whose
-      upper bounds (``-lo`` and :meth:`SignedDistance.distance_upper`) exceed the deepest
-      exact depth so far (the per-frame maximum);
+    * for the deepest point of each frame by its lower bound; then, for ``DEPTH_ROUNDS``
+      rounds, for each frame's inside point of largest upper bound among those whose upper
+      bounds (``-lo`` and :meth:`SignedDistance.distance_upper`) exceed the deepest exact depth
+      so far (the per-frame maximum); then for every such point left;
     * on frames not yet decided by the bounds, for points with ``lo < contact_m`` (touching).
 
     The result equals computing every signed distance exactly (same inside test, same open3d
@@ -157,6 +163,16 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
         frame = np.asarray(index, dtype=np.int64) // V
     lo, hi = field.bracket(pts) if len(pts) else (np.zeros(0), np.zeros(0))
     exact = np.zeros(len(pts), bool)
+    refined = np.zeros(len(pts), bool)
+
+    def refine(where):
+        """Cell bounds for the points ``where`` (indices) not refined or exact yet."""
+        where = where[~(refined[where] | exact[where])]
+        if len(where):
+            cl, ch = field.bracket_cell(pts[where])
+            lo[where] = np.maximum(lo[where], cl)
+            hi[where] = np.minimum(hi[where], ch)
+            refined[where] = True
 
     def resolve(where):
         """Exact values for the points ``where`` (indices) that are not exact yet."""
@@ -165,32 +181,50 @@ def surface_frames(field, points, index=None, shape: tuple[int, int] | None = No
             lo[where] = hi[where] = field(pts[where])
             exact[where] = True
 
-    def frame_max(values, mask):
+    def frame_max(values, where):
         out = np.full(T, -np.inf)
-        np.maximum.at(out, frame[mask], values[mask])
+        np.maximum.at(out, frame[where], values[where])
         return out
+
+    def top_of_frame(values, where):
+        """The points of ``where`` whose ``values`` are their frame's largest."""
+        return where[values[where] == frame_max(values, where)[frame[where]]]
 
     pen = depth = touch = None
     if penetration:
+        band = np.flatnonzero((lo < 0) & (hi >= 0))           # sign unknown: cell bounds, then
+        refine(band)
+        band = band[(lo[band] < 0) & (hi[band] >= 0)]         # the inside test
         inside = hi < 0
-        band = np.flatnonzero((lo < 0) & (hi >= 0))           # sign unknown: the inside test
         if len(band):
             got = field.contains(pts[band])
             inside[band] = got
             hi[band[got]] = 0.0                               # inside: d <= 0
             lo[band[~got]] = 0.0                              # outside: d >= 0
-        pen = np.bincount(frame[inside], minlength=T)
-        if inside.any():
-            lower = frame_max(-hi, inside)                    # depth >= -hi
-            resolve(np.flatnonzero(inside & (-hi == lower[frame])))   # each frame's deepest lower bound
-            best = frame_max(-hi, inside & exact)
-            cand = np.flatnonzero(inside & ~exact & (-lo > best[frame]))   # depth <= -lo
+        ins = np.flatnonzero(inside)
+        pen = np.bincount(frame[ins], minlength=T)
+        if len(ins):
+            resolve(top_of_frame(-hi, ins))                   # depth >= -hi: each frame's deepest lower bound
+            best = frame_max(-hi, ins[exact[ins]])
+            cand = ins[~exact[ins] & (-lo[ins] > best[frame[ins]])]   # depth <= -lo
+            refine(cand)
+            cand = cand[-lo[cand] > best[frame[cand]]]
             if len(cand):                                     # depth <= |p - surface point|
-                resolve(cand[field.distance_upper(pts[cand]) > best[frame[cand]]])
-        depth = np.maximum(frame_max(-hi, inside), 0.0)
+                cand = cand[field.distance_upper(pts[cand]) > best[frame[cand]]]
+            for _ in range(DEPTH_ROUNDS):
+                if not len(cand):
+                    break
+                resolve(top_of_frame(-lo, cand))              # the largest upper bound of each frame
+                best = np.maximum(best, frame_max(-hi, cand[exact[cand]]))
+                cand = cand[~exact[cand] & (-lo[cand] > best[frame[cand]])]
+            resolve(cand)
+        depth = np.maximum(frame_max(-hi, ins), 0.0)
     if touching:
         decided = np.bincount(frame[hi < contact_m], minlength=T) > 0
-        resolve(np.flatnonzero(~decided[frame] & (lo < contact_m)))
+        cand = np.flatnonzero(~decided[frame] & (lo < contact_m))
+        refine(cand)
+        decided |= np.bincount(frame[cand[hi[cand] < contact_m]], minlength=T) > 0
+        resolve(cand[~decided[frame[cand]] & (lo[cand] < contact_m)])
         touch = np.bincount(frame[hi < contact_m], minlength=T) > 0
     return SurfaceFrames(V, pen, depth, touch)
 
