@@ -149,6 +149,8 @@ def main(argv=None) -> None:
     ap.add_argument("--frames", type=int, default=196)
     ap.add_argument("--executor", default="processes:2")
     ap.add_argument("--work", type=Path, default=None, help="keep the stores and zips here (default: a temp dir)")
+    ap.add_argument("--samples", type=int, nargs="+", default=[1, 30], choices=[1, 30],
+                    help="which submissions to score: K = 1 and/or K = 30 (default both)")
     args = ap.parse_args(argv)
     from hoibench.text.annotate import annotate_store
     from hoibench.datasets.synthetic_store import build_synthetic_store
@@ -179,6 +181,8 @@ def main(argv=None) -> None:
               "replications | peak RSS (MiB) |")
         print("|---|---:|---:|---:|---:|---:|---:|---:|")
         for k, big, ids in cases:
+            if k not in args.samples:
+                continue
             n = len(ids)
             z = tmp / f"sub_k{k}.zip"
             if not z.exists():

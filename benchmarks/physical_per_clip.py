@@ -70,6 +70,7 @@ def main(argv=None) -> None:
     ap.add_argument("--profile", type=Path)
     ap.add_argument("--save", type=Path)
     ap.add_argument("--compare", type=Path)
+    ap.add_argument("--repeat", type=int, default=1, help="time the loop this many times, report the fastest")
     args = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")        # as a process-pool worker
     from hoibench.metrics.physical import _unit
@@ -85,20 +86,24 @@ def main(argv=None) -> None:
             unit(inp)
     t_warm = time.perf_counter() - t0
     prof = cProfile.Profile() if args.profile else None
-    t0, c0 = time.perf_counter(), time.process_time()
+    best = (np.inf, np.inf)
+    for _ in range(max(1, args.repeat)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        if prof:
+            prof.enable()
+        stats = {}
+        for inp in inputs:
+            key, st = unit(inp)
+            stats[str(key)] = st
+        if prof:
+            prof.disable()
+        best = min(best, (time.process_time() - c0, time.perf_counter() - t0))
     if prof:
-        prof.enable()
-    stats = {}
-    for inp in inputs:
-        key, st = unit(inp)
-        stats[str(key)] = st
-    if prof:
-        prof.disable()
         prof.dump_stats(str(args.profile))
-    dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+    cpu, dt = best
     print(f"{len(inputs)} clips x {len(inputs[0].joints)} frames, {len(seen)} objects: inputs {t_in:.1f} s, "
           f"warm-up {t_warm:.1f} s, units {dt:.2f} s wall = {1000 * dt / len(inputs):.1f} ms/clip, "
-          f"{1000 * cpu / len(inputs):.1f} ms CPU/clip (load {os.getloadavg()[0]:.2f})")
+          f"{1000 * cpu / len(inputs):.1f} ms CPU/clip (best of {max(1, args.repeat)}; load {os.getloadavg()[0]:.2f})")
     exact = _exact(stats)
     if args.save:
         args.save.write_text(json.dumps(exact, indent=0))

@@ -187,7 +187,7 @@ def proxy_vertices_from_joints(joints, frames: slice | None = None) -> np.ndarra
 
 
 def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
-                          margin_m: float) -> tuple[np.ndarray, np.ndarray]:
+                          margin_m: float, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The proxy body surface of ``frames`` in the object's template frame, posed only where
     it can come within ``margin_m`` of the object.
 
@@ -199,6 +199,8 @@ def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
     clusters go straight to the template frame:
     ``Ro^T (R_j v + J_j - t) = (Ro^T R_j) v + Ro^T (J_j - t)``.
 
+    ``scale``: the clip's :func:`body_scale` when the caller has it (computed otherwise).
+
     Returns:
         ``(index (N,), points (N, 3))``: flat indices ``frame * 6890 + vertex`` (frames
         counted within ``frames``; grouped by cluster) of the posed vertices and their
@@ -207,7 +209,7 @@ def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
     """
     J = np.asarray(joints, dtype=np.float64)
     V, rest = PROXY_VERTICES, _proxy()[2]
-    s = body_scale(J)
+    s = body_scale(J) if scale is None else float(scale)
     Jf = J[frames]
     Ro, to = np.asarray(obj_rot, dtype=np.float64)[frames], np.asarray(obj_trans, dtype=np.float64)[frames]
     # every joint's rigid map to the template frame, (T, 22, 3, 3) and (T, 22, 3)
@@ -222,16 +224,26 @@ def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
     near_cluster = np.zeros((len(Jf), len(cl.joint)), bool)
     if len(tt):
         jj = cl.joint[kk]
-        lo, _ = field.bracket(np.einsum("nab,nb->na", M[tt, jj], cl.centre[kk] * s) + b[tt, jj])
-        near_cluster[tt, kk] = lo <= cl.radius[kk] * s + margin_m
-    index, points = [], []
-    for c, (j, idx, offsets) in enumerate(zip(cl.joint, cl.members, cl.offsets)):
+        centres = np.einsum("nab,nb->na", M[tt, jj], cl.centre[kk] * s) + b[tt, jj]
+        reach = cl.radius[kk] * s + margin_m
+        lo, _ = field.bracket(centres)
+        near = np.flatnonzero(lo <= reach)
+        lo_cell, _ = field.bracket_cell(centres[near])         # the cell's tighter bound culls more
+        near = near[lo_cell <= reach[near]]
+        near_cluster[tt[near], kk[near]] = True
+    counts = near_cluster.sum(0)
+    sizes = counts * np.array([len(m) for m in cl.members])
+    index, points = np.empty(int(sizes.sum()), np.int64), np.empty((int(sizes.sum()), 3))
+    start = 0
+    for c in np.flatnonzero(counts):
+        j, idx = cl.joint[c], cl.members[c]
         near = np.flatnonzero(near_cluster[:, c])
-        if len(near) == 0:
-            continue
-        points.append(_rigid(M[near, j], b[near, j], offsets * s).reshape(-1, 3))
-        index.append((near[:, None] * V + idx[None, :]).reshape(-1))
-    if not index:
-        return np.zeros(0, np.int64), np.zeros((0, 3))
-    return np.concatenate(index), np.concatenate(points)
+        # vertex-major block (vertex, frame): x_v^T M_t^T for every near frame in one product
+        n, block = len(near), slice(start, start + sizes[c])
+        y = points[block].reshape(len(idx), 3 * n)
+        np.matmul(cl.offsets[c] * s, M[near, j].transpose(2, 0, 1).reshape(3, 3 * n), out=y)
+        y += b[near, j].reshape(-1)
+        index[block] = (idx[:, None] + near[None, :] * V).reshape(-1)
+        start += sizes[c]
+    return index, points
 

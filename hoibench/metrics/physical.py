@@ -45,7 +45,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ..core import skeleton as sk
-from ..bodies.contact import joint_thresholds
+from ..bodies.contact import body_scale, joint_thresholds
 from ..bodies.distance import signed_distance_field, to_template_frame
 from ..bodies.reference_distance import closest_face_field
 from ..core.parallel import map_units
@@ -175,6 +175,25 @@ class ClipInput:
     windows: tuple = ()
 
 
+_SPEC: dict = {}
+
+
+def _threshold_spec() -> dict | None:
+    """The contact-threshold spec, read once per process while the file is unchanged (size and
+    mtime); None when it is missing (:func:`joint_thresholds` then names the path)."""
+    from ..bodies.contact import CONTACT_THRESHOLDS_FILE, annotators_dir, load_contact_thresholds
+    p = annotators_dir() / CONTACT_THRESHOLDS_FILE
+    try:
+        st = p.stat()
+    except OSError:
+        return None
+    key = (str(p), st.st_mtime_ns, st.st_size)
+    if key not in _SPEC:
+        _SPEC.clear()
+        _SPEC[key] = load_contact_thresholds(p)
+    return _SPEC[key]
+
+
 def _body_fn(config: PhysicalConfig) -> Callable:
     if config.body_surface == "proxy":
         return proxy_vertices_from_joints
@@ -232,7 +251,8 @@ def _core_stats(inp: ClipInput, config: PhysicalConfig) -> dict:
     field_ = signed_distance_field(inp.template_vertices, inp.template_faces, inside_test=config.inside_test,
                                    **({} if config.mesh_repair else {"repair": False}))
     st["inside_test"] = field_.inside_test
-    tau = joint_thresholds(inp.object_name, config.contact_mode, joints=J)
+    scale = body_scale(J)
+    tau = joint_thresholds(inp.object_name, config.contact_mode, scale=scale, thresholds=_threshold_spec())
     own = group = None
     needed = None            # joint-frames whose exact distance CD and OCD read: any GT map's contacts
     if inp.gt_contacts is not None:
@@ -272,7 +292,8 @@ def _core_stats(inp: ClipInput, config: PhysicalConfig) -> dict:
 
     def surface(joints, sl, **what):
         if config.body_surface == "proxy":
-            index, points = proxy_template_points(joints, sl, field_, R, t, margin)
+            index, points = proxy_template_points(joints, sl, field_, R, t, margin,
+                                                  scale if joints is J else None)
             return cm.surface_frames(field_, points, index, (sl.stop - sl.start, PROXY_VERTICES),
                                      config.vertex_contact_m, **what)
         return cm.surface_frames(field_, to_template_frame(_vertices(joints, sl), R[sl], t[sl]),
@@ -495,6 +516,10 @@ def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
     return None
 
 
+#: the arrays of a store clip that its ground-truth labels and object name come from
+_GT_KEYS = ("contacts", "joints", "obj_rot", "obj_trans", "object_name")
+
+
 def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[str]] | None = None,
                        contact_mode: str = "chainhoi", fps: float | None = None, gt_rule: str = "signed",
                        gt_threshold_m: float | None = None) -> Callable[..., ClipInput]:
@@ -516,8 +541,8 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
     names: dict[str, str] = {}
 
     def gt(cid):
-        if cid not in cache:
-            clip = store.load(cid)
+        if cid not in cache:     # only what the labels read (not the clip's representations)
+            clip = store.load(cid, keys=_GT_KEYS)
             cache[cid] = gt_contact_labels(store, clip, contact_mode, gt_rule, gt_threshold_m)
             names[cid] = str(clip["object_name"]) if "object_name" in clip else ""
         return cache[cid]
