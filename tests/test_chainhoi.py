@@ -229,6 +229,28 @@ def test_resume_gives_the_uninterrupted_run(template_store, tiny_run, tmp_path):
     assert train("chainhoi", template_store, part, small_config(), log=None).already_trained
 
 
+def test_an_interrupt_inside_a_step_keeps_every_step_before_it(template_store, tiny_run, tmp_path, monkeypatch):
+    """Ctrl-C while step 3 computes its losses (checkpoints every 2 steps): the run saves the
+    3 finished steps, and the resumed run ends with the uninterrupted run's weights."""
+    from hoibench.baselines.chainhoi import spec as chainhoi_spec
+    _, res = tiny_run
+    real, calls = chainhoi_spec.losses, {"n": 0}
+
+    def interrupted(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt("SIGINT")
+        return real(*args, **kwargs)
+    monkeypatch.setattr(chainhoi_spec, "losses", interrupted)
+    part = tmp_path / "cut"
+    with pytest.raises(KeyboardInterrupt):
+        train("chainhoi", template_store, part, small_config(), log=None)
+    monkeypatch.setattr(chainhoi_spec, "losses", real)
+    again = train("chainhoi", template_store, part, small_config(), log=None)
+    assert again.resumed_from == 3
+    assert again.checkpoint_id == res.checkpoint_id
+
+
 def test_sampling_is_deterministic_and_guidance_one_is_conditional(tiny_run, template_store):
     from hoibench.baselines.sampler import LoadedRun
     from hoibench.datasets.store import Store

@@ -25,7 +25,7 @@ import torch
 from .. import __version__
 from ..core.errors import HoibenchError
 from .config import check_parameter_count, sizing
-from ..core.interrupts import check_interrupted
+from ..core.interrupts import check_interrupted, hold_sigint
 from ..core.threads import set_torch_threads
 from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_save_figure, atomic_torch_save, atomic_write_json, check_regular_file,
                        clean_stale_tmp, finished_output, read_json_file)
@@ -342,22 +342,23 @@ def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, ste
     while step < train.steps:
         try:
             check_interrupted()
-        except KeyboardInterrupt:
+            losses = step_losses(step)
+            if not torch.isfinite(losses["loss"]):
+                raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
+                                       f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
+            opt.zero_grad(set_to_none=True)
+            losses["loss"].backward()
+            if train.grad_clip > 0:                      # 0: no clipping (ChainHOI released)
+                torch.nn.utils.clip_grad_norm_(model.parameters(), train.grad_clip)
+            with hold_sigint():                          # the update is whole or not at all
+                opt.step()
+                ema.update(model)
+                step += 1
+                collect_losses(window, losses)
+        except KeyboardInterrupt:                        # between steps or inside one (its update not made)
             if step > saved:                             # keep the work done since the last checkpoint
                 _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
             raise
-        losses = step_losses(step)
-        if not torch.isfinite(losses["loss"]):
-            raise TrainingDiverged(f"{tag} step {step}: non-finite loss "
-                                   f"({ {k: float(v.detach()) for k, v in losses.items()} }); lower train.lr")
-        opt.zero_grad(set_to_none=True)
-        losses["loss"].backward()
-        if train.grad_clip > 0:                          # 0: no clipping (ChainHOI released)
-            torch.nn.utils.clip_grad_norm_(model.parameters(), train.grad_clip)
-        opt.step()
-        ema.update(model)
-        step += 1
-        collect_losses(window, losses)
         if step % train.log_every == 0 or step == train.steps:
             progress = close_window(window, curve, step, start, tl)
             window = {}
