@@ -23,7 +23,10 @@ import time
 from functools import partial
 from pathlib import Path
 
-import numpy as np
+os.environ.setdefault("OMP_NUM_THREADS", "1")            # one thread, as a process-pool worker
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 
 def _exact(x):
@@ -72,7 +75,6 @@ def main(argv=None) -> None:
     ap.add_argument("--compare", type=Path)
     ap.add_argument("--repeat", type=int, default=1, help="time the loop this many times, report the fastest")
     args = ap.parse_args(argv)
-    os.environ.setdefault("OMP_NUM_THREADS", "1")        # as a process-pool worker
     from hoibench.metrics.physical import _unit
     t0 = time.perf_counter()
     inputs, cfg = clip_inputs(args.store, args.clips, args.protocol)
