@@ -69,7 +69,7 @@ def _captions(st: Store, clip_id: str, arrays: dict) -> list[str]:
     out = []
     for t in np.asarray(arrays.get("texts", [])).ravel():
         try:
-            text = json.loads(str(t)).get("text", "")
+            text = json.loads(str(t)).get("text", "")   # read-ok: a string of the clip the store read
         except (ValueError, AttributeError):
             raise ValueError(f"{st.root / 'clips' / (clip_id + '.npz')}: texts: not a JSON object per entry") \
                 from None

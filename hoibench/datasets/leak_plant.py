@@ -89,8 +89,11 @@ def _planted(st: Store, src: str, kind: str, new_id: str, shift: float) -> HOISe
 
 def _read_captions(root: Path, clip_id: str) -> list[str]:
     p = root / "texts" / f"{clip_id}.txt"
-    return [line.split("#")[0].strip() for line in p.read_text().splitlines() if line.split("#")[0].strip()] \
-        if p.is_file() else []
+    if not p.is_file():
+        return []
+    from ..core.io import read_text_file
+    return [line.split("#")[0].strip() for line in read_text_file(p, what="caption file").splitlines()
+            if line.split("#")[0].strip()]
 
 
 def plant_duplicates(store: str | Path, out: str | Path, n: int = 2, seed: int = 0,
@@ -130,4 +133,4 @@ def plant_duplicates(store: str | Path, out: str | Path, n: int = 2, seed: int =
                                       for s in sorted({c["split"] for c in manifest["clips"]})}
     manifest["planted"] = planted
     atomic_write_json(out / MANIFEST, manifest)
-    return json.loads(json.dumps(planted))
+    return json.loads(json.dumps(planted))   # read-ok: a deep copy of our own dict

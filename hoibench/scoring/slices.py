@@ -65,7 +65,7 @@ def _annotation_actions(path) -> list:
     if not path.is_file():
         return []
     try:
-        got = json.loads(read_text_file(path, what="annotation file")).get("actions", [])
+        got = json.loads(read_text_file(path, what="annotation file")).get("actions", [])  # read-ok: guarded read
     except (ValueError, AttributeError):
         return []
     return got if isinstance(got, list) else []
@@ -79,7 +79,7 @@ def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
     for cid in ids:
         z = store.load(cid)
         caps = read_captions(store.root, cid) or []
-        prov = json.loads(str(z["provenance"])) if "provenance" in z else {}
+        prov = json.loads(str(z["provenance"])) if "provenance" in z else {}  # read-ok: the clip the store read
         actions = _annotation_actions(store.root / "annotations" / f"{cid}.json")
         verb = next((str(a.get("action")) for a in actions if isinstance(a, dict) and a.get("action")), None)
         frames = len(z["joints"]) if "joints" in z else 0
