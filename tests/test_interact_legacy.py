@@ -191,12 +191,29 @@ def scored(tmp_path_factory):
     from_store(root / "data", root / "gt")
     text = open(get_protocol("interact-legacy").source).read().replace("pool_size: 64 ", "pool_size: 4 ")
     (root / "small.yaml").write_text(text)
-    res = evaluate(root / "gt", root / "data", root / "ev", protocol=str(root / "small.yaml"), allow_failed_gate=True)
-    return res
+    # the synthetic clips have 36 frames: InterAct's loader (40-300) would keep none of them,
+    # so the end-to-end run lowers its floor to 1 frame; the refusal is tested below
+    from functools import partial
+    from hoibench.metrics import interact_loop
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(interact_loop, "loader_rows", partial(interact_loop.loader_rows, min_frames=1))
+        res = evaluate(root / "gt", root / "data", root / "ev", protocol=str(root / "small.yaml"),
+                       allow_failed_gate=True)
+    return res, root
+
+
+def test_the_scorer_hands_the_loader_its_clips_and_refuses_a_split_it_cuts_away(scored):
+    from hoibench.scoring.evaluate import evaluate
+    from hoibench.scoring.pipeline import EvaluationRefused
+    res, root = scored
+    notes = " ".join(res.get("notes", []))
+    assert "not applied" not in notes                      # the loader saw the clip ids and lengths
+    with pytest.raises(EvaluationRefused, match="interact-legacy.*40-300 frames"):
+        evaluate(root / "gt", root / "data", root / "ev", protocol=str(root / "small.yaml"), allow_failed_gate=True)
 
 
 def test_protocol_scores_a_synthetic_interact_store_end_to_end(scored):
-    res = scored
+    res, _ = scored
     assert res["protocol"] == "interact-legacy" and res["replications"] == 2
     assert res["metric_variants"]["embedding_loop"] == "interact-released"
     m = res["metrics"]

@@ -637,6 +637,9 @@ class LoopSpec:
     replications: int
     ci: str
     source: str
+    #: whether the loop selects and orders clips itself from their ids and ground-truth lengths
+    #: (``ids``, ``lengths`` keywords)
+    clip_ids: bool = False
 
 
 _CI = "1.96 std / sqrt(R), population std"
@@ -657,7 +660,7 @@ LOOPS: dict[str, LoopSpec] = {s.name: s for s in (
              "InterAct's test loader: clips of 40-300 frames by length, drop_last", "Euclidean, numpy float32", 3,
              "300 pairs (50 when <= 300 rows)", "first 2 batches (128, batch 1 re-counted) x 2 x 1", 2, _CI,
              "wzyabcas/InterAct text2interaction/eval/eval_marker_representation.py L42-320, "
-             "data_loaders/behave/data/dataset.py L28-167"),
+             "data_loaders/behave/data/dataset.py L28-167", clip_ids=True),
 )}
 
 

@@ -442,10 +442,15 @@ class HOIScorer(Scorer):
         rng = np.random.default_rng(proto.seed_for("caption", 0))
         text = np.stack([t[int(rng.integers(len(t)))] for t in text_sets])
         samples = self.st.gen[:proto.mm_samples] if self.st.mm_ok else None
-        result = run_loop(proto.embedding_loop, text, self.st.gen[0], real, samples, seed=int(proto.seed),
-                          **_loop_settings(proto))
-        self.st.fid_method = "sqrtm (the reference loop's)"
         spec = LOOPS[proto.embedding_loop]
+        clips = {"ids": list(self.st.ids), "lengths": [int(self.st.rows[c]["frames"]) for c in self.st.ids]} \
+            if spec.clip_ids else {}
+        try:
+            result = run_loop(proto.embedding_loop, text, self.st.gen[0], real, samples, seed=int(proto.seed),
+                              **_loop_settings(proto), **clips)
+        except ValueError as exc:                 # the loop's own selection leaves too little to score
+            raise EvaluationRefused(f"protocol {proto.ref}: {exc}") from None
+        self.st.fid_method = "sqrtm (the reference loop's)"
         self.st.notes.append(f"embedding metrics: the {spec.name} loop as released ({spec.source}), "
                           f"{proto.replications} replication(s)"
                           + ("; a single replication has no CI (shown as 0)" if proto.replications == 1 else ""))
