@@ -632,22 +632,33 @@ def read_about(track_dir: str | Path) -> str:
     return read_text_file(path, MAX_ABOUT_BYTES, "about.md") if path.exists() or path.is_symlink() else ""
 
 
-def build(track_dir: str | Path) -> dict[str, Path]:
-    """Render ``track_dir``'s entries into README.md (``about.md``, when present, above the
-    table), leaderboard.csv, index.html and the PNG plots (atomically). Returns the paths."""
+def render(track_dir: str | Path) -> tuple[list[dict], dict[str, str | bytes]]:
+    """``(entries in display order, {file name: text or bytes})`` of a track: README.md
+    (``about.md``, when present, above the table), leaderboard.csv, index.html and the PNG
+    plots; no files when the track has no entries."""
     track_dir = Path(track_dir)
     entries = with_significance(track_dir, order(load_track(track_dir)))
     if not entries:
-        raise LeaderboardError(f"{track_dir}/entries: no entries to render")
+        return entries, {}
     track = track_dir.name
     figures = _figures(track, entries)
     about = read_about(track_dir)                 # the track's own words, kept above the table
-    out = {"README.md": atomic_write_text(track_dir / "README.md", markdown(track, entries, about) + "\n"),
-           "leaderboard.csv": atomic_write_text(track_dir / "leaderboard.csv", write_csv(entries)),
-           "index.html": atomic_write_text(track_dir / "index.html", page(track, entries, figures, about))}
-    for name, data in figures.items():
-        out[name] = atomic_write_bytes(track_dir / name, data)
-    return out
+    return entries, {"README.md": markdown(track, entries, about) + "\n", "leaderboard.csv": write_csv(entries),
+                     "index.html": page(track, entries, figures, about), **figures}
 
 
-__all__ = ["build", "markdown", "write_csv", "page", "fmt", "place_labels"]
+def write_rendered(files: dict[str, str | bytes], folder: str | Path) -> dict[str, Path]:
+    """Write :func:`render`'s files into ``folder`` (atomically); ``{name: path}``."""
+    return {name: (atomic_write_bytes if isinstance(data, bytes) else atomic_write_text)(Path(folder) / name, data)
+            for name, data in files.items()}
+
+
+def build(track_dir: str | Path) -> dict[str, Path]:
+    """Render ``track_dir``'s entries (:func:`render`) into the track folder. Returns the paths."""
+    _, files = render(track_dir)
+    if not files:
+        raise LeaderboardError(f"{track_dir}/entries: no entries to render")
+    return write_rendered(files, track_dir)
+
+
+__all__ = ["build", "render", "write_rendered", "markdown", "write_csv", "page", "fmt", "place_labels"]

@@ -26,11 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from .leaderboard import LeaderboardError, band
+
 #: seeded draws of the paired tests and rank intervals
 RESAMPLES = 2000
 SEED = 0
-#: the metric the ranking (and so the rank interval) uses
-RANK_METRIC = "fid"
 
 
 def _arrays(entry: dict, entries_dir: Path) -> dict | None:
@@ -43,13 +42,12 @@ def _arrays(entry: dict, entries_dir: Path) -> dict | None:
         raise LeaderboardError(str(exc)) from None
 
 
-def _rank_intervals(arrays: list[dict], resamples: int, seed: int) -> list[list[int]]:
+def _rank_intervals(arrays: list[dict], proto, resamples: int, seed: int) -> list[list[int]]:
     """Each row's [lo, hi] rank (1 = lowest FID) over the draws (module docstring)."""
-    from ..metrics.resampling import bootstrap_weights, weighted_fid
-    n = len(arrays[0]["ids"])
-    W = bootstrap_weights(n, resamples, seed).astype(np.float64)
-    fid = np.array([[weighted_fid(a["real"].astype(np.float64), a["motion"][0].astype(np.float64), w) for w in W]
-                    for a in arrays])                                       # (rows, draws)
+    from ..metrics.resampling import bootstrap_weights
+    from ..scoring.paired import set_level_draws
+    W = bootstrap_weights(len(arrays[0]["ids"]), resamples, seed)
+    fid = np.array([set_level_draws(a, proto, W, seed)[0]["fid"] for a in arrays])     # (rows, draws)
     better = (fid[None, :, :] < fid[:, None, :]).sum(1)             # rows strictly better, per draw
     tied = (fid[None, :, :] == fid[:, None, :]).sum(1) - 1           # other rows with the same FID
     lo, hi = better + 1, better + 1 + tied                           # a tie may take either rank
@@ -59,10 +57,11 @@ def _rank_intervals(arrays: list[dict], resamples: int, seed: int) -> list[list[
 def _better(metric: str, diff: float) -> str:
     """Which side a significant difference ``diff`` (this row minus the row above) favours."""
     from ..metrics.catalog import METRICS
-    direction = METRICS[metric].direction
-    if direction not in ("lower", "higher"):
+    from ..scoring.paired import favours_b
+    this_row = favours_b(METRICS[metric].direction, diff)
+    if this_row is None:
         return "different (neither end is better)"
-    return "this row better" if (diff < 0) == (direction == "lower") else "the row above better"
+    return "this row better" if this_row else "the row above better"
 
 
 def track_significance(track_dir: str | Path, entries: list[dict], headline: tuple[str, ...],
@@ -95,11 +94,11 @@ def track_significance(track_dir: str | Path, entries: list[dict], headline: tup
     with_data = [(e, a) for e, a in loaded if a is not None]
     same_ids = with_data and all(np.array_equal(a["ids"], with_data[0][1]["ids"]) for _, a in with_data)
     if len(with_data) == len(ranked) and len(ranked) > 1 and same_ids:
-        for (e, _), iv in zip(with_data, _rank_intervals([a for _, a in with_data], resamples, seed)):
+        e0 = with_data[0][0]
+        proto = get_protocol(f"{e0['protocol']}@{e0['protocol_version']}")
+        for (e, _), iv in zip(with_data, _rank_intervals([a for _, a in with_data], proto, resamples, seed)):
             out[e["_file"]]["rank_ci95"] = iv
     return out
-
-
 
 
 def rank_text(sig: dict | None) -> str:

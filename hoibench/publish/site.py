@@ -12,9 +12,9 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-from ..core.io import atomic_write_bytes, atomic_write_text
-from .leaderboard import LeaderboardError, load_track, order, track_dirs
-from .pages import _figures, page, read_about, with_significance, write_csv
+from ..core.io import atomic_write_text
+from .leaderboard import LeaderboardError, track_dirs
+from .pages import render, write_rendered
 
 _STYLE = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
           "table{border-collapse:collapse;width:100%}td,th{border-bottom:1px solid #ddd;padding:.4em .6em;"
@@ -71,14 +71,11 @@ def build_site(root: str | Path, out: str | Path) -> dict[str, Path]:
     written: dict[str, Path] = {}
     summaries = []
     for t in tracks:
-        entries = with_significance(t, order(load_track(t)))
-        if not entries:
+        entries, files = render(t)
+        if not files:
             continue
-        figures = _figures(t.name, entries)
-        written[f"{t.name}/index.html"] = atomic_write_text(out / t.name / "index.html", page(t.name, entries, figures, read_about(t)))
-        written[f"{t.name}/leaderboard.csv"] = atomic_write_text(out / t.name / "leaderboard.csv", write_csv(entries))
-        for name, data in figures.items():
-            written[f"{t.name}/{name}"] = atomic_write_bytes(out / t.name / name, data)
+        files.pop("README.md")                    # the site serves the HTML page
+        written.update({f"{t.name}/{name}": p for name, p in write_rendered(files, out / t.name).items()})
         summaries.append(_track_summary(t.name, entries))
     written["index.html"] = atomic_write_text(out / "index.html", index_page(summaries))
     return written

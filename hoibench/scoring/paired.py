@@ -94,6 +94,12 @@ def _set_level(job: tuple) -> dict[str, np.ndarray]:
     return out
 
 
+def favours_b(direction: str, diff: float) -> bool | None:
+    """Whether ``diff = B - A`` favours B for a metric of catalogue ``direction`` (None for a
+    metric best closest to the ground truth, whose side a plain difference does not tell)."""
+    return {"lower": diff < 0, "higher": diff > 0}.get(direction)
+
+
 def _verdict(p_holm: float, better_b: bool | None, n: int) -> str:
     """``A better`` / ``B better`` when the adjusted p is under :data:`ALPHA`, else not distinguishable."""
     if not np.isfinite(p_holm) or p_holm >= ALPHA:
@@ -150,7 +156,7 @@ def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamp
         lo, hi = (np.percentile(ok, [2.5, 97.5]) if len(ok) else (np.nan, np.nan))
         p = bootstrap_p(stat)
         point = fb - fa
-        better = {"lower": point < 0, "higher": point > 0}.get(info.direction)
+        better = favours_b(info.direction, point)
         if tested.startswith("distance"):
             better = float(np.nanmean(stat)) < 0
         rows[m] = {"a": fa, "b": fb, "diff": point, "ci95": [float(lo), float(hi)], "p": p, "direction": info.direction,
@@ -223,15 +229,10 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
     percentiles of each metric recomputed on ``resamples`` seeded draws of the scored clips
     (sample 0; the per-clip forms of :func:`compare_pair`); set-level metrics only up to
     :data:`SET_LEVEL_MAX_CLIPS` clips."""
-    ids = [str(x) for x in arrays["ids"]]
-    n = len(ids)
+    n = len(arrays["ids"])
     if n < 2:
         return {}
-    order = np.arange(n)
-    where = {c: i for i, c in enumerate(ids)}
-    pools = [[where[c] for c in p] for p in proto.pools(ids, 0)] or [list(range(n))]
-    side = _Side(arrays, order, pools, int(proto.r_precision_top_k or 3))
-    W = bootstrap_weights(n, resamples, seed).astype(np.float64)
+    side, W = _draw_side(arrays, proto, bootstrap_weights(n, resamples, seed))
     boot = {m: _means(v, W) for m, v in side.per_clip().items()}
     if n <= SET_LEVEL_MAX_CLIPS:
         pairs = int(min(proto.diversity_pairs or 300, 300))
@@ -295,5 +296,5 @@ def clip_values(arrays: dict, proto) -> dict[str, np.ndarray]:
     return side.per_clip()
 
 
-__all__ = ["paired_compare", "compare_pair", "clip_values", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
+__all__ = ["paired_compare", "compare_pair", "clip_values", "favours_b", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
            "set_level_draws", "MIN_RESAMPLES", "CLIP_RESAMPLES"]

@@ -71,13 +71,17 @@ def _annotation_actions(path) -> list:
     return got if isinstance(got, list) else []
 
 
+#: the clip arrays the labels read
+_LABEL_KEYS = ("object_name", "contacts", "provenance", "dataset", "fps", "joints")
+
+
 def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
     """``{slice: {clip id: label}}`` for the test ids ``ids`` of ``store`` (module docstring)."""
     import json
     from ..evaluator.text import read_captions
     out: dict[str, dict[str, str]] = {s: {} for s in SLICES}
     for cid in ids:
-        z = store.load(cid)
+        z = store.load(cid, keys=_LABEL_KEYS)
         caps = read_captions(store.root, cid) or []
         prov = json.loads(str(z["provenance"])) if "provenance" in z else {}  # read-ok: the clip the store read
         actions = _annotation_actions(store.root / "annotations" / f"{cid}.json")
@@ -92,15 +96,23 @@ def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
     return out
 
 
+def _groups(by_clip: Mapping[str, str], ids: Sequence[str], keep=None) -> dict[str, list[int]]:
+    """``{label: [index in ids, ...]}`` (a clip without a label is ``?``; ``keep``: a boolean
+    mask of the clips to count)."""
+    groups: dict[str, list[int]] = {}
+    for i, cid in enumerate(ids):
+        if keep is None or keep[i]:
+            groups.setdefault(by_clip.get(cid, "?"), []).append(i)
+    return groups
+
+
 def slice_tables(labels: Mapping[str, Mapping[str, str]], ids: Sequence[str],
                  per_clip: Mapping[str, np.ndarray]) -> dict[str, dict[str, dict[str, float]]]:
     """``{slice: {label: {"n": clips, metric: mean, ...}}}`` of the per-clip metric arrays
     ``per_clip`` (aligned with ``ids``; NaN clips left out of a metric's mean)."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for s, by_clip in labels.items():
-        groups: dict[str, list[int]] = {}
-        for i, cid in enumerate(ids):
-            groups.setdefault(by_clip.get(cid, "?"), []).append(i)
+        groups = _groups(by_clip, ids)
         table = {}
         for label in sorted(groups):
             idx = np.array(groups[label])
@@ -144,10 +156,7 @@ def slice_differences(a_labels: Mapping[str, Mapping[str, str]], ids: Sequence[s
         ok = np.isfinite(d)
         sd = float(d[ok].std(ddof=1)) if ok.sum() > 1 else 0.0
         for s, by_clip in a_labels.items():
-            groups: dict[str, list[int]] = {}
-            for i, cid in enumerate(ids):
-                if ok[i]:
-                    groups.setdefault(by_clip.get(cid, "?"), []).append(i)
+            groups = _groups(by_clip, ids, ok)
             for label, idx in sorted(groups.items()):
                 if len(idx) < MIN_SLICE_CLIPS or len(groups) < 2:
                     continue
