@@ -63,6 +63,7 @@ __all__ = [
     "apply_rigid",
     "compose_rigid",
     "invert_rigid",
+    "resample_frames",
 ]
 
 Array = TypeVar("Array", np.ndarray, "torch.Tensor")
@@ -376,3 +377,19 @@ def invert_rigid(R: Array, t: Array) -> tuple[Array, Array]:
     (R, t), _ = _prep_all((R, "R", (3, 3)), (t, "t", (3,)))
     Rt = R.swapaxes(-1, -2)
     return Rt, -_matvec(Rt, t)
+
+
+# --------------------------------------------------------------------------- time
+def resample_frames(x: np.ndarray, src_fps: float, dst_fps: float) -> np.ndarray:
+    """(T, ...) sampled at ``src_fps`` -> the frames at ``dst_fps`` over the same duration
+    (frame k at k / dst_fps s, ``T' = floor((T - 1) dst_fps / src_fps) + 1``), linear in time
+    (the last frame held; no extrapolation); ``x`` itself when the rates agree."""
+    if abs(src_fps - dst_fps) < 1e-9:
+        return x
+    T = x.shape[0]
+    n = int(np.floor((T - 1) * dst_fps / src_fps + 1e-9)) + 1
+    t = np.arange(n) * src_fps / dst_fps
+    i0 = np.clip(np.floor(t).astype(int), 0, T - 1)
+    i1 = np.clip(i0 + 1, 0, T - 1)
+    w = (t - i0).reshape((-1,) + (1,) * (x.ndim - 1))
+    return (1 - w) * x[i0] + w * x[i1]

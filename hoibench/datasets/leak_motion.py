@@ -47,6 +47,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..core.geometry import resample_frames
 from ..core.skeleton import JOINT_INDEX, MIRROR_JOINTS
 from .leak_settings import (ANALYSIS_FPS, BLOCK, MIN_COVERAGE, OFFSETS_PER_PAIR, PCA_DIMS, REFINE_BELOW_M,
                             RERANK_PER_CLIP, STRIDE, SUBFRAME_OFFSETS, SUBSAMPLE, THRESHOLD_M, WINDOW, WINDOW_RADIUS_M)
@@ -60,14 +61,7 @@ _LH, _RH, _LS, _RS = (JOINT_INDEX[n] for n in ("left_hip", "right_hip", "left_sh
 def resample(joints: np.ndarray, fps: float, target_fps: float = ANALYSIS_FPS) -> np.ndarray:
     """(T, 22, 3) at ``fps`` -> (T', 22, 3) float32 at ``target_fps`` by linear interpolation in
     time (frame k at k / target_fps s, T' = floor((T - 1) target_fps / fps) + 1)."""
-    j = np.asarray(joints, dtype=np.float64)
-    if abs(fps - target_fps) < 1e-9 or len(j) < 2:
-        return j.astype(np.float32)
-    n = int(np.floor((len(j) - 1) * target_fps / fps + 1e-9)) + 1
-    src = np.arange(n) * fps / target_fps
-    i0 = np.minimum(np.floor(src).astype(int), len(j) - 2)
-    w = (src - i0)[:, None, None]
-    return ((1 - w) * j[i0] + w * j[i0 + 1]).astype(np.float32)
+    return resample_frames(np.asarray(joints, dtype=np.float64), fps, target_fps).astype(np.float32)
 
 
 def mirror(joints: np.ndarray) -> np.ndarray:

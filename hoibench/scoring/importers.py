@@ -45,6 +45,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .. import __version__
+from ..core.geometry import resample_frames
 from ..core.registry import Registry, load_object
 from ..datasets.store import Store
 from .submission import write_submission
@@ -173,18 +174,8 @@ def z_up_to_y_up(x: np.ndarray) -> np.ndarray:
     return np.stack([x[..., 0], x[..., 2], -x[..., 1]], -1)
 
 
-def resample(x: np.ndarray, src_fps: float, dst_fps: float) -> np.ndarray:
-    """(T, ...) sampled at ``src_fps`` -> the frames at ``dst_fps`` over the same duration,
-    linear in time (the last frame held; no extrapolation)."""
-    if abs(src_fps - dst_fps) < 1e-9:
-        return x
-    T = x.shape[0]
-    n = int(np.floor((T - 1) * dst_fps / src_fps + 1e-9)) + 1
-    t = np.arange(n) * src_fps / dst_fps
-    i0 = np.clip(np.floor(t).astype(int), 0, T - 1)
-    i1 = np.clip(i0 + 1, 0, T - 1)
-    w = (t - i0).reshape((-1,) + (1,) * (x.ndim - 1))
-    return (1 - w) * x[i0] + w * x[i1]
+#: (T, ...) arrays resampled linearly in time (:func:`hoibench.core.geometry.resample_frames`)
+resample = resample_frames
 
 
 def resample_rotvec(r: np.ndarray, src_fps: float, dst_fps: float) -> np.ndarray:
