@@ -123,7 +123,7 @@ import numpy as np
 
 __all__ = ["METRIC_NAMES", "TORCH_SAMPLERS", "LoopResult", "LoopSpec", "LOOPS", "reference_ci", "run_loop",
            "t2m_loop", "mdm_loop", "chainhoi_loop", "interact_loop",
-           "interact_released_loop"]
+           "interact_released_loop", "LoopRefused"]
 
 from .catalog import metric_names
 
@@ -586,6 +586,11 @@ def interact_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, repli
     return _collect("interact", reps, notes)
 
 
+class LoopRefused(ValueError):
+    """A loop's own clip selection leaves too little to score (the scorer refuses the
+    evaluation with this message)."""
+
+
 def interact_released_loop(text, motion, gt_motion, samples=None, *, ids=None, lengths=None, seed: int = 0,
                            replications: int = 2, batch_size: int = 64, top_k: int = 3, mm_batches: int = 2,
                            mm_repeats: int = 2, mm_times: int = 1, diversity_times: int | None = None) -> LoopResult:
@@ -610,7 +615,7 @@ def interact_released_loop(text, motion, gt_motion, samples=None, *, ids=None, l
         if rows.dropped:
             notes.append(f"InterAct's loader skips {len(rows.dropped)} of {len(ids)} clips outside 40-300 frames")
         if len(order) < batch_size:
-            raise ValueError(f"interact-released: {len(order)} clips of 40-300 frames, fewer than one batch of "
+            raise LoopRefused(f"interact-released: {len(order)} clips of 40-300 frames, fewer than one batch of "
                              f"{batch_size} (InterAct's loader drops the incomplete batch)")
     sub = None if x.samples is None else x.samples[:, order]
     res = interact_loop(x.text[order], x.motion[order], x.gt_motion[order], sub, seed=seed,

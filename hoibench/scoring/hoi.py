@@ -437,7 +437,7 @@ class HOIScorer(Scorer):
         the first ``mm_samples`` samples for MultiModality when K allows, the protocol's
         replications; the physical metrics of replication r are those of its own length windows
         (a length-cropping protocol) or of sample ``r mod K``."""
-        from ..metrics.legacy_loops import LOOPS, run_loop
+        from ..metrics.legacy_loops import LOOPS, LoopRefused, run_loop
         proto = self.proto
         rng = np.random.default_rng(proto.seed_for("caption", 0))
         text = np.stack([t[int(rng.integers(len(t)))] for t in text_sets])
@@ -448,7 +448,7 @@ class HOIScorer(Scorer):
         try:
             result = run_loop(proto.embedding_loop, text, self.st.gen[0], real, samples, seed=int(proto.seed),
                               **_loop_settings(proto), **clips)
-        except ValueError as exc:                 # the loop's own selection leaves too little to score
+        except LoopRefused as exc:                # the loop's own selection leaves too little to score
             raise EvaluationRefused(f"protocol {proto.ref}: {exc}") from None
         self.st.fid_method = "sqrtm (the reference loop's)"
         self.st.notes.append(f"embedding metrics: the {spec.name} loop as released ({spec.source}), "
