@@ -215,7 +215,9 @@ def test_clip_function_reads_gt_fields_and_converts_y_up():
     out = chois_clip_metrics(inp, {})
     assert out["trans_err"] == pytest.approx(50.0) and out["hand_jpe"] == pytest.approx(50.0)
     assert out["obj_com_pos_err"] == pytest.approx(50.0) and out["waypoints_xy_pos_err"] == pytest.approx(50.0)
-    assert out["mpjpe"] == pytest.approx(0.0, abs=1e-9) and "mpvpe" not in out and "hand_penetration" not in out
+    # a translated copy: root-relative errors and rotations vanish; no template faces, no penetration
+    assert out["mpjpe"] == pytest.approx(0.0, abs=1e-9) and out["mpvpe"] == pytest.approx(0.0, abs=1e-9)
+    assert out["rot_dist"] == pytest.approx(0.0, abs=1e-9) and "hand_penetration" not in out
     assert set(out) <= set(METRICS) and METRICS["hand_jpe"].clip_fn.endswith("chois_clip_metrics")
     assert chois_clip_metrics(SimpleNamespace(joints=g_y), {}) == {}
     check_settings({"up": "z", "rest_frame": "transpose"}, "p.yaml: chois")

@@ -405,7 +405,7 @@ def store_mismatches(evaluator, store_manifest: dict) -> list[str]:
     differ(f"{feats} representation", ds.get("representation"), store_manifest.get("representations", {}).get(feats))
     accepted = ds.get("representations")
     theirs = store_manifest.get("representations", {}).get(feats)
-    if isinstance(accepted, list) and theirs not in accepted:
+    if isinstance(accepted, list) and accepted and theirs not in accepted:   # [] : rows made from joints
         out.append(f"evaluator {eid} reads {feats} rows computed as {', '.join(map(str, accepted))}, the store has "
                    f"{theirs!r}")
     norm = (card.get("normalization") or {}).get("sha256")

@@ -107,6 +107,24 @@ class ChoisEvaluator(T2MEvaluator):
             features = f.reshape(f.shape[0], f.shape[1], -1)
         return super().embed_motion(features, lengths, batch_size)
 
+    # ------------------------------------------------------------------ rows for scoring
+    def store_rows(self, store, clip_id: str) -> np.ndarray:
+        """(T, 72) joints24 rows of a stored clip's first 120 frames in CHOIS's window frame
+        (:func:`hoibench.metrics.chois_inputs.window_joints24`: proxy hand joints, z-up)."""
+        from ..metrics.chois_inputs import window_joints24
+        joints = store.load(clip_id, keys=("joints",))["joints"][:MAX_FRAMES]
+        return window_joints24(joints).reshape(len(joints), POSE_DIM)
+
+    def sample_rows(self, arrays: dict, k: int, store, clip_id: str) -> np.ndarray:
+        """(T, 72) joints24 rows of sample ``k`` of a submission file's ``joints``, as
+        :meth:`store_rows` makes them (each clip in its own frame 0's window frame)."""
+        from ..metrics.chois_inputs import window_joints24
+        try:
+            joints = np.asarray(arrays["joints"][k])[:MAX_FRAMES]
+            return window_joints24(joints).reshape(len(joints), POSE_DIM)
+        except (KeyError, ValueError) as exc:
+            raise ValueError(f"{clip_id}: field joints: {exc}") from None
+
     def motion_inputs(self, clip: np.ndarray, where: str) -> tuple[np.ndarray, int]:
         """(120, 72) normalised, zero-padded rows of one clip's joints24 positions ((T, 24, 3)
         or (T, 72)) and its length (frames, at most 120)."""

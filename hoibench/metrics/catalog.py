@@ -48,7 +48,9 @@ class MetricInfo:
     ``settings_check`` function (``"module:attr"``, ``(mapping, where) -> None``). It returns
     one number, or ``{name: number}`` for several entries that share the function (computed
     once per clip). ``requires``: a module the function needs (an optional extra); when it
-    cannot be imported the metric is "not computed: <install_hint>", never zero."""
+    cannot be imported the metric is "not computed: <install_hint>", never zero.
+    ``needs_ground_truth``: the function compares the clip with its test clip's ground truth
+    (the scorer then fills ClipInput's ``gt_*`` fields)."""
 
     name: str
     kind: str
@@ -71,6 +73,7 @@ class MetricInfo:
     settings_check: str = ""
     requires: str = ""
     install_hint: str = ""
+    needs_ground_truth: bool = False
 
     def __post_init__(self):
         if not self.scorers and self.kind in _SCORERS_OF_KIND:
@@ -326,7 +329,7 @@ for _name, _dir, _unit, _obj, _summary, _paper in (
          None)):
     register(MetricInfo(_name, "physical", _dir, _unit, "physical", _summary, "CHOIS rules", _paper, _CHOIS,
                         per_clip=True, failure_end={"lower": "high", "higher": "low"}.get(_dir),
-                        needs_object=_obj, clip_fn=_CHOIS, settings_key="chois",
+                        needs_object=_obj, clip_fn=_CHOIS, settings_key="chois", needs_ground_truth=True,
                         settings_check="hoibench.metrics.chois_clip:check_settings",
                         requires="sklearn" if "foot_sliding" in _name else "",
                         install_hint="pip install scikit-learn" if "foot_sliding" in _name else ""))

@@ -1,35 +1,43 @@
 """Per-clip entry point of CHOIS's metrics for the scorer (catalogue ``clip_fn``).
 
 :func:`chois_clip_metrics` ``(inp, settings) -> {name: value}`` reads a
-:class:`hoibench.metrics.physical.ClipInput` and the ground truth of its test clip from
-optional fields (``getattr``; absent -> the metrics that need them are NaN):
+:class:`hoibench.metrics.physical.ClipInput` whose ground-truth fields the scorer fills
+(catalogue ``needs_ground_truth``): ``gt_joints`` (T, 22, 3), ``gt_obj_rot`` (T, 3, 3),
+``gt_obj_trans`` (T, 3), y-up like ``joints``. Everything else is made here from the 22
+joints, the same way for the generated clip and its ground truth:
 
-* ``gt_joints`` (T, 22|24, 3), ``gt_obj_rot`` (T, 3, 3), ``gt_obj_trans`` (T, 3): the test
-  clip's body joints and object pose (same up axis and frame rate as ``joints``);
-* ``verts`` / ``gt_verts`` (T, V, 3) body vertices (mpvpe, penetration);
-  ``root_rot`` / ``gt_root_rot`` (T, 3, 3) root global rotations (rot_dist);
-* ``hand_vertex_ids`` (N,) (CHOIS's ``data/part_vert_ids`` left then right hand),
-  ``object_sdf`` (:class:`hoibench.metrics.chois_sdf.SdfGrid` of the rest-pose object),
-  ``obj_scale`` (T,) (compute_collision's scale; 1 when absent).
+* joints24 (:mod:`hoibench.metrics.chois_inputs`: the proxy fit's hand joints), z-up;
+* body vertices for ``mpvpe`` and penetration: the proxy joint-fit surface
+  (:func:`hoibench.metrics.body_surface.proxy_vertices_from_joints`, 6,890 vertices; CHOIS
+  uses SMPL-X's 10,475), and the hand vertices (CHOIS's ``data/part_vert_ids``) are the
+  proxy's left then right wrist-and-finger vertices;
+* the root's global rotation for ``rot_dist``: the proxy fit's pelvis rotation;
+* the object's signed distance (:mod:`hoibench.metrics.chois_sdf` reads it through
+  ``normalise``/``sample``): exact from the template mesh (``sdf: exact``, default), or
+  CHOIS's way, trilinear on a 256^3 grid of exact values at the grid's nodes (``sdf:
+  grid256``); distances in the grid's normalised units (half the template's largest extent).
 
-Settings (protocol key ``chois``): ``up`` (``y``: ClipInput's joints, converted to CHOIS's
-z-up as ``(x, -z, y)``; or ``z``), ``rest_frame`` (``chois``: hand penetration with CHOIS's
-``R (v - com)``; ``transpose``: ``R^T (v - com)``). Frobenius rotation distances do not
-depend on the frame, so rotations are used as given.
+Settings (protocol key ``chois``): ``up`` (``y``: ClipInput's joints; or ``z``),
+``rest_frame`` (``chois``: hand penetration with CHOIS's ``R (v - com)``; ``transpose``:
+``R^T (v - com)``), ``joints`` (``"24"``: joints24, CHOIS's; ``"22"``: the wrists and its
+0.10 m contact rule), ``sdf`` (above). Frobenius rotation distances do not depend on the
+frame, so rotations are used as given.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any, Mapping
 
 import numpy as np
 
 from . import chois as ch
 
-#: fields of ClipInput the metrics read beyond today's (see the module docstring)
+#: fields of ClipInput the metrics read beyond the generated motion
 GT_FIELDS = ("gt_joints", "gt_obj_rot", "gt_obj_trans")
-OPTIONAL_FIELDS = ("verts", "gt_verts", "root_rot", "gt_root_rot", "hand_vertex_ids", "object_sdf", "obj_scale")
-SETTINGS = {"up": ("y", "z"), "rest_frame": ("chois", "transpose")}
-_Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])      # (x, y, z) y-up -> (x, -z, y) z-up
+SETTINGS = {"up": ("y", "z"), "rest_frame": ("chois", "transpose"), "joints": ("24", "22"),
+            "sdf": ("exact", "grid256")}
+#: nodes per axis of CHOIS's signed-distance grids (mesh_to_sdf, 256^3)
+GRID_NODES = 256
 
 
 def check_settings(mapping: Mapping, where: str) -> None:
@@ -42,11 +50,9 @@ def check_settings(mapping: Mapping, where: str) -> None:
             raise ValueError(f"{where}: field {key!r} must be one of {SETTINGS[key]}, got {value!r}")
 
 
-def _z_up(a: np.ndarray | None, up: str) -> np.ndarray | None:
-    if a is None:
-        return None
-    a = np.asarray(a, np.float64)
-    return a @ _Y_TO_Z.T if up == "y" else a
+def _z_up(a: np.ndarray, up: str) -> np.ndarray:
+    from .chois_inputs import z_up
+    return z_up(a) if up == "y" else np.asarray(a, np.float64)
 
 
 def _posed(template, rot, trans) -> np.ndarray:
@@ -55,26 +61,86 @@ def _posed(template, rot, trans) -> np.ndarray:
         + np.asarray(trans, np.float64)[:, None, :]
 
 
-def _penetrations(inp: Any, n: int, rest_frame: str) -> dict[str, float]:
+class MeshSdf:
+    """The exact signed distance of a mesh (negative inside) behind the grid interface of
+    :class:`hoibench.metrics.chois_sdf.SdfGrid`: ``normalise`` maps points to ``(p - centroid)
+    * 2 / max(extents)`` (centroid: the bounding box's centre) and ``sample`` returns the
+    distance in those units, unclamped."""
+
+    def __init__(self, vertices, faces):
+        self.vertices = np.asarray(vertices, np.float64)
+        self.faces = np.asarray(faces, np.int64)
+        lo, hi = self.vertices.min(0), self.vertices.max(0)
+        self.centroid, self.extents = (lo + hi) / 2.0, hi - lo
+        self.coord_center = None
+        self.half = float(np.max(self.extents)) / 2.0
+
+    def normalise(self, points) -> np.ndarray:
+        return (np.asarray(points, np.float64) - self.centroid) / self.half
+
+    def sample(self, coords) -> np.ndarray:
+        from ..bodies.distance import signed_distance
+        c = np.asarray(coords, np.float64)
+        d = signed_distance(c.reshape(-1, 3) * self.half + self.centroid, self.vertices, self.faces)
+        return d.reshape(c.shape[:-1]) / self.half
+
+
+def grid_sdf(vertices, faces, nodes: int = GRID_NODES):
+    """A :class:`~hoibench.metrics.chois_sdf.SdfGrid` of ``nodes``^3 exact values at the grid's
+    nodes over the template's bounding cube (``[-1, 1]`` per axis of :class:`MeshSdf`'s
+    normalised frame), read trilinearly as CHOIS reads its mesh_to_sdf grids."""
+    from .chois_sdf import SdfGrid
+    exact = MeshSdf(vertices, faces)
+    axis = np.linspace(-1.0, 1.0, int(nodes))
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1)
+    values = np.concatenate([exact.sample(chunk) for chunk in np.array_split(grid.reshape(-1, 3), 64)])
+    return SdfGrid(values.reshape(nodes, nodes, nodes), centroid=exact.centroid, extents=exact.extents)
+
+
+@lru_cache(maxsize=8)
+def _sdf(kind: str, vertices: bytes, faces: bytes):
+    v = np.frombuffer(vertices, np.float64).reshape(-1, 3)
+    f = np.frombuffer(faces, np.int64).reshape(-1, 3)
+    return MeshSdf(v, f) if kind == "exact" else grid_sdf(v, f)
+
+
+def object_sdf(template_vertices, template_faces, kind: str = "exact"):
+    """The template's signed distance of ``kind`` (``exact`` | ``grid256``), cached per mesh."""
+    v = np.ascontiguousarray(template_vertices, np.float64)
+    f = np.ascontiguousarray(template_faces, np.int64)
+    return _sdf(kind, v.tobytes(), f.tobytes())
+
+
+@lru_cache(maxsize=1)
+def proxy_hand_vertex_ids() -> np.ndarray:
+    """The proxy body's left then right hand vertices (wrist and finger capsules)."""
+    from ..bodies.proxy import ProxyBody
+    part = ProxyBody("smplh").part_joint
+    left = np.flatnonzero((part == 20) | ((part >= 22) & (part < 37)))
+    right = np.flatnonzero((part == 21) | (part >= 37))
+    return np.concatenate([left, right])
+
+
+def _penetrations(verts: np.ndarray, obj_rot, obj_trans, sdf, rest_frame: str) -> dict[str, float]:
     """hand/body penetration (trainer_chois.py L909-938) and compute_collision's pair, in the
-    clip's own frame. ``object_sdf`` is the grid of the template in its own frame, whose
-    origin (``obj_trans``) plays the part of CHOIS's rest-pose origin (the vertex mean)."""
-    out: dict[str, float] = {}
+    clip's own frame; the template's frame origin (``obj_trans``) plays the part of CHOIS's
+    rest-pose origin (the vertex mean: hoibench's OMOMO templates are centred on it)."""
     from .chois_sdf import collision_penetration, hand_penetration
-    verts, sdf = getattr(inp, "verts", None), getattr(inp, "object_sdf", None)
-    if verts is None or sdf is None:
-        return out
-    verts = np.asarray(verts, np.float64)[:n]
-    obj_rot, origin = np.asarray(inp.obj_rot, np.float64)[:n], np.asarray(inp.obj_trans, np.float64)[:n]
     legacy = rest_frame == "chois"
-    ids = getattr(inp, "hand_vertex_ids", None)
-    if ids is not None:
-        out["hand_penetration"] = hand_penetration(verts, origin, obj_rot, sdf, ids, legacy)
-    out["body_penetration"] = hand_penetration(verts, origin, obj_rot, sdf, None, legacy)
-    scale = getattr(inp, "obj_scale", None)
-    out["penetration_percent"], out["penetration"] = collision_penetration(
-        verts, obj_rot, origin, 1.0 if scale is None else np.asarray(scale, np.float64)[:n], sdf)
+    out = {"hand_penetration": hand_penetration(verts, obj_trans, obj_rot, sdf, proxy_hand_vertex_ids(), legacy),
+           "body_penetration": hand_penetration(verts, obj_trans, obj_rot, sdf, None, legacy)}
+    out["penetration_percent"], out["penetration"] = collision_penetration(verts, obj_rot, obj_trans, 1.0, sdf)
     return out
+
+
+def _body(joints22: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(joints24, proxy vertices, root rotations) of joints (T, 22, 3), in their own axes."""
+    from ..bodies.contact import body_scale
+    from .body_surface import joint_global_rotations, proxy_vertices_from_joints
+    from .chois_inputs import _rest, joints24
+    j = np.asarray(joints22, np.float64)
+    root = joint_global_rotations(j, _rest()[:22] * body_scale(j))[:, 0]
+    return joints24(j), proxy_vertices_from_joints(j), root
 
 
 def chois_clip_metrics(inp: Any, settings: Mapping | None = None) -> dict[str, float]:
@@ -86,19 +152,17 @@ def chois_clip_metrics(inp: Any, settings: Mapping | None = None) -> dict[str, f
     gt_joints = getattr(inp, "gt_joints", None)
     if gt_joints is None:
         return {}
-    p, g = _z_up(inp.joints, up), _z_up(gt_joints, up)
-    n = min(len(p), len(g))
-    p, g = p[:n], g[:n]
+    n = min(len(inp.joints), len(gt_joints))
+    (p, verts, pr), (g, gv, gr) = _body(np.asarray(inp.joints)[:n]), _body(np.asarray(gt_joints)[:n])
+    p, g, pv, gv = _z_up(p, up), _z_up(g, up), _z_up(verts, up), _z_up(gv, up)
+    if str(settings.get("joints", "24")) == "22":
+        p, g = p[:, :22], g[:, :22]
     out: dict[str, float] = {}
     out["lhand_jpe"], out["rhand_jpe"], out["hand_jpe"] = ch.hand_jpe(p, g)
     out["mpjpe"] = ch.mpjpe(p, g)
     out["trans_err"] = ch.trans_err(p[:, 0], g[:, 0])
-    verts, gt_verts = getattr(inp, "verts", None), getattr(inp, "gt_verts", None)
-    if verts is not None and gt_verts is not None:
-        out["mpvpe"] = ch.mpvpe(_z_up(verts, up)[:n], _z_up(gt_verts, up)[:n], p, g)
-    rr, grr = getattr(inp, "root_rot", None), getattr(inp, "gt_root_rot", None)
-    if rr is not None and grr is not None:
-        out["rot_dist"] = ch.rot_dist(np.asarray(rr)[:n], np.asarray(grr)[:n])
+    out["mpvpe"] = ch.mpvpe(pv, gv, p, g)
+    out["rot_dist"] = ch.rot_dist(pr, gr)
     try:
         out["foot_sliding"] = ch.foot_sliding(p, ch.floor_height(p))
         out["gt_foot_sliding"] = ch.foot_sliding(g, ch.floor_height(g))
@@ -107,13 +171,17 @@ def chois_clip_metrics(inp: Any, settings: Mapping | None = None) -> dict[str, f
     gro, grt = getattr(inp, "gt_obj_rot", None), getattr(inp, "gt_obj_trans", None)
     if inp.template_vertices is None or inp.obj_rot is None or inp.obj_trans is None or gro is None or grt is None:
         return out
-    pv = _posed(inp.template_vertices, inp.obj_rot, inp.obj_trans)[:n]
-    gv = _posed(inp.template_vertices, gro, grt)[:n]
-    out.update(ch.contact_scores(ch.contact_labels(g, _z_up(gv, up)), ch.contact_labels(p, _z_up(pv, up))))
-    pcom, gcom = _z_up(pv.mean(axis=1), up), _z_up(gv.mean(axis=1), up)
-    out.update(ch.object_errors(pcom, gcom, np.asarray(inp.obj_rot)[:n], np.asarray(gro)[:n]))
-    out.update(_penetrations(inp, n, rest_frame))
+    prot, ptrans = np.asarray(inp.obj_rot, np.float64)[:n], np.asarray(inp.obj_trans, np.float64)[:n]
+    pobj = _posed(inp.template_vertices, prot, ptrans)
+    gobj = _posed(inp.template_vertices, np.asarray(gro)[:n], np.asarray(grt)[:n])
+    out.update(ch.contact_scores(ch.contact_labels(g, _z_up(gobj, up)), ch.contact_labels(p, _z_up(pobj, up))))
+    out.update(ch.object_errors(_z_up(pobj.mean(axis=1), up), _z_up(gobj.mean(axis=1), up), prot, np.asarray(gro)[:n]))
+    faces = getattr(inp, "template_faces", None)
+    if faces is not None:
+        sdf = object_sdf(inp.template_vertices, faces, settings.get("sdf", "exact"))
+        out.update(_penetrations(verts, prot, ptrans, sdf, rest_frame))
     return out
 
 
-__all__ = ["GT_FIELDS", "OPTIONAL_FIELDS", "check_settings", "chois_clip_metrics"]
+__all__ = ["GT_FIELDS", "SETTINGS", "GRID_NODES", "MeshSdf", "grid_sdf", "object_sdf", "proxy_hand_vertex_ids",
+           "check_settings", "chois_clip_metrics"]

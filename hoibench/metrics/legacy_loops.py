@@ -372,7 +372,7 @@ def _guo_generated(n: int, torch_rng: _TorchStream, rs, cfg: _GuoConfig) -> tupl
     bs = cfg.batch_size
     if cfg.variant == "t2m":
         if not cfg.mm_texts < n:
-            raise ValueError(f"t2m: needs more items than MultiModality items ({cfg.mm_texts}), got {n}")
+            raise LoopRefused(f"t2m: needs more items than MultiModality items ({cfg.mm_texts}), got {n}")
         mm_pos = np.sort(rs.choice(n, cfg.mm_texts, replace=False))        # L64-65
         order = torch_rng.loader(n, shuffle=True)                          # batch 1, no drop
         return order, order[mm_pos]

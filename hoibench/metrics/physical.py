@@ -160,6 +160,9 @@ class ClipInput:
     ground truth of the test id (None: CD, OCD and IoU undefined); ``group_contacts``: GT maps
     of the other clips of its semantic group (OCD); ``windows``: ``((replication, start,
     length), ...)`` when a legacy length crop applies (:func:`clip_window_stats`).
+    ``gt_joints``, ``gt_obj_rot``, ``gt_obj_trans``: the test clip's own ground truth (same
+    frames and axes), filled only for metrics that compare with it (catalogue
+    ``needs_ground_truth``).
     """
 
     key: Any
@@ -173,6 +176,9 @@ class ClipInput:
     gt_contacts: np.ndarray | None = None
     group_contacts: tuple = field(default_factory=tuple)
     windows: tuple = ()
+    gt_joints: np.ndarray | None = None
+    gt_obj_rot: np.ndarray | None = None
+    gt_obj_trans: np.ndarray | None = None
 
 
 _SPEC: dict = {}
@@ -522,14 +528,18 @@ _GT_KEYS = ("contacts", "joints", "obj_rot", "obj_trans", "object_name")
 
 def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[str]] | None = None,
                        contact_mode: str = "chainhoi", fps: float | None = None, gt_rule: str = "signed",
-                       gt_threshold_m: float | None = None) -> Callable[..., ClipInput]:
+                       gt_threshold_m: float | None = None, ground_truth: bool = False,
+                       window: int | None = None) -> Callable[..., ClipInput]:
     """A function ``make(cid, motion, sample=None) -> ClipInput`` for generated motions of
     the test ids ``ids``, one at a time (what streaming evaluation needs): the test clip's
     object, GT contacts and its group members' GT contacts (only members among ``ids``
     count: ChainHOI compares within the evaluated set) come from ``store``; GT contacts and
     templates are cached. ``motion``: ``{"joints" (T, 22, 3), "obj_rot" (T, 3, 3) or
     "obj_rotvec" (T, 3), "obj_trans" (T, 3)}``; ``sample`` goes into the key ``(id, sample)``.
-    ``gt_rule``, ``gt_threshold_m``: how GT labels are made (:func:`gt_contact_labels`)."""
+    ``gt_rule``, ``gt_threshold_m``: how GT labels are made (:func:`gt_contact_labels`).
+    ``ground_truth``: also fill the ``gt_*`` arrays from the test clip; ``window``: keep the
+    first ``window`` frames of the motion, its GT labels and GT arrays (a protocol's
+    ``clip_window``)."""
     fps = float(store.manifest["config"]["fps"]) if fps is None else float(fps)
     evaluated = set(ids)
     member_of: dict[str, list[str]] = {}
@@ -547,6 +557,19 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
             names[cid] = str(clip["object_name"]) if "object_name" in clip else ""
         return cache[cid]
 
+    last: dict[str, dict] = {}                     # the ground truth of the last id (its K samples share it)
+
+    def truth(cid: str) -> dict:
+        if cid not in last:
+            last.clear()
+            clip = store.load(cid, keys=("joints", "obj_rot", "obj_trans"))
+            last[cid] = {"gt_joints": clip["joints"], "gt_obj_rot": clip.get("obj_rot"),
+                         "gt_obj_trans": clip.get("obj_trans")}
+        return last[cid]
+
+    def cut(a):
+        return a if a is None or window is None else a[:window]
+
     def make(cid: str, motion: Mapping[str, np.ndarray], sample: int | None = None) -> ClipInput:
         own = gt(cid)
         name = names[cid]
@@ -554,13 +577,14 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
             templates[name] = store.object_template(name)
         v, f = templates.get(name, (None, None))
         group = tuple(g for g in (gt(x) for x in member_of.get(cid, [])) if g is not None)
+        extra = {k: cut(None if a is None else np.asarray(a)) for k, a in truth(cid).items()} if ground_truth else {}
         return ClipInput(
             key=(cid, sample) if sample is not None else cid,
-            joints=np.asarray(motion["joints"]), fps=fps,
-            obj_rot=_rotation(motion),
-            obj_trans=None if "obj_trans" not in motion else np.asarray(motion["obj_trans"]),
+            joints=cut(np.asarray(motion["joints"])), fps=fps,
+            obj_rot=cut(_rotation(motion)),
+            obj_trans=None if "obj_trans" not in motion else cut(np.asarray(motion["obj_trans"])),
             object_name=name, template_vertices=v, template_faces=f,
-            gt_contacts=own, group_contacts=group)
+            gt_contacts=cut(own), group_contacts=group, **extra)
 
     return make
 

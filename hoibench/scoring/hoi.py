@@ -65,6 +65,7 @@ class HOIState:
     cap: int = 0                                      # samples per prompt read at most
     mode: str = "clean"                               # hoi269 mode of the store
     test_ids: list = field(default_factory=list)
+    window_dropped: list = field(default_factory=list)  # test ids shorter than the protocol's clip_window
     real_all: np.ndarray | None = None                # GT embeddings of every test clip
     sets_all: list = field(default_factory=list)      # caption embeddings per test clip
     gate: dict = field(default_factory=dict)
@@ -126,19 +127,23 @@ def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_eva
 
 
 def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
-            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None, cache=None, crop=None) -> Iterator:
+            groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None, cache=None, crop=None,
+            ground_truth: bool = False) -> Iterator:
     """Yield the physical-metric inputs of every (id, sample) in ``ks_physical``, loading one
     file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``.
     ``windows(id, k)``: the legacy length windows of the replications using sample k;
     ``cache``: what validation read and encoded (:class:`~hoibench.scoring.read_cache.ReadCache`),
     used instead of reading and encoding again; ``crop(id, rows)``: the rows the evaluator
-    embeds (None: all)."""
+    embeds (None: all); ``ground_truth``: the inputs carry their test clip's ground truth. Under
+    a protocol's ``clip_window`` every sample is cut to its first frames before it is encoded
+    and measured."""
     from ..metrics.physical import clip_input_factory
     from .submission import encode_sample
 
     cfg = proto.physical_config()
+    window = clip_window_frames(proto)
     make_input = clip_input_factory(store, ids, groups, proto.physical["contact_thresholds"], fps,
-                                    cfg.contact_gt_rule, cfg.contact_gt_threshold_m)
+                                    cfg.contact_gt_rule, cfg.contact_gt_threshold_m, ground_truth, window)
     pending: list[tuple[int, int, np.ndarray]] = []
 
     def flush():
@@ -150,9 +155,9 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
 
     rows_of = getattr(ev, "sample_rows", None)     # evaluators with their own motion input (interact)
     for i, cid in enumerate(ids):
-        arrays = (cache.take_arrays(cid) if cache is not None else None) or sub.load(cid)
+        arrays = _window_arrays((cache.take_arrays(cid) if cache is not None else None) or sub.load(cid), window)
         for k in ks_embed:
-            kept = cache.take_features(cid, k) if cache is not None and not rows_of else None
+            kept = cache.take_features(cid, k) if cache is not None and not rows_of and window is None else None
             feats = kept if kept is not None else (rows_of(arrays, k, store, cid) if rows_of else
                                                     encode_sample(arrays, k, mode, fps))
             if not np.isfinite(feats).all():      # validate refuses these; never embed them
@@ -169,6 +174,29 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
             yield inp
         del arrays
     flush()
+
+
+def clip_window_frames(proto) -> int | None:
+    """The frames a protocol's ``clip_window`` keeps of every clip (None: whole clips)."""
+    window = getattr(proto, "clip_window", None)
+    return int(window["frames"]) if window else None
+
+
+def windowed_ids(proto, rows: dict, ids: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(kept, dropped) test ids: under a ``clip_window`` with ``drop_shorter`` the clips of
+    fewer frames than the window are dropped (``rows[id]["frames"]``, the store manifest)."""
+    window = getattr(proto, "clip_window", None)
+    if not window or not window["drop_shorter"]:
+        return list(ids), []
+    n = int(window["frames"])
+    return ([c for c in ids if int(rows[c]["frames"]) >= n], [c for c in ids if int(rows[c]["frames"]) < n])
+
+
+def _window_arrays(arrays: dict, window: int | None) -> dict:
+    """The first ``window`` frames of every per-sample frame array ``(K, T, ...)``."""
+    if window is None:
+        return arrays
+    return {k: (v[:, :window] if np.ndim(v) >= 2 else v) for k, v in arrays.items()}
 
 
 def embedded_rows(proto, cid: str, frames: int, feats: np.ndarray) -> np.ndarray:
@@ -273,14 +301,19 @@ class HOIScorer(Scorer):
         self.st.rows, self.st.fps, self.st.cap, self.st.mode = submission_context(store, proto)
         t1 = time.perf_counter()
         data = store.root
-        self.st.test_ids = test_ids = store.clip_ids("test")
+        test_ids, self.st.window_dropped = windowed_ids(proto, self.st.rows, store.clip_ids("test"))
+        if not test_ids:
+            raise EvaluationRefused(f"{data}: every test clip is shorter than protocol {proto.ref}'s "
+                                    f"clip_window of {clip_window_frames(proto)} frames")
+        self.st.test_ids = test_ids
         lines = {cid: _caption_lines(data, cid) for cid in test_ids}
         captions = {cid: [c.text for c in caps] for cid, caps in lines.items()}
         no_text = [cid for cid, c in captions.items() if not c]
         if no_text:
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
-        self.st.real_all = ev.embed_motion([self._embedded(cid, _real_features(store, cid, ev))
+        window = clip_window_frames(proto)
+        self.st.real_all = ev.embed_motion([self._embedded(cid, _real_features(store, cid, ev, window, self.st.mode))
                                             for cid in test_ids])
         all_caps = sorted({c for caps in captions.values() for c in caps})
         # the store's HumanML3D tokens of each caption (first line wins), for evaluators that read them
@@ -312,7 +345,8 @@ class HOIScorer(Scorer):
         from .read_cache import ReadCache
         self.st.cache = ReadCache()
         self.st.report = report = validation_report(sub, self.store, protocol=proto, keep=self.st.cache)
-        ids = sorted(report.valid_ids)
+        kept = set(self.st.test_ids)
+        ids = sorted(i for i in report.valid_ids if i in kept)
         if not ids:
             raise EvaluationRefused(f"{self.submission}: no valid test id to score ({len(report.errors)} error(s)); "
                                     f"run hoibench validate for the list")
@@ -362,8 +396,9 @@ class HOIScorer(Scorer):
                 cid, int(self.st.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
         st = self.st
         crop = self._embedded if proto.crop_embeddings else None
+        ground_truth = any(METRICS[n].needs_ground_truth for n, _ in extra)
         return _stream(sub, ids, st.ks_physical, st.ks_embed, self.ev, self.store, load_groups(self.store.root),
-                       proto, st.mode, st.fps, st.gen, windows, st.cache, crop)
+                       proto, st.mode, st.fps, st.gen, windows, st.cache, crop, ground_truth)
 
     def update(self, out) -> None:
         key, stats = out
@@ -384,6 +419,11 @@ class HOIScorer(Scorer):
         real = self.st.real_all[[where_all[c] for c in ids]]
         text_sets = [self.st.sets_all[where_all[c]] for c in ids]
         per_rep, self.st.notes = [], []
+        if clip_window_frames(proto) is not None:
+            dropped = self.st.window_dropped
+            self.st.notes.append(f"clip_window: the first {clip_window_frames(proto)} frames of every clip are scored"
+                                 + (f"; {len(dropped)} test clip(s) shorter than that are not (e.g. {dropped[0]})"
+                                    if dropped else ""))
         if not proto.pools(ids, 0):
             self.st.notes.append(f"fewer valid test ids ({len(ids)}) than the pool size ({proto.r_precision_pool_size}): "
                               f"R-precision and MM-Dist use one pool of all ids (easier than the protocol's pools)")
@@ -538,7 +578,8 @@ class HOIScorer(Scorer):
             "human_only": bool(self.st.human_only),
             "counts": {"test_ids": len(report.test_ids), "scored_ids": len(ids), "samples_per_prompt": self.st.K,
                        "missing_ids": report.missing_ids, "errors": len(report.errors),
-                       "warnings": len(report.warnings)},
+                       "warnings": len(report.warnings),
+                       **({"window_dropped_ids": len(self.st.window_dropped)} if self.st.window_dropped else {})},
             "body_surface": proto.physical_config().body_label,
             "numerics": {"fid": self.st.fid_method},
             "metric_variants": {"embedding_loop": proto.embedding_loop,
@@ -554,11 +595,19 @@ class HOIScorer(Scorer):
 
 
 
-def _real_features(store: Store, cid: str, ev=None) -> np.ndarray:
+def _real_features(store: Store, cid: str, ev=None, window: int | None = None, mode: str = "clean") -> np.ndarray:
     """A test clip's evaluator input: the evaluator's own rows when it defines ``store_rows``
-    (interact: markers + object BPS), else the stored hoi269 (or hml263) rows."""
+    (interact: markers + object BPS; CHOIS: joints24), else the stored hoi269 (or hml263) rows.
+    Under a ``window`` (frames), the rows of the clip's first ``window`` frames: the evaluator's
+    own rows cut there, or the first frames encoded as a generated sample is (``mode``)."""
     if hasattr(ev, "store_rows"):
-        return ev.store_rows(store, cid)
+        rows = ev.store_rows(store, cid)
+        return rows if window is None else rows[:window]
+    if window is not None:
+        from .submission import encode_sample
+        clip = store.load(cid, keys=("joints", "obj_rot", "obj_trans", "fps"))
+        arrays = {k: np.asarray(clip[k])[None, :window] for k in ("joints", "obj_rot", "obj_trans") if k in clip}
+        return encode_sample(arrays, 0, mode, float(clip["fps"]))
     clip = store.load(cid, keys=("hoi269", "hml263"))
     return clip["hoi269"] if "hoi269" in clip else clip["hml263"]
 

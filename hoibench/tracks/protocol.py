@@ -91,6 +91,10 @@ class Protocol:
     #: window of ``physical.length_crop`` (ChainHOI's data loader feeds its evaluator the
     #: cropped motions); absent = whole clips
     crop_embeddings: bool = False
+    #: ``{"frames": N, "drop_shorter": bool}``: every scored clip is its first N frames (ground
+    #: truth and generated, for every metric); with ``drop_shorter`` a test clip of fewer than N
+    #: frames is not scored (CHOIS's 120-frame windows); None = whole clips
+    clip_window: dict | None = None
     #: optional top-level mappings metrics read (``physics``: :func:`hoibench.metrics.catalog.settings_keys`)
     settings: dict = field(default_factory=dict, compare=False)
     #: a preview version: scored only when named with its version (``id@version``), never the
@@ -116,6 +120,8 @@ class Protocol:
             d["embedding_loop"] = self.embedding_loop    # absent = hoibench's loop (older hashes unchanged)
         if self.kind == "hoi" and self.crop_embeddings:
             d["crop_embeddings"] = True                  # absent = whole clips (older hashes unchanged)
+        if self.kind == "hoi" and self.clip_window:
+            d["clip_window"] = dict(self.clip_window)    # absent = whole clips (older hashes unchanged)
         for key, mapping in sorted(self.settings.items()):   # absent = none (older hashes unchanged)
             d[key] = copy.deepcopy(mapping)
         d["metrics"] = list(self.metrics)
@@ -241,6 +247,18 @@ def _crop_embeddings(d: dict, phys: dict, where: str) -> bool:
     return v
 
 
+def _clip_window(d: dict, where: str) -> dict | None:
+    """The optional ``clip_window`` mapping: ``frames`` (a positive int) and ``drop_shorter``
+    (a bool), nothing else."""
+    if "clip_window" not in d:
+        return None
+    v = d["clip_window"]
+    if not isinstance(v, dict) or set(v) != {"frames", "drop_shorter"}:
+        raise ValueError(f"{where}: field 'clip_window' must map exactly 'frames' and 'drop_shorter', got {v!r}")
+    frames = _positive(_need(v, "frames", int, f"{where}: clip_window"), "clip_window.frames", where)
+    return {"frames": frames, "drop_shorter": _need(v, "drop_shorter", bool, f"{where}: clip_window")}
+
+
 def _embedding_loop(d: dict, where: str) -> str:
     """The ``embedding_loop`` a protocol names: ``hoibench`` (default: seeded pools and draws,
     :mod:`hoibench.metrics.embedding`) or a paper's released loop
@@ -352,7 +370,8 @@ def _parse_hoi(d: dict, w: str, track: str) -> Protocol:
         mm_pairs=_positive(_need(mm, "pairs", int, f"{w}: multimodality"), "pairs", w),
         physical=phys, metrics=metrics, description=str(d.get("description", "")).strip(),
         changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w, kind="hoi", track=track,
-        embedding_loop=_embedding_loop(d, w), crop_embeddings=_crop_embeddings(d, phys, w))
+        embedding_loop=_embedding_loop(d, w), crop_embeddings=_crop_embeddings(d, phys, w),
+        clip_window=_clip_window(d, w))
     if proto.mm_samples <= proto.mm_pairs:
         raise ValueError(f"{w}: multimodality.samples must exceed multimodality.pairs")
     proto.physical_config()          # the physical settings must be valid too
