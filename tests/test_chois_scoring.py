@@ -8,7 +8,7 @@ past the protocol's window change nothing; clips shorter than the window are not
 are counted; the evaluator's joints24 rows do not depend on where the clip stands or faces.
 The synthetic clips are 76-126 frames, so the tests score 95-frame windows (the shipped
 protocol's 120 keeps one test clip of this store) with hoibench's embedding loop (CHOIS's
-t2m loop needs more than 100 clips); every other setting is the shipped file's.
+loop needs a full batch of 32 clips); every other setting is the shipped file's.
 """
 from __future__ import annotations
 
@@ -30,8 +30,8 @@ INTERFACE = ("lhand_jpe", "rhand_jpe", "hand_jpe", "mpvpe", "mpjpe", "rot_dist",
 def _protocol(tmp: Path, name: str) -> Path:
     """The shipped protocol with a 95-frame window and hoibench's loop (module docstring)."""
     text = (PROTOCOLS_DIR / f"{name}.yaml").read_text()
-    assert "  frames: 120 " in text and "embedding_loop: t2m" in text
-    text = text.replace("  frames: 120 ", f"  frames: {WINDOW} ").replace("embedding_loop: t2m", "embedding_loop: hoibench")
+    assert "  frames: 120 " in text and "\nembedding_loop: " in text
+    text = text.replace("  frames: 120 ", f"  frames: {WINDOW} ").replace("embedding_loop: chois ", "embedding_loop: hoibench ")
     out = tmp / f"{name}-{WINDOW}.yaml"
     out.write_text(text)
     return out
@@ -187,3 +187,20 @@ def test_exact_and_grid_signed_distances_of_a_box():
     g = grid.sample(grid.normalise(pts)) * exact.half
     # a point outside the grid's cube reads the border (CHOIS's padding_mode='border'): 0 here, not 0.1
     np.testing.assert_allclose(g, [-0.05, -0.05, 0.0], atol=2e-3)
+
+
+def test_chois_loop_batches_in_listing_order():
+    """Items i and i + 32 share a motion: listing-order batches of 32 never hold both (every
+    text finds its own motion first), shuffled ones do; a short set is refused in one line."""
+    from hoibench.metrics.legacy_loops import LoopRefused, chois_loop, t2m_loop
+    rng = np.random.default_rng(0)
+    motion = np.tile(rng.normal(size=(32, 16)), (2, 1)).astype(np.float32)
+    text = motion + np.float32(0.01) * rng.normal(size=motion.shape).astype(np.float32)
+    res = chois_loop(text, motion, motion, seed=0, diversity_times=10)
+    assert res.rows()[0]["r_precision_top1"] == 1.0 and len(res.rows()) == 1
+    assert [list(b) for b in res.batches[0]["generated"]] == [list(range(32)), list(range(32, 64))]
+    assert "multimodality" not in res.rows()[0]
+    shuffled = t2m_loop(text, motion, motion, seed=0, diversity_times=10, mm_texts=10, replications=1)
+    assert shuffled.rows()[0]["r_precision_top1"] < 1.0
+    with pytest.raises(LoopRefused, match="chois: 20 clips, fewer than one batch of 32"):
+        chois_loop(text[:20], motion[:20], motion[:20])

@@ -290,10 +290,10 @@ def test_small_sets_are_reported_not_crashed(emb):
 
 
 def test_registry():
-    assert set(LL.LOOPS) == {"t2m", "mdm", "chainhoi", "interact", "interact-released"}
+    assert set(LL.LOOPS) == {"t2m", "mdm", "chainhoi", "interact", "interact-released", "chois"}
     got = {k: (s.batch_size, s.top_k, s.replications) for k, s in LL.LOOPS.items()}
     assert got == {"t2m": (32, 3, 20), "mdm": (32, 3, 20), "chainhoi": (32, 3, 1), "interact": (64, 3, 2),
-                   "interact-released": (64, 3, 2)}
+                   "interact-released": (64, 3, 2), "chois": (32, 3, 1)}
     with pytest.raises(ValueError, match="loop"):
         LL.run_loop("nope", np.zeros((40, 2)), np.zeros((40, 2)), np.zeros((40, 2)))
     with pytest.raises(ValueError, match="torch_sampler"):

@@ -56,6 +56,11 @@ L54-57) stopping once 1000 motions exist (L187-188: 32 batches, 1024 rows); Mult
 128 items, not 100), 30 samples, 10 pairs. ``mode="wo_mm"``: 20 replications, no
 MultiModality; ``"mm_short"``: 5 (L262-287).
 
+``chois`` -- CHOIS (Li et al. 2024) ``t2m_eval/final_evaluations.py``: text-to-motion's
+functions, the generated rows in listing order (no generation pass, no shuffle), batches of
+32 ``drop_last``, the ground-truth loader shuffled twice (R-precision, FID), Diversity 300,
+no MultiModality, one replication (:func:`chois_loop`).
+
 ``chainhoi`` -- ChainHOI (2025) ``src/models/metrics/tm2t.py`` ``TM2TMetrics.compute``
 (L80-161) with ``src/models/metrics/utils.py``: the whole test set is collected unshuffled
 with no drop (``src/data/behave_omomo.py`` L117-128; that pass draws the loader's base seed),
@@ -123,7 +128,7 @@ import numpy as np
 
 __all__ = ["METRIC_NAMES", "TORCH_SAMPLERS", "LoopResult", "LoopSpec", "LOOPS", "reference_ci", "run_loop",
            "t2m_loop", "mdm_loop", "chainhoi_loop", "interact_loop",
-           "interact_released_loop", "LoopRefused"]
+           "interact_released_loop", "LoopRefused", "chois_loop"]
 
 from .catalog import metric_names
 
@@ -356,7 +361,7 @@ def _collect(loop: str, reps: list[tuple[dict, dict, dict]], notes: list[str]) -
 # ===================================================================== text-to-motion / MDM
 @dataclass(frozen=True)
 class _GuoConfig:
-    variant: str          # "t2m" | "mdm"
+    variant: str          # "t2m" | "mdm" | "chois"
     batch_size: int
     top_k: int
     diversity_times: int
@@ -370,6 +375,8 @@ class _GuoConfig:
 def _guo_generated(n: int, torch_rng: _TorchStream, rs, cfg: _GuoConfig) -> tuple[np.ndarray, np.ndarray]:
     """Rows of the generated set in generation order, and the MultiModality items."""
     bs = cfg.batch_size
+    if cfg.variant == "chois":                                             # saved windows, listed once
+        return np.arange(n), np.array([], np.int64)
     if cfg.variant == "t2m":
         if not cfg.mm_texts < n:
             raise LoopRefused(f"t2m: needs more items than MultiModality items ({cfg.mm_texts}), got {n}")
@@ -460,6 +467,26 @@ def t2m_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, replicatio
                  sample_lengths=sample_lengths)
     cfg = _GuoConfig("t2m", batch_size, top_k, diversity_times, mm_texts, mm_repeats, mm_times, True, 0)
     return _guo_loop("t2m", x, cfg, seed, replications, torch_sampler, keys)
+
+
+def chois_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, replications: int = 1,
+               batch_size: int = 32, top_k: int = 3, diversity_times: int = 300, sent_lens=None, lengths=None,
+               gt_lengths=None, torch_sampler: str = "torch<1.9") -> LoopResult:
+    """CHOIS's ``t2m_eval/final_evaluations.py`` (lijiaman/chois_release @ 9cd4cf6): text-to-motion's
+    functions on CHOIS's saved windows. The generated loader
+    (``motion_loaders/model_motion_loaders.py`` ``get_motion_loader_for_chois_eval`` L74-85)
+    batches the result files in listing order by 32, unshuffled, ``drop_last``: the rows are
+    taken in the order given (hoibench passes its test ids sorted; CHOIS's ``os.listdir`` order
+    depends on the file system). The ground-truth loader (``dataset_motion_loader.py`` L21-22:
+    shuffled, ``drop_last``) is iterated for R-precision then again for FID's real statistics;
+    Diversity 300 (real rows first); no MultiModality; one replication (L172-176)."""
+    x = _inputs(text, motion, gt_motion, samples)
+    if len(x.text) < batch_size:
+        raise LoopRefused(f"chois: {len(x.text)} clips, fewer than one batch of {batch_size} (its loaders drop the "
+                          f"incomplete batch)")
+    keys = _keys(len(x.text), sent_lens=sent_lens, lengths=lengths, gt_lengths=gt_lengths, sample_lengths=None)
+    cfg = _GuoConfig("chois", batch_size, top_k, diversity_times, 0, 0, 0, False, 0)
+    return _guo_loop("chois", x, cfg, seed, replications, torch_sampler, keys)
 
 
 def mdm_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, mode: str = "wo_mm",
@@ -655,6 +682,10 @@ LOOPS: dict[str, LoopSpec] = {s.name: s for s in (
     LoopSpec("mdm", mdm_loop, 32, "shuffled DataLoader, drop_last, first 32 batches (>= 1000 rows)",
              "Euclidean, numpy float32", 3, "300 pairs", "mm_short: 4 batches (128) x 30 x 10; wo_mm: none",
              20, _CI, "GuyTevet/motion-diffusion-model eval/eval_humanml.py L20-239"),
+    LoopSpec("chois", chois_loop, 32, "listing order (test ids sorted), unshuffled, drop_last",
+             "Euclidean, numpy float32", 3, "300 pairs", "not computed", 1, _CI + " (R = 1: 0)",
+             "lijiaman/chois_release t2m_eval/final_evaluations.py L28-213, "
+             "motion_loaders/model_motion_loaders.py L74-85"),
     LoopSpec("chainhoi", chainhoi_loop, 32, "one torch.randperm of all rows, groups of 32, tail left out",
              "Euclidean, torch float32, nan_to_num", 3, "100 pairs (-1 when N <= 100)", "not computed", 1,
              _CI + " (R = 1: 0)", "Huanggh531/ChainHOI src/models/metrics/tm2t.py L80-161"),
