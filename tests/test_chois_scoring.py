@@ -204,3 +204,30 @@ def test_chois_loop_batches_in_listing_order():
     assert shuffled.rows()[0]["r_precision_top1"] < 1.0
     with pytest.raises(LoopRefused, match="chois: 20 clips, fewer than one batch of 32"):
         chois_loop(text[:20], motion[:20], motion[:20])
+
+
+def test_imported_chois_files_score_as_the_clips_they_reproduce(world, gt_result):
+    """CHOIS saves joints24 in its window frame (z up); ``hoibench import chois`` puts them back
+    in the test clip's world frame, so files written from the ground truth score zero errors
+    (joints only: a human-only submission, no object metrics)."""
+    from hoibench.metrics.chois_inputs import window_joints24
+    from hoibench.scoring.importers import import_results
+    store, folder = world["store"], world["base"] / "chois_files"
+    folder.mkdir()
+    ids = [row["id"] for row in gt_result["per_clip"]["rows"]]
+    for cid in ids:
+        joints = store.load(cid, keys=("joints",))["joints"][:120]
+        np.savez(folder / f"{cid}.npz", seq_name=np.array(cid), global_jpos=window_joints24(joints).astype(np.float32))
+    sub, report = import_results("chois", folder, world["data"], world["base"] / "chois_sub")
+    assert report["matched"] == len(ids) and report["human_only"]
+    assert report["conversions"]["frame"].startswith("CHOIS's window frame")
+    for cid in ids:
+        with np.load(sub / "samples" / f"{cid}.npz") as z:
+            got = z["joints"][0]
+        want = store.load(cid, keys=("joints",))["joints"][:len(got)]
+        np.testing.assert_allclose(got, want, atol=2e-5)
+    r = _score(world, sub)
+    for row in r["per_clip"]["rows"]:
+        for m in ("hand_jpe", "mpjpe", "trans_err", "mpvpe"):
+            assert row[m] == pytest.approx(0.0, abs=0.05), m          # mm: float32 files
+        assert row.get("obj_com_pos_err") is None                     # undefined without an object

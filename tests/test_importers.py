@@ -134,6 +134,7 @@ def test_joint_files_with_z_up_and_30_fps_are_converted(gt, template_store, tmp_
 
 
 def test_chois_npz_and_normalised_feature_folders(gt, template_store, tmp_path):
+    from hoibench.metrics.chois_inputs import canonical_window
     from hoibench.representations import hoi269
     st, ids, clips, caps = gt
     chois, feats = tmp_path / "chois", tmp_path / "feats"
@@ -144,7 +145,9 @@ def test_chois_npz_and_normalised_feature_folders(gt, template_store, tmp_path):
     for c in ids[:3]:
         j = clips[c]["joints"].astype(np.float64)
         j30 = resample(j, 20.0, 30.0)
-        g = np.concatenate([np.stack([j30[..., 0], -j30[..., 2], j30[..., 1]], -1), np.zeros((len(j30), 2, 3))], 1)
+        rot, shift = canonical_window(j)                                # CHOIS saves its window frame
+        window = np.stack([j30[..., 0], -j30[..., 2], j30[..., 1]], -1) @ rot.T + shift
+        g = np.concatenate([window, np.zeros((len(j30), 2, 3))], 1)
         np.savez(chois / f"{c}.npz", global_jpos=g)
         expect_c[c] = {"joints": resample(j30, 30.0, 20.0)[None].astype(np.float32)}
         f = clips[c]["hoi269"].astype(np.float64)

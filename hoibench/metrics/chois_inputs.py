@@ -101,6 +101,15 @@ def canonical_window(joints) -> tuple[np.ndarray, np.ndarray]:
     return rot, np.array([-transl_xy[0], -transl_xy[1], 0.0])
 
 
+def from_window(points_y, reference_joints) -> np.ndarray:
+    """World y-up points of y-up-axis points (..., 3) given in CHOIS's window frame of the clip
+    whose y-up joints (T, 22, 3) are ``reference_joints``: the inverse of
+    :func:`canonical_window` (CHOIS saves its generated joints in that frame)."""
+    rot, shift = canonical_window(reference_joints)
+    window_z = np.asarray(points_y, np.float64) @ Y_TO_Z.T
+    return ((window_z - shift) @ rot) @ Y_TO_Z
+
+
 def window_joints24(joints) -> np.ndarray:
     """(T, 24, 3) joints24 of y-up joints (T, 22, 3), z-up, in CHOIS's window frame: what its
     evaluator embeds."""
@@ -109,4 +118,4 @@ def window_joints24(joints) -> np.ndarray:
 
 
 __all__ = ["HAND_JOINTS", "Y_TO_Z", "rest_pelvis_xy", "proxy_hand_joints", "joints24", "z_up",
-           "canonical_window", "window_joints24"]
+           "canonical_window", "from_window", "window_joints24"]

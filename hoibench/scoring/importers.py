@@ -13,7 +13,8 @@ hoidiff    HOI-Diff's ``results.npy``: the same plus ``motion_obj`` (N, 1, 6, T)
 joints     a folder of ``<id>.npy`` or ``<id>_<r>.npy`` joint files (T, 22, 3) -- T2M-GPT's and
            MoMask's per-sample dumps; ``--fps`` and ``--up`` say their rate and up axis
 chois      a folder of CHOIS ``.npz`` files ``<id>[_<r>].npz`` with ``global_jpos`` (T, 24, 3):
-           z up, 30 fps; the first 22 joints (SMPL-H body order) are kept
+           z up, 30 fps, in CHOIS's window frame of the test clip (put back in the clip's world
+           frame); the first 22 joints (SMPL-X body order) are kept
 features   a folder of ``<id>.npy`` hml263 (T, 263) or hoi269 (T, 269) rows, or (K, T, D);
            ``--normalized``: de-normalised with the store's train statistics first
 params     a folder of ``<id>[_<r>].npz`` per-frame SMPL / SMPL-H / SMPL-X parameters
@@ -489,7 +490,20 @@ def _read_joints(req: ImportRequest) -> list:
 
 
 def _read_chois(req: ImportRequest) -> list:
-    return read_joint_files(req.results, req.ids, "z", True, req.budget)
+    """CHOIS's saved joints are in its window frame of the test clip (frame 0's heading along
+    +x, frame 0's translation at xy = 0; :mod:`hoibench.metrics.chois_inputs`): a file named
+    by a test id is put back in that clip's world frame (:func:`~hoibench.metrics.chois_inputs.from_window`)."""
+    from ..metrics.chois_inputs import from_window
+    entries = read_joint_files(req.results, req.ids, "z", True, req.budget)
+    known = set(req.ids)
+    out = []
+    for key, text, arrays in entries:
+        cid = key.rsplit("_", 1)[0] if key not in known and key.rsplit("_", 1)[0] in known else key
+        if cid in known:
+            gt = req.store.load(cid, keys=("joints",))["joints"]
+            arrays = {**arrays, "joints": np.stack([from_window(j, gt) for j in arrays["joints"]])}
+        out.append((key, text, arrays))
+    return out
 
 
 def _read_features(req: ImportRequest) -> list:
@@ -550,7 +564,8 @@ def import_results(fmt: str, results: str | Path, data: str | Path, out: str | P
     conversions = {"format": fmt, "match": how, "source_fps": src_fps, "store_fps": store_fps,
                    "resampled": abs(src_fps - store_fps) > 1e-9,
                    "up_axis": "z -> y" if spec.up == "z" or up == "z" else "y", "normalized_features": bool(normalized) if fmt == "features" else None,
-                   **({"body_model": model_type, "default_gender": gender} if fmt == "params" else {})}
+                   **({"body_model": model_type, "default_gender": gender} if fmt == "params" else {}),
+                   **({"frame": "CHOIS's window frame -> the test clip's world frame"} if fmt == "chois" else {})}
     report = {"matched": len(samples), "test_ids": len(ids), "missing_ids": sorted(set(ids) - set(samples)),
               "unmatched_entries": matcher.unmatched, "ambiguous_texts": sorted(set(matcher.ambiguous)),
               "samples_per_prompt": sorted(K), "conversions": conversions, "warnings": warnings}
