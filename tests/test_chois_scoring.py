@@ -231,3 +231,11 @@ def test_imported_chois_files_score_as_the_clips_they_reproduce(world, gt_result
         for m in ("hand_jpe", "mpjpe", "trans_err", "mpvpe"):
             assert row[m] == pytest.approx(0.0, abs=0.05), m          # mm: float32 files
         assert row.get("obj_com_pos_err") is None                     # undefined without an object
+
+
+def test_the_shipped_window_on_short_clips_is_refused_in_one_line(world):
+    """The synthetic clips are shorter than CHOIS's 120 frames: too few are left to score."""
+    from hoibench.scoring.evaluate import evaluate
+    from hoibench.scoring.pipeline import EvaluationRefused
+    with pytest.raises(EvaluationRefused, match=r"omomo-chois@1.0's clip_window of 120 frames keeps \d of \d+ test clips"):
+        evaluate(world["gt"], world["data"], world["ev"], protocol="omomo-chois@1.0", allow_failed_gate=True)
