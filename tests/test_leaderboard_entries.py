@@ -177,6 +177,13 @@ def test_add_reads_the_scored_submissions_training_budget(tmp_path):
     path = add_result(tmp_path / "res.json", tmp_path / "lb" / "multibody-synthetic", method="SyncDiff tiny",
                       role="baseline", replace=True)
     assert json.loads(path.read_text())["submission_source"] == {}
+    import zipfile                                                          # a .zip submission too
+    with zipfile.ZipFile(tmp_path / "sub.zip", "w") as z:
+        z.writestr("submission.json", json.dumps({"source": {"training": budget}}))
+    (tmp_path / "res_zip.json").write_text(json.dumps({**res, "submission": {"path": "sub.zip"}}))
+    path = add_result(tmp_path / "res_zip.json", tmp_path / "lb" / "multibody-synthetic", method="SyncDiff tiny",
+                      role="baseline", replace=True)
+    assert json.loads(path.read_text())["submission_source"]["training"] == budget
     # another recognizer than the track's: refused naming the multi-body result's field
     from hoibench.publish.leaderboard import LeaderboardError
     (tmp_path / "other.json").write_text(json.dumps({**res, "recognizer_id": "c0ca5e7a1536"}))

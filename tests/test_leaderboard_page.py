@@ -132,3 +132,12 @@ def test_training_cells_shorten_hardware_names():
         "steps": 1500, "parameters": 1780000, "wall_seconds": 612.0,
         "hardware": "CPU Intel(R) Xeon(R) Processor @ 2.80GHz, 1 thread(s)"}}}
     assert budget(e) == "1,500 steps, 1.78 M params, 10.2 min, CPU Intel Xeon 2.80GHz, 1 thread"
+
+
+def test_a_resumed_runs_time_says_it_is_the_last_segments():
+    from hoibench.publish.pages import budget
+    e = {"role": "baseline", "source": "reproduced", "submission_source": {"training": {
+        "steps": 1500, "parameters": 1815320, "wall_seconds": 2007.3, "resumed_from": 1308, "hardware": "cpu"}}}
+    assert budget(e) == "1,500 steps, 1.82 M params, 33.5 min since step 1,308, cpu"
+    e["submission_source"]["training"]["resumed_from"] = 0
+    assert budget(e) == "1,500 steps, 1.82 M params, 33.5 min, cpu"

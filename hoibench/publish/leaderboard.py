@@ -404,20 +404,16 @@ def attach_clip_data(entry: dict, result: dict, result_path: str | Path, entries
 
 
 def submission_meta_of(result: dict, result_path: str | Path) -> dict | None:
-    """The ``submission.json`` of the submission a result scored (its ``submission.path``,
-    relative to the current folder or to the result file's), for the entry's ``source`` block
-    (a baseline's training budget, its conditioner); None when that submission is not here
-    or its file is unreadable (the entry then says "not stated")."""
-    from ..core.io import read_json_file
+    """The ``submission.json`` of the submission a result scored (its ``submission.path``, a
+    folder or a ``.zip``, relative to the current folder or to the result file's), for the
+    entry's ``source`` block (a baseline's training budget, its conditioner); None when that
+    submission is not here or its file is unreadable (the entry then says "not stated")."""
+    from ..scoring.submission import Submission
     sub = (result.get("submission") or {}).get("path")
     if not isinstance(sub, str) or not sub:
         return None
     for base in (Path.cwd(), Path(result_path).resolve().parent):
-        meta = base / sub / "submission.json"
-        if meta.is_file():
-            try:
-                got = read_json_file(meta, 1 << 20, "submission file")
-            except ValueError:
-                return None
-            return got if isinstance(got, dict) else None
+        if (base / sub).exists():
+            with Submission(base / sub) as found:
+                return found.meta if isinstance(found.meta, dict) else None
     return None

@@ -79,8 +79,9 @@ def fmt(m: dict | None, k=None, name: str = "") -> str:
 
 
 def budget(e: dict) -> str:
-    """The row's training budget in words (``1,500 steps, 1.78 M params, 10.2 min, CPU ...``),
-    ``not stated`` for a baseline row without one, "" for other rows."""
+    """The row's training budget in words (``1,500 steps, 1.78 M params, 10.2 min, CPU ...``;
+    a resumed run's time is its last segment's, ``33.5 min since step 1,308``), ``not stated``
+    for a baseline row without one, "" for other rows."""
     t = training_of(e)
     if not t:
         return "not stated" if e.get("role") == "baseline" and e.get("source") != "reported" else ""
@@ -90,7 +91,9 @@ def budget(e: dict) -> str:
     if isinstance(t.get("parameters"), int):
         parts.append(f"{t['parameters'] / 1e6:.2f} M params")
     if isinstance(t.get("wall_seconds"), (int, float)):
-        parts.append(f"{t['wall_seconds'] / 60:.1f} min")
+        since = t.get("resumed_from")          # a resumed run records its last segment's time only
+        parts.append(f"{t['wall_seconds'] / 60:.1f} min" + (f" since step {since:,}" if isinstance(since, int)
+                                                             and since > 0 else ""))
     if t.get("hardware"):
         parts.append(short_hardware(str(t["hardware"])))
     return ("~" if t.get("approximate") else "") + ", ".join(parts)
