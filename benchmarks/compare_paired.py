@@ -5,9 +5,13 @@
 The per-clip data are made up (seeded Gaussian embeddings of dimension ``--dim`` with 3
 captions per clip, 11 physical metrics per clip; the other results are the first one with
 growing noise), with the shape a real 1,000-clip result has; the metrics are those a
-synthetic-clean result carries. Times :func:`hoibench.scoring.paired.compare_pair` for the 3
-pairs (what ``compare A B C D --paired`` spends after reading the files, which takes well
-under a second), and prints wall seconds per pair and in all.
+synthetic-clean result carries. Times :func:`hoibench.scoring.paired.compare_many` of the
+first result against the 3 others: what ``compare A B C D --paired``
+(:func:`~hoibench.scoring.paired.paired_compare`) spends after reading the files, which takes
+well under a second. Prints wall seconds in all, the load average (before and after), and the
+seconds per stage (per-clip data of the shared clips; set-level draws: per draw the FID of
+each result against the shared real statistics, and the Diversities; set-level points; the
+per-clip draws and tests).
 """
 from __future__ import annotations
 
@@ -38,7 +42,6 @@ def main() -> None:
     ap.add_argument("--executor", default="processes:2")
     args = ap.parse_args()
     from hoibench.metrics.catalog import METRICS
-    from hoibench.scoring.paired import compare_pair
     from hoibench.tracks.protocol import get_protocol
     proto = get_protocol("synthetic-clean")
     rng = np.random.default_rng(0)
@@ -46,15 +49,21 @@ def main() -> None:
     others = [fake_arrays(args.clips, args.dim, rng, first, s) for s in (0.1, 0.12, 0.2)]
     names = [m for m in proto.metrics if m in METRICS and m != "multimodality"]
     result = {"metrics": {m: {"mean": 0.0} for m in names}}
+    from hoibench.scoring.paired import compare_many
     print(f"{args.clips} clips, {args.dim}-D embeddings, {args.resamples} resamples, {args.executor}, "
-          f"load {os.getloadavg()[0]:.2f}")
-    t_all = time.perf_counter()
-    for i, arr in enumerate(others, 1):
-        t0 = time.perf_counter()
-        pair = compare_pair(result, first, result, arr, proto, args.resamples, 0, args.executor)
-        print(f"pair {i}: {time.perf_counter() - t0:.1f} s; FID diff {pair['metrics']['fid']['diff']:+.4f} "
+          f"4 results (3 pairs); load {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)")
+    stages: dict[str, float] = {}
+    t0 = time.perf_counter()
+    pairs = compare_many(result, first, [(result, arr) for arr in others], proto, args.resamples, 0, args.executor,
+                         stages)
+    total = time.perf_counter() - t0
+    for i, pair in enumerate(pairs, 1):
+        print(f"pair {i}: FID diff {pair['metrics']['fid']['diff']:+.4f} ci95 "
+              f"[{pair['metrics']['fid']['ci95'][0]:+.4f}, {pair['metrics']['fid']['ci95'][1]:+.4f}] "
               f"({pair['metrics']['fid']['verdict']})")
-    print(f"3 pairs: {time.perf_counter() - t_all:.1f} s (load {os.getloadavg()[0]:.2f} at the end)")
+    for name, sec in stages.items():
+        print(f"  {name:36s} {sec:7.1f} s")
+    print(f"4 results (3 pairs): {total:.1f} s (load {' '.join(f'{x:.2f}' for x in os.getloadavg())} at the end)")
 
 
 if __name__ == "__main__":

@@ -15,6 +15,12 @@ per-clip data (:mod:`hoibench.scoring.clip_data`, :mod:`hoibench.metrics.resampl
   adjustment across the metrics of one pair, and a verdict: ``A better``, ``B better`` or
   ``not distinguishable on N clips`` (adjusted p >= 0.05).
 
+The pairs over the same clips share their draws (:func:`compare_many`): per draw, A's and the
+ground truth's set-level values and the real embeddings' covariance factor are computed once,
+and each result's FID takes one eigenvalue problem
+(:func:`~hoibench.metrics.resampling.draw_fids`); the point values on all clips are
+:func:`~hoibench.metrics.resampling.weighted_fid`'s.
+
 Results scored with another evaluator, protocol (id and version) or store are refused in one
 line naming the field. The same seed gives the same numbers on every executor: the draws are
 made up front and the per-resample work is split in fixed chunks.
@@ -26,8 +32,8 @@ import hashlib
 import numpy as np
 
 from ..metrics.catalog import METRICS
-from ..metrics.resampling import (bootstrap_p, bootstrap_weights, holm, resampled_diversity, retrieval_per_clip,
-                                  weighted_fid)
+from ..metrics.resampling import (bootstrap_p, bootstrap_weights, draw_fids, holm, resampled_diversity,
+                                  retrieval_per_clip, weighted_fid)
 
 #: fewest resamples a paired comparison runs
 MIN_RESAMPLES = 2000
@@ -78,20 +84,43 @@ def _means(values: np.ndarray, W: np.ndarray) -> np.ndarray:
 
 
 def _set_level(job: tuple) -> dict[str, np.ndarray]:
-    """FID and Diversity of both sides (and the ground truth's Diversity) on a chunk of draws;
-    side A only when ``b_motion`` is None (a single result's clip interval)."""
-    start, W, a_motion, b_motion, real, pairs, seed = job
-    sides = (("a", a_motion),) if b_motion is None else (("a", a_motion), ("b", b_motion))
-    names = [f"{m}_{side}" for side, _ in sides for m in ("fid", "div")] + ([] if b_motion is None else ["div_gt"])
-    out = {k: np.empty(len(W)) for k in names}
-    for i, w in enumerate(W):
-        s = _seed(seed, start + i)
-        for side, motion in sides:
-            out[f"fid_{side}"][i] = weighted_fid(real, motion, w)
-            out[f"div_{side}"][i] = resampled_diversity(motion, w, pairs, s)
-        if b_motion is not None:
+    """On a chunk ``W`` of draws starting at draw ``start``: every generated set's FID
+    (:func:`~hoibench.metrics.resampling.draw_fids`: the real side's statistics once per draw)
+    and Diversity, ``(len(W), len(motions))``, and the ground truth's Diversity ``div_gt``
+    ``(len(W),)``; draw ``i``'s Diversity pairs are seeded by ``(seed, start + i)``. BLAS runs
+    on one thread: the executor runs chunks side by side, two BLAS threads per process made the
+    eigenvalue steps many times slower on a busy machine, and the numbers do not depend on how
+    many threads a machine would give BLAS."""
+    from threadpoolctl import threadpool_limits
+    start, W, motions, real, pairs, seed = job
+    out = {"fid": np.empty((len(W), len(motions))), "div": np.empty((len(W), len(motions))),
+           "div_gt": np.empty(len(W))}
+    with threadpool_limits(limits=1, user_api="blas"):
+        for i, w in enumerate(W):
+            s = _seed(seed, start + i)
+            out["fid"][i] = draw_fids(real, motions, w)
+            out["div"][i] = [resampled_diversity(m, w, pairs, s) for m in motions]
             out["div_gt"][i] = resampled_diversity(real, w, pairs, s)
     return out
+
+
+def _set_level_draws(motions: list[np.ndarray], real: np.ndarray, W: np.ndarray, pairs: int, seed: int,
+                     executor: str = "serial") -> dict[str, np.ndarray]:
+    """:func:`_set_level` on every row of ``W``, in fixed chunks of :data:`_CHUNK` draws on
+    ``executor`` (the same numbers on every executor)."""
+    from ..core.parallel import map_units
+    jobs = [(s, W[s:s + _CHUNK], motions, real, pairs, seed) for s in range(0, len(W), _CHUNK)]
+    chunks = list(map_units(_set_level, jobs, executor))
+    return {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
+
+
+def _set_level_full(motions: list[np.ndarray], real: np.ndarray, pairs: int, seed: int) -> dict[str, np.ndarray]:
+    """The point values on all clips: :func:`weighted_fid` with unit weights and the Diversity of
+    draw 0's seed, per generated set (``fid``, ``div``), and the ground truth's ``div_gt``."""
+    ones, s = np.ones(len(real)), _seed(seed, 0)
+    return {"fid": np.array([weighted_fid(real, m, ones) for m in motions]),
+            "div": np.array([resampled_diversity(m, ones, pairs, s) for m in motions]),
+            "div_gt": np.array(resampled_diversity(real, ones, pairs, s))}
 
 
 def favours_b(direction: str, diff: float) -> bool | None:
@@ -109,31 +138,78 @@ def _verdict(p_holm: float, better_b: bool | None, n: int) -> str:
     return "B better" if better_b else "A better"
 
 
+def _shared(a_arrays: dict, b_arrays: dict) -> tuple[str, ...]:
+    """The sorted clip ids both results scored (ValueError under 2)."""
+    shared = tuple(sorted({str(x) for x in a_arrays["ids"]} & {str(x) for x in b_arrays["ids"]}))
+    if len(shared) < 2:
+        raise ValueError(f"the two results share {len(shared)} scored test clip(s): a paired comparison needs 2 or more")
+    return shared
+
+
+def _sides(arrays: list[dict], shared: tuple[str, ...], proto) -> list[_Side]:
+    """Each result's :class:`_Side` on the ``shared`` clips (replication-0 pools of them)."""
+    where = {c: i for i, c in enumerate(shared)}
+    pools = [[where[c] for c in p] for p in proto.pools(list(shared), 0)] or [list(range(len(shared)))]
+    top_k = int(proto.r_precision_top_k or 3)
+    out = []
+    for arr in arrays:
+        at = {str(c): i for i, c in enumerate(arr["ids"])}
+        out.append(_Side(arr, np.array([at[c] for c in shared]), pools, top_k))
+    return out
+
+
 def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamples: int = MIN_RESAMPLES,
                  seed: int = 0, executor: str = "serial") -> dict:
     """The paired comparison of two results (module docstring): ``{"n_clips", "metrics": {name:
     {"diff", "ci95", "p", "p_holm", "verdict", "a", "b", "direction", "unit", "tested"}}}``."""
-    from ..core.parallel import map_units
-    a_ids, b_ids = [str(x) for x in a_arrays["ids"]], [str(x) for x in b_arrays["ids"]]
-    shared = sorted(set(a_ids) & set(b_ids))
-    if len(shared) < 2:
-        raise ValueError(f"the two results share {len(shared)} scored test clip(s): a paired comparison needs 2 or more")
-    ia, ib = {c: i for i, c in enumerate(a_ids)}, {c: i for i, c in enumerate(b_ids)}
-    where = {c: i for i, c in enumerate(shared)}
-    pools = [[where[c] for c in p] for p in proto.pools(shared, 0)] or [list(range(len(shared)))]
-    top_k = int(proto.r_precision_top_k or 3)
-    A = _Side(a_arrays, np.array([ia[c] for c in shared]), pools, top_k)
-    B = _Side(b_arrays, np.array([ib[c] for c in shared]), pools, top_k)
-    n = len(shared)
-    W = bootstrap_weights(n, resamples, seed).astype(np.float64)
+    return compare_many(a, a_arrays, [(b, b_arrays)], proto, resamples, seed, executor)[0]
+
+
+def compare_many(a: dict, a_arrays: dict, others: list[tuple[dict, dict]], proto, resamples: int = MIN_RESAMPLES,
+                 seed: int = 0, executor: str = "serial", stages: dict[str, float] | None = None) -> list[dict]:
+    """:func:`compare_pair` of ``a`` with each ``(b, b_arrays)`` of ``others``, in order. Pairs
+    that share the same clips share the draws: A's, the ground truth's and each B's set-level
+    values are computed once per draw (not once per pair). ``stages``, when given, gets the
+    seconds spent per stage added to it."""
+    import time
+    shared = [_shared(a_arrays, b_arrays) for _, b_arrays in others]
+    out: list[dict | None] = [None] * len(others)
+    for ids in dict.fromkeys(shared):
+        group = [j for j, s in enumerate(shared) if s == ids]
+        t0 = time.perf_counter()
+        sides = _sides([a_arrays] + [others[j][1] for j in group], ids, proto)
+        W = bootstrap_weights(len(ids), resamples, seed).astype(np.float64)
+        pairs = int(min(proto.diversity_pairs or 300, 300))
+        motions = [side.motion for side in sides]
+        t1 = time.perf_counter()
+        boot = _set_level_draws(motions, sides[0].real, W, pairs, seed, executor)
+        t2 = time.perf_counter()
+        full = _set_level_full(motions, sides[0].real, pairs, seed)
+        t3 = time.perf_counter()
+        for k, j in enumerate(group, 1):
+            out[j] = _pair_rows(a, others[j][0], sides[0], sides[k], W, _column(boot, 0, k), _column(full, 0, k))
+        if stages is not None:
+            for name, sec in (("per-clip data of the shared clips", t1 - t0),
+                              ("set-level draws (FID, Diversity)", t2 - t1), ("set-level points", t3 - t2),
+                              ("per-clip draws and tests", time.perf_counter() - t3)):
+                stages[name] = stages.get(name, 0.0) + sec
+    return out
+
+
+def _column(values: dict[str, np.ndarray], i: int, j: int) -> dict[str, np.ndarray]:
+    """Sides ``i`` (A) and ``j`` (B) of :func:`_set_level` values: ``fid_a``, ``fid_b``, ``div_a``,
+    ``div_b``, ``div_gt``."""
+    return {"fid_a": values["fid"][..., i], "fid_b": values["fid"][..., j], "div_a": values["div"][..., i],
+            "div_b": values["div"][..., j], "div_gt": values["div_gt"]}
+
+
+def _pair_rows(a: dict, b: dict, A: _Side, B: _Side, W: np.ndarray, boot: dict, full: dict) -> dict:
+    """One pair's rows (:func:`compare_pair`) from the draws ``W``, the set-level draws ``boot``
+    and the set-level points ``full`` (:func:`_column`)."""
+    n = W.shape[1]
     ones = np.ones((1, n))
     names = [m for m in METRICS if m in a["metrics"] and m in b["metrics"]]
     pa, pb = A.per_clip(), B.per_clip()
-    pairs = int(min(proto.diversity_pairs or 300, 300))
-    jobs = [(s, W[s:s + _CHUNK], A.motion, B.motion, A.real, pairs, seed) for s in range(0, resamples, _CHUNK)]
-    chunks = list(map_units(_set_level, jobs, executor))
-    full = _set_level((0, ones, A.motion, B.motion, A.real, pairs, seed))
-    boot = {k: np.concatenate([c[k] for c in chunks]) for k in full}
     rows, pvals = {}, []
     for m in names:
         info = METRICS[m]
@@ -141,10 +217,10 @@ def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamp
             va, vb, vg = _means(pa[m], W), _means(pb[m], W), None
             fa, fb = float(_means(pa[m], ones)[0]), float(_means(pb[m], ones)[0])
         elif m == "fid":
-            va, vb, vg, fa, fb = boot["fid_a"], boot["fid_b"], None, float(full["fid_a"][0]), float(full["fid_b"][0])
+            va, vb, vg, fa, fb = boot["fid_a"], boot["fid_b"], None, float(full["fid_a"]), float(full["fid_b"])
         elif m == "diversity":
             va, vb, vg = boot["div_a"], boot["div_b"], boot["div_gt"]
-            fa, fb = float(full["div_a"][0]), float(full["div_b"][0])
+            fa, fb = float(full["div_a"]), float(full["div_b"])
         else:
             continue                          # no per-clip data for it (e.g. MultiModality)
         diff = vb - va
@@ -171,7 +247,8 @@ def compare_pair(a: dict, a_arrays: dict, b: dict, b_arrays: dict, proto, resamp
 
 def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, executor: str = "serial",
                    extra=None) -> dict:
-    """Every result after the first against the first (module docstring); the ``cmp.json`` dict.
+    """Every result after the first against the first (module docstring; :func:`compare_many`:
+    the draws of pairs over the same clips are shared); the ``cmp.json`` dict.
     ``extra(a, a_arrays, b, b_arrays, proto)``, when given, returns more fields for each pair
     (the CLI adds :func:`hoibench.scoring.slices.slice_gaps`)."""
     from ..tracks.protocol import get_protocol
@@ -187,9 +264,9 @@ def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, e
         check_same_scale(results[0], r, paths[0], p)
     arrays = [read_clip_data(r, p) for r, p in zip(results, paths)]
     proto = get_protocol(f"{results[0]['protocol']}@{results[0]['protocol_version']}")
+    got = compare_many(results[0], arrays[0], list(zip(results[1:], arrays[1:])), proto, resamples, seed, executor)
     pairs = []
-    for r, arr, p in zip(results[1:], arrays[1:], paths[1:]):
-        pair = compare_pair(results[0], arrays[0], r, arr, proto, resamples, seed, executor)
+    for r, arr, p, pair in zip(results[1:], arrays[1:], paths[1:], got):
         pairs.append({"a": _method(results[0], paths[0]), "b": _method(r, p), "a_file": str(paths[0]),
                       "b_file": str(p), **pair,
                       **(extra(results[0], arrays[0], r, arr, proto) if extra is not None else {})})
@@ -236,8 +313,8 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
     boot = {m: _means(v, W) for m, v in side.per_clip().items()}
     if n <= SET_LEVEL_MAX_CLIPS:
         pairs = int(min(proto.diversity_pairs or 300, 300))
-        got = _set_level((0, W, side.motion, None, side.real, pairs, seed))
-        boot.update(fid=got["fid_a"], diversity=got["div_a"])
+        got = _set_level_draws([side.motion], side.real, W, pairs, seed)
+        boot.update(fid=got["fid"][:, 0], diversity=got["div"][:, 0])
     out = {}
     for m, v in boot.items():
         v = v[np.isfinite(v)]
@@ -267,15 +344,12 @@ def set_level_draws(arrays: dict, proto, W: np.ndarray, seed: int = 0,
     all its clips, as :func:`per_clip_draws` returns them; the Diversity pairs of draw ``i``
     are seeded by ``(seed, i)`` as in :func:`compare_pair`. Draws run in fixed chunks on
     ``executor`` (the same numbers on every executor)."""
-    from ..core.parallel import map_units
     side, W = _draw_side(arrays, proto, W)
     pairs = int(min(proto.diversity_pairs or 300, 300))
-    jobs = [(s, W[s:s + _CHUNK], side.motion, None, side.real, pairs, seed) for s in range(0, len(W), _CHUNK)]
-    chunks = list(map_units(_set_level, jobs, executor))
-    whole = _set_level((0, np.ones((1, W.shape[1])), side.motion, None, side.real, pairs, seed))
-    return ({"fid": np.concatenate([c["fid_a"] for c in chunks]),
-             "diversity": np.concatenate([c["div_a"] for c in chunks])},
-            {"fid": float(whole["fid_a"][0]), "diversity": float(whole["div_a"][0])})
+    got = _set_level_draws([side.motion], side.real, W, pairs, seed, executor)
+    whole = _set_level_full([side.motion], side.real, pairs, seed)
+    return ({"fid": got["fid"][:, 0], "diversity": got["div"][:, 0]},
+            {"fid": float(whole["fid"][0]), "diversity": float(whole["div"][0])})
 
 
 def _draw_side(arrays: dict, proto, W: np.ndarray) -> tuple[_Side, np.ndarray]:
@@ -296,5 +370,5 @@ def clip_values(arrays: dict, proto) -> dict[str, np.ndarray]:
     return side.per_clip()
 
 
-__all__ = ["paired_compare", "compare_pair", "clip_values", "favours_b", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
+__all__ = ["paired_compare", "compare_pair", "compare_many", "clip_values", "favours_b", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
            "set_level_draws", "MIN_RESAMPLES", "CLIP_RESAMPLES"]
