@@ -193,6 +193,23 @@ def test_bad_arguments_give_one_line_naming_the_field(scored, tmp_path, capsys):
     assert err.count("\n") == 0 and "--out" in err and "--overwrite" in err
 
 
+def test_a_legacy_protocol_on_a_clean_store_needs_the_mismatch_flag_and_is_recorded(scored, tmp_path, capsys):
+    from hoibench.audit.runner import load_setup
+    from hoibench.cli import main
+    data, base, _, _ = scored
+    args = ["audit", "--data", str(data), "--evaluator", str(base / "ev"), "--out", str(tmp_path / "o"),
+            "--protocol", "synthetic-legacy", "--families", "jitter", "--allow-failed-gate"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "legacy protocol" in err and "--allow-protocol-mismatch" in err
+    setup = load_setup(data, base / "ev", "synthetic-legacy", True, allow_protocol_mismatch=True)
+    assert setup.proto.id == "synthetic-legacy" and setup.options["allow_protocol_mismatch"] is True
+    # with the flag the audit reaches ChainHOI's loop, which refuses 4 test clips in one line
+    assert main(args + ["--allow-protocol-mismatch"]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]                # after the progress lines
+    assert last.startswith("hoibench audit: error: protocol synthetic-legacy@") and "needs more than 16 items" in last
+
+
 def test_a_mirrored_or_swapped_clip_poses_its_mirrored_or_new_template(scored):
     from hoibench.audit.corruptions import split_context
     from hoibench.audit.runner import corrupted_split, ground_truth

@@ -83,6 +83,7 @@ def _provenance(setup, result: dict, data: str, seed: int, resamples: int, n: in
             "evaluator_id": result.get("evaluator_id"), "evaluator_variant": result.get("evaluator_variant"),
             "evaluator_gate_passed": bool(result.get("evaluator_gate", {}).get("passed", False)),
             "allow_failed_gate": bool(setup.options.get("allow_failed_gate")),
+            "overrides": result.get("overrides", []),
             "protocol": result.get("protocol"), "protocol_version": result.get("protocol_version"),
             "protocol_sha256": result.get("protocol_sha256"), "seed": int(seed), "resamples": int(resamples),
             "alpha": ALPHA, "test_clips": int(n), "toolkit": "hoibench", "toolkit_version": __version__}
@@ -124,7 +125,7 @@ def check_audit_args(data, evaluator, out, families: Sequence[str] | None, seed:
 def run_audit(data: str | Path, evaluator: str | Path, out: str | Path, protocol=None,
               families: Sequence[str] | None = None, seed: int = DEFAULT_SEED, resamples: int | None = None,
               executor: str = "serial", allow_failed_gate: bool = False, overwrite: bool = False,
-              log=print) -> dict:
+              log=print, allow_protocol_mismatch: bool = False) -> dict:
     """``hoibench audit``: score every severity of ``families`` (all by default) on the store's
     test split, test each against severity 0 and write ``audit.json``, the heatmap, the
     metric cards and ``README.md`` into ``out``. Returns the audit dict."""
@@ -133,7 +134,7 @@ def run_audit(data: str | Path, evaluator: str | Path, out: str | Path, protocol
     resamples = MIN_RESAMPLES if resamples is None else resamples
     chosen = check_audit_args(data, evaluator, out, families, seed, resamples, overwrite, executor)
     t0 = time.perf_counter()
-    setup = load_setup(data, evaluator, protocol, allow_failed_gate)
+    setup = load_setup(data, evaluator, protocol, allow_failed_gate, allow_protocol_mismatch)
     kept = check_objects(setup.store, chosen, explicit=bool(families))
     if kept != chosen:
         log(f"audit: {data} has test clips without an object; left out: {', '.join(f for f in chosen if f not in kept)}")

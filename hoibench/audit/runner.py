@@ -230,9 +230,11 @@ class Setup:
     options: dict
 
 
-def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_failed_gate: bool = False) -> Setup:
+def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_failed_gate: bool = False,
+               allow_protocol_mismatch: bool = False) -> Setup:
     """The store, its track (single-body only), the protocol (the store's default when None),
-    the evaluator: what ``hoibench evaluate`` loads, checked the same way."""
+    the evaluator: what ``hoibench evaluate`` loads, checked the same way (a protocol of
+    another mode or representation only with ``allow_protocol_mismatch``, recorded)."""
     from ..datasets.store import Store
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
@@ -247,7 +249,7 @@ def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_fai
         raise EvaluationRefused(f"--protocol {proto.ref}: a {proto.kind} protocol; {data} is scored under "
                                 f"{track.protocol_kind} protocols ({', '.join(track.protocols)})")
     backend = backend_of(evaluator)
-    options = {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": False,
+    options = {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": allow_protocol_mismatch,
                "allow_evaluator_mismatch": False,
                "evaluator_backend": backend.name if backend else track.evaluator_kind}
     HOIScorer.check_fit(store, proto, peek_card(evaluator, track.evaluator_kind), options)

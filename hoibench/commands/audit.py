@@ -12,7 +12,7 @@ def _cmd_audit(args) -> int:
     families = [f.strip() for f in args.families.split(",") if f.strip()] if args.families else None
     run_audit(args.data, args.evaluator, args.out, protocol=args.protocol, families=families, seed=args.seed,
               resamples=args.resamples, executor=args.executor, allow_failed_gate=args.allow_failed_gate,
-              overwrite=args.overwrite)
+              overwrite=args.overwrite, allow_protocol_mismatch=args.allow_protocol_mismatch)
     return 0
 
 
@@ -43,4 +43,7 @@ def register(sub) -> None:
     s.add_argument("--overwrite", action="store_true", help="replace an audit already in --out")
     s.add_argument("--allow-failed-gate", action="store_true",
                    help="audit with an evaluator that fails its sanity gate on this store (audit.json records it)")
+    s.add_argument("--allow-protocol-mismatch", action="store_true",
+                   help="audit under a protocol of another mode or representation than the store's (e.g. a legacy "
+                        "protocol on a clean store: its metric rules, the store's features; audit.json records it)")
     s.set_defaults(func=_cmd_audit)

@@ -543,7 +543,7 @@ def chainhoi_loop(text, motion, gt_motion, samples=None, *, seed: int = 0, repli
     x = _inputs(text, motion, gt_motion, samples)
     n = len(x.text)
     if not n > r_size:
-        raise ValueError(f"chainhoi: needs more than {r_size} items, got {n} (TM2TMetrics asserts)")
+        raise LoopRefused(f"chainhoi: needs more than {r_size} items, got {n} (TM2TMetrics asserts)")
     torch_rng, rs = _TorchStream(seed), np.random.RandomState(int(seed))
     notes = ["multimodality: the released ChainHOI test loop never creates its MultiModality metric"]
     reps = []
