@@ -227,3 +227,13 @@ def test_protocol_scores_a_synthetic_interact_store_end_to_end(scored):
     notes = " ".join(res.get("notes", []))
     assert "interact-released loop" in notes
     assert len(res["per_replication"]) == 2
+
+
+def test_the_audit_refuses_a_marker_track_in_one_line(scored, tmp_path):
+    """The audit corrupts joints and object poses; InterAct's evaluator reads markers, which it
+    cannot move consistently with them, so it refuses rather than score stale markers."""
+    from hoibench.audit.runner import load_setup
+    from hoibench.scoring.pipeline import EvaluationRefused
+    _, root = scored
+    with pytest.raises(EvaluationRefused, match=r"interact track's submissions carry markers; the audit corrupts"):
+        load_setup(root / "data", root / "ev", allow_failed_gate=True)

@@ -245,6 +245,11 @@ def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_fai
         raise EvaluationRefused(f"--data {data}: a store of the {track.name} track ({track.scorer} scorer); the audit "
                                 f"corrupts single-body clips (tracks scored by the hoi scorer)")
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
+    from ..scoring.validate import required_arrays
+    extra = required_arrays(proto)
+    if extra:
+        raise EvaluationRefused(f"--data {data}: the {track.name} track's submissions carry {', '.join(extra)}; the "
+                                f"audit corrupts joints and object poses and cannot move {extra[0]} with them yet")
     if proto.kind != track.protocol_kind:
         raise EvaluationRefused(f"--protocol {proto.ref}: a {proto.kind} protocol; {data} is scored under "
                                 f"{track.protocol_kind} protocols ({', '.join(track.protocols)})")
