@@ -36,8 +36,9 @@ def test_shipped_protocols_fix_the_design_numbers():
     assert (t2m.replications, t2m.embedding_loop, t2m.diversity_pairs, t2m.track) == (20, "t2m", 300, "behave")
     assert t2m.physical == protos["behave-legacy"].physical
     chois = [protos.pop(i) for i in ("omomo-chois", "omomo-chois-clean")]
-    for p in chois:                   # CHOIS's own protocol: its 30 fps evaluator, text-to-motion's loop
-        assert p.fps == 30 and p.embedding_loop == "t2m" and p.dataset == "omomo", p.ref
+    for p in chois:                   # CHOIS's own protocol: its 30 fps evaluator and 120-frame windows
+        assert p.fps == 30 and p.dataset == "omomo" and p.clip_window == {"frames": 120, "drop_shorter": True}, p.ref
+    assert [p.embedding_loop for p in chois] == ["chois", "hoibench"]       # CHOIS's loop; the clean one ours
     ia = protos.pop("interact-legacy")  # InterAct's released evaluation: its loader and loop, 2 repeats
     assert (ia.replications, ia.embedding_loop, ia.r_precision_pool_size, ia.fps) == (2, "interact-released", 64, 30)
     for p in protos.values():

@@ -137,9 +137,9 @@ def _body(joints22: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(joints24, proxy vertices, root rotations) of joints (T, 22, 3), in their own axes."""
     from ..bodies.contact import body_scale
     from .body_surface import joint_global_rotations, proxy_vertices_from_joints
-    from .chois_inputs import _rest, joints24
+    from .chois_inputs import joints24, proxy_rest_joints
     j = np.asarray(joints22, np.float64)
-    root = joint_global_rotations(j, _rest()[:22] * body_scale(j))[:, 0]
+    root = joint_global_rotations(j, proxy_rest_joints()[:22] * body_scale(j))[:, 0]
     return joints24(j), proxy_vertices_from_joints(j), root
 
 

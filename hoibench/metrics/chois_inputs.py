@@ -38,7 +38,8 @@ Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
 
 @lru_cache(maxsize=1)
-def _rest() -> np.ndarray:
+def proxy_rest_joints() -> np.ndarray:
+    """(55, 3) the proxy SMPL-X rest joints (model frame, metres; cached)."""
     from ..bodies.proxy import ProxyBody
     return ProxyBody("smplx").rest_joints.astype(np.float64)
 
@@ -46,7 +47,7 @@ def _rest() -> np.ndarray:
 def rest_pelvis_xy() -> np.ndarray:
     """(2,) the proxy SMPL-X rest pelvis's model x, y (m): in OMOMO's z-up world ``pelvis =
     J0 + transl`` adds them to the translation's x, y."""
-    return _rest()[0, :2].copy()
+    return proxy_rest_joints()[0, :2].copy()
 
 
 
@@ -63,7 +64,7 @@ def proxy_hand_joints(joints) -> np.ndarray:
     from ..bodies.contact import body_scale
     from .body_surface import joint_global_rotations
     j = _check(joints)
-    rest = _rest()
+    rest = proxy_rest_joints()
     s = body_scale(j)
     R = joint_global_rotations(j, rest[:22] * s)
     out = np.empty((len(j), 2, 3))
@@ -89,7 +90,7 @@ def canonical_window(joints) -> tuple[np.ndarray, np.ndarray]:
     from ..bodies.contact import body_scale
     from .body_surface import joint_global_rotations
     j = _check(joints)[:1]
-    rest = _rest()
+    rest = proxy_rest_joints()
     root = Y_TO_Z @ joint_global_rotations(j, rest[:22] * body_scale(j))[0, 0]   # model -> z-up world
     left = root[:, 0] * np.array([1.0, 1.0, 0.0])
     norm = np.linalg.norm(left)
@@ -117,5 +118,5 @@ def window_joints24(joints) -> np.ndarray:
     return z_up(joints24(joints)) @ rot.T + shift
 
 
-__all__ = ["HAND_JOINTS", "Y_TO_Z", "rest_pelvis_xy", "proxy_hand_joints", "joints24", "z_up",
+__all__ = ["HAND_JOINTS", "proxy_rest_joints", "Y_TO_Z", "rest_pelvis_xy", "proxy_hand_joints", "joints24", "z_up",
            "canonical_window", "from_window", "window_joints24"]
