@@ -223,9 +223,16 @@ def test_resume_gives_the_uninterrupted_run(template_store, tiny_run, tmp_path):
     part = tmp_path / "resumed"
     train("chainhoi", template_store, part, small_config(), stop_after=2, log=None)
     assert (part / "checkpoint" / "last.pt").exists() and not (part / "card.json").exists()
+    segments = json.loads((part / "checkpoint" / "segments.json").read_text())["segments"]
+    assert [(s["from"], s["to"]) for s in segments] == [(0, 2)] and segments[0]["seconds"] > 0
     again = train("chainhoi", template_store, part, small_config(), log=None)
     assert again.resumed_from == 2
     assert again.checkpoint_id == res.checkpoint_id
+    # the run's wall time covers both processes, from step 0; the segments went with the checkpoint
+    log = json.loads((part / "train_log.json").read_text())
+    assert log["seconds_from_step"] == 0 and log["resumed_from"] == 2
+    assert log["seconds"] == pytest.approx(segments[0]["seconds"] + log["segment_seconds"], abs=0.11)
+    assert not (part / "checkpoint").exists()
     assert train("chainhoi", template_store, part, small_config(), log=None).already_trained
 
 

@@ -133,4 +133,5 @@ def training_budget(folder: str | Path, card: dict) -> dict:
         encoder["weights_sha256"] = text["weights_sha256"]
     return {"steps": summary.get("steps"), "parameters": summary.get("parameters"),
             "wall_seconds": log.get("seconds"), "hardware": log.get("hardware") or log.get("device"),
-            "resumed_from": log.get("resumed_from", 0), "text_encoder": encoder}
+            "resumed_from": log.get("resumed_from", 0),
+            "wall_seconds_from": log.get("seconds_from_step", log.get("resumed_from", 0)), "text_encoder": encoder}

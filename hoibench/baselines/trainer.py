@@ -217,8 +217,46 @@ def read_checkpoint(path: Path, ident: dict, device, restore: Callable[[dict], A
                                   f"{' '.join(str(exc).split())[:160]}); delete it to restart training") from None
 
 
+#: the wall time of each process's steps, beside the checkpoint (a resumed run sums them)
+SEGMENTS_FILE = "segments.json"
+
+
+def record_segment(cpath: Path, start: int, step: int, seconds: float) -> None:
+    """Record that this process ran steps ``start..step`` in ``seconds`` of wall time (one
+    entry per start step, rewritten at each checkpoint)."""
+    path = cpath.parent / SEGMENTS_FILE
+    segments = [s for s in read_segments(cpath) if s["from"] != start]
+    segments.append({"from": int(start), "to": int(step), "seconds": round(float(seconds), 1)})
+    atomic_write_json(path, {"segments": sorted(segments, key=lambda s: s["from"])})
+
+
+def read_segments(cpath: Path) -> list[dict]:
+    """The recorded segments of a run's earlier processes ([] when none or unreadable)."""
+    path = cpath.parent / SEGMENTS_FILE
+    if not path.is_file():
+        return []
+    try:
+        got = read_json_file(path, MAX_SMALL_JSON_BYTES, "training segments")
+    except ValueError:
+        return []
+    rows = got.get("segments") if isinstance(got, dict) else None
+    return [s for s in rows or [] if isinstance(s, dict) and {"from", "to", "seconds"} <= set(s)]
+
+
+def total_wall_seconds(cpath: Path, start: int, seconds: float) -> tuple[float, int]:
+    """(wall seconds, first step they cover): this process's ``seconds`` from ``start`` plus the
+    recorded segments that chain back to it (each ending where the next began)."""
+    by_end = {int(s["to"]): s for s in read_segments(cpath) if int(s["from"]) < int(s["to"])}
+    first, total = int(start), float(seconds)
+    while first in by_end and first > 0:
+        seg = by_end[first]
+        total, first = total + float(seg["seconds"]), int(seg["from"])
+    return total, first
+
+
 def drop_checkpoint(cpath: Path) -> None:
-    """Remove a finished run's checkpoint and its folder (when empty)."""
+    """Remove a finished run's checkpoint, its segments and its folder (when empty)."""
+    (cpath.parent / SEGMENTS_FILE).unlink(missing_ok=True)
     if cpath.exists():
         cpath.unlink()
         try:
@@ -358,6 +396,7 @@ def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, ste
         except KeyboardInterrupt:                        # between steps or inside one (its update not made)
             if step > saved:                             # keep the work done since the last checkpoint
                 _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+                record_segment(cpath, start, step, time.perf_counter() - t0)
             raise
         if step % train.log_every == 0 or step == train.steps:
             progress = close_window(window, curve, step, start, tl)
@@ -365,10 +404,12 @@ def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, ste
             log(f"{tag} step {step}/{train.steps} {progress}")
         if step % train.checkpoint_every == 0 or step == train.steps:
             _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+            record_segment(cpath, start, step, time.perf_counter() - t0)
             saved = step
         if stop_after is not None and step - start >= stop_after and step < train.steps:
             if step > saved:
                 _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+                record_segment(cpath, start, step, time.perf_counter() - t0)
             return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
     return None
 
@@ -432,8 +473,10 @@ def finish_run(spec, cfg, state: dict, dataset: dict, text: TextConditioner, cur
                out: Path, dev, t0: float, tl: float, start: int, cpath: Path, log: Callable[[str], None], tag: str,
                dataset_name: str) -> TrainResult:
     """Write a finished diffusion run: ``state`` (EMA weights and statistics) and its card as the
-    run folder, the loss curve, ``train_log.json`` (seconds, device, hardware, resumed step,
-    steps/s); then drop the checkpoint."""
+    run folder, the loss curve, ``train_log.json`` (seconds: the wall time of every process
+    of the run whose segments chain back from this one, from step ``seconds_from_step``; this
+    process's ``segment_seconds``; device, hardware, resumed step, steps/s); then drop the
+    checkpoint."""
     card = {"baseline": spec.name, "config": cfg.to_dict(), "dataset": dataset,
             "text": text.describe(), "curve": curve,
             "summary": {"steps": cfg.train.steps, "parameters": n_params,
@@ -441,12 +484,14 @@ def finish_run(spec, cfg, state: dict, dataset: dict, text: TextConditioner, cur
             "seed": cfg.train.seed, "toolkit_version": __version__, "torch_version": torch.__version__.split("+")[0]}
     cid = ckpt.write_run(out, state, card)
     seconds = time.perf_counter() - t0
+    total, first = total_wall_seconds(cpath, start, seconds)
     if curve:
         try:
             _plot_curve(curve, out / ckpt.CURVE_PNG, f"{spec.title} {cfg.name} on {dataset_name} ({cid[:12]})")
         except ImportError:              # a GPU machine with only torch, numpy and safetensors
             log(f"{tag} matplotlib is not installed: {ckpt.CURVE_PNG} not drawn (the curve is in the card)")
-    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(seconds, 1), "device": str(dev),
+    atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(total, 1), "seconds_from_step": first,
+                                            "segment_seconds": round(seconds, 1), "device": str(dev),
                                             "hardware": ckpt.hardware(dev), "resumed_from": start,
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})

@@ -91,7 +91,7 @@ def budget(e: dict) -> str:
     if isinstance(t.get("parameters"), int):
         parts.append(f"{t['parameters'] / 1e6:.2f} M params")
     if isinstance(t.get("wall_seconds"), (int, float)):
-        since = t.get("resumed_from")          # a resumed run records its last segment's time only
+        since = t.get("wall_seconds_from", t.get("resumed_from"))   # the first step the time covers
         parts.append(f"{t['wall_seconds'] / 60:.1f} min" + (f" since step {since:,}" if isinstance(since, int)
                                                              and since > 0 else ""))
     if t.get("hardware"):
