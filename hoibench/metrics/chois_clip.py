@@ -32,8 +32,6 @@ import numpy as np
 
 from . import chois as ch
 
-#: fields of ClipInput the metrics read beyond the generated motion
-GT_FIELDS = ("gt_joints", "gt_obj_rot", "gt_obj_trans")
 SETTINGS = {"up": ("y", "z"), "rest_frame": ("chois", "transpose"), "joints": ("24", "22"),
             "sdf": ("exact", "grid256")}
 #: nodes per axis of CHOIS's signed-distance grids (mesh_to_sdf, 256^3)
@@ -72,7 +70,6 @@ class MeshSdf:
         self.faces = np.asarray(faces, np.int64)
         lo, hi = self.vertices.min(0), self.vertices.max(0)
         self.centroid, self.extents = (lo + hi) / 2.0, hi - lo
-        self.coord_center = None
         self.half = float(np.max(self.extents)) / 2.0
 
     def normalise(self, points) -> np.ndarray:
@@ -135,12 +132,11 @@ def _penetrations(verts: np.ndarray, obj_rot, obj_trans, sdf, rest_frame: str) -
 
 def _body(joints22: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(joints24, proxy vertices, root rotations) of joints (T, 22, 3), in their own axes."""
-    from ..bodies.contact import body_scale
-    from .body_surface import joint_global_rotations, proxy_vertices_from_joints
-    from .chois_inputs import joints24, proxy_rest_joints
+    from .body_surface import proxy_vertices_from_joints
+    from .chois_inputs import joints24, proxy_fit
     j = np.asarray(joints22, np.float64)
-    root = joint_global_rotations(j, proxy_rest_joints()[:22] * body_scale(j))[:, 0]
-    return joints24(j), proxy_vertices_from_joints(j), root
+    fit = proxy_fit(j)
+    return joints24(j, fit), proxy_vertices_from_joints(j), fit[1][:, 0]
 
 
 def chois_clip_metrics(inp: Any, settings: Mapping | None = None) -> dict[str, float]:
@@ -183,5 +179,5 @@ def chois_clip_metrics(inp: Any, settings: Mapping | None = None) -> dict[str, f
     return out
 
 
-__all__ = ["GT_FIELDS", "SETTINGS", "GRID_NODES", "MeshSdf", "grid_sdf", "object_sdf", "proxy_hand_vertex_ids",
+__all__ = ["SETTINGS", "GRID_NODES", "MeshSdf", "grid_sdf", "object_sdf", "proxy_hand_vertex_ids",
            "check_settings", "chois_clip_metrics"]

@@ -50,7 +50,6 @@ def rest_pelvis_xy() -> np.ndarray:
     return proxy_rest_joints()[0, :2].copy()
 
 
-
 def _check(joints, where: str = "joints") -> np.ndarray:
     j = np.asarray(joints, np.float64)
     if j.ndim != 3 or j.shape[1] != 22 or j.shape[2] != 3:
@@ -58,25 +57,33 @@ def _check(joints, where: str = "joints") -> np.ndarray:
     return j
 
 
-def proxy_hand_joints(joints) -> np.ndarray:
-    """(T, 2, 3) the proxy fit's left and right hand joints (SMPL-X 28, 43) of y-up joints
-    (T, 22, 3) (module docstring)."""
+def proxy_fit(joints) -> tuple[float, np.ndarray]:
+    """(body scale ``s``, global rotations (T, 22, 3, 3)) of the proxy joint fit of joints
+    (T, 22, 3): :func:`hoibench.metrics.body_surface.joint_global_rotations` of the rest joints
+    scaled by :func:`hoibench.bodies.contact.body_scale`."""
     from ..bodies.contact import body_scale
     from .body_surface import joint_global_rotations
     j = _check(joints)
-    rest = proxy_rest_joints()
     s = body_scale(j)
-    R = joint_global_rotations(j, rest[:22] * s)
+    return s, joint_global_rotations(j, proxy_rest_joints()[:22] * s)
+
+
+def proxy_hand_joints(joints, fit: tuple[float, np.ndarray] | None = None) -> np.ndarray:
+    """(T, 2, 3) the proxy fit's left and right hand joints (SMPL-X 28, 43) of y-up joints
+    (T, 22, 3) (module docstring); ``fit``: their :func:`proxy_fit`, when already made."""
+    j = _check(joints)
+    s, R = proxy_fit(j) if fit is None else fit
+    rest = proxy_rest_joints()
     out = np.empty((len(j), 2, 3))
     for k, (hand, wrist) in enumerate(zip(HAND_JOINTS, WRISTS)):
         out[:, k] = j[:, wrist] + s * R[:, wrist] @ (rest[hand] - rest[wrist])
     return out
 
 
-def joints24(joints) -> np.ndarray:
+def joints24(joints, fit: tuple[float, np.ndarray] | None = None) -> np.ndarray:
     """(T, 24, 3): the 22 joints, then the proxy hand joints (same axes as ``joints``)."""
     j = _check(joints)
-    return np.concatenate([j, proxy_hand_joints(j)], axis=1)
+    return np.concatenate([j, proxy_hand_joints(j, fit)], axis=1)
 
 
 def z_up(points) -> np.ndarray:
@@ -87,11 +94,8 @@ def z_up(points) -> np.ndarray:
 def canonical_window(joints) -> tuple[np.ndarray, np.ndarray]:
     """(rotation (3, 3), shift (3,)) taking z-up world points to CHOIS's window frame,
     ``p' = rotation p + shift``, from y-up joints (T, 22, 3) (module docstring)."""
-    from ..bodies.contact import body_scale
-    from .body_surface import joint_global_rotations
     j = _check(joints)[:1]
-    rest = proxy_rest_joints()
-    root = Y_TO_Z @ joint_global_rotations(j, rest[:22] * body_scale(j))[0, 0]   # model -> z-up world
+    root = Y_TO_Z @ proxy_fit(j)[1][0, 0]                                    # model -> z-up world
     left = root[:, 0] * np.array([1.0, 1.0, 0.0])
     norm = np.linalg.norm(left)
     heading = np.arctan2(left[1], left[0]) if norm > 1e-9 else 0.0
@@ -118,5 +122,5 @@ def window_joints24(joints) -> np.ndarray:
     return z_up(joints24(joints)) @ rot.T + shift
 
 
-__all__ = ["HAND_JOINTS", "proxy_rest_joints", "Y_TO_Z", "rest_pelvis_xy", "proxy_hand_joints", "joints24", "z_up",
+__all__ = ["HAND_JOINTS", "proxy_rest_joints", "Y_TO_Z", "rest_pelvis_xy", "proxy_fit", "proxy_hand_joints", "joints24", "z_up",
            "canonical_window", "from_window", "window_joints24"]
