@@ -550,34 +550,36 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
     templates: dict[str, tuple] = {}
     names: dict[str, str] = {}
 
+    last: dict[str, dict] = {}                     # the last clip read (its K samples and labels share it)
+
+    def load(cid: str) -> dict:
+        if cid not in last:      # only what the labels and ground-truth fields read (not the representations)
+            last.clear()
+            last[cid] = store.load(cid, keys=_GT_KEYS)
+        return last[cid]
+
     def gt(cid):
-        if cid not in cache:     # only what the labels read (not the clip's representations)
-            clip = store.load(cid, keys=_GT_KEYS)
+        if cid not in cache:
+            clip = load(cid)
             cache[cid] = gt_contact_labels(store, clip, contact_mode, gt_rule, gt_threshold_m)
             names[cid] = str(clip["object_name"]) if "object_name" in clip else ""
         return cache[cid]
 
-    last: dict[str, dict] = {}                     # the ground truth of the last id (its K samples share it)
-
     def truth(cid: str) -> dict:
-        if cid not in last:
-            last.clear()
-            clip = store.load(cid, keys=("joints", "obj_rot", "obj_trans"))
-            last[cid] = {"gt_joints": clip["joints"], "gt_obj_rot": clip.get("obj_rot"),
-                         "gt_obj_trans": clip.get("obj_trans")}
-        return last[cid]
+        clip = load(cid)
+        return {"gt_joints": clip["joints"], "gt_obj_rot": clip.get("obj_rot"), "gt_obj_trans": clip.get("obj_trans")}
 
     def cut(a):
         return a if a is None or window is None else a[:window]
 
     def make(cid: str, motion: Mapping[str, np.ndarray], sample: int | None = None) -> ClipInput:
         own = gt(cid)
+        extra = {k: cut(None if a is None else np.asarray(a)) for k, a in truth(cid).items()} if ground_truth else {}
         name = names[cid]
         if name and name not in templates:
             templates[name] = store.object_template(name)
         v, f = templates.get(name, (None, None))
         group = tuple(g for g in (gt(x) for x in member_of.get(cid, [])) if g is not None)
-        extra = {k: cut(None if a is None else np.asarray(a)) for k, a in truth(cid).items()} if ground_truth else {}
         return ClipInput(
             key=(cid, sample) if sample is not None else cid,
             joints=cut(np.asarray(motion["joints"])), fps=fps,
