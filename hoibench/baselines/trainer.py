@@ -376,6 +376,11 @@ def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, ste
     :class:`TrainResult` when ``stop_after`` steps have run before the end, else None."""
     start = saved = step
     tl = time.perf_counter()
+
+    def save() -> None:                                  # the checkpoint, and this process's wall time
+        _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
+        record_segment(cpath, start, step, time.perf_counter() - t0)
+
     model.train()
     while step < train.steps:
         try:
@@ -395,21 +400,18 @@ def run_steps(model, ema, opt, train, step_losses: Callable[[int], dict], *, ste
                 collect_losses(window, losses)
         except KeyboardInterrupt:                        # between steps or inside one (its update not made)
             if step > saved:                             # keep the work done since the last checkpoint
-                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-                record_segment(cpath, start, step, time.perf_counter() - t0)
+                save()
             raise
         if step % train.log_every == 0 or step == train.steps:
             progress = close_window(window, curve, step, start, tl)
             window = {}
             log(f"{tag} step {step}/{train.steps} {progress}")
         if step % train.checkpoint_every == 0 or step == train.steps:
-            _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-            record_segment(cpath, start, step, time.perf_counter() - t0)
+            save()
             saved = step
         if stop_after is not None and step - start >= stop_after and step < train.steps:
             if step > saved:
-                _save_checkpoint(cpath, step, curve, model, ema, opt, ident, window)
-                record_segment(cpath, start, step, time.perf_counter() - t0)
+                save()
             return TrainResult(out, "", {}, time.perf_counter() - t0, resumed_from=start)
     return None
 
