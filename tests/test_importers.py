@@ -158,6 +158,11 @@ def test_chois_npz_and_normalised_feature_folders(gt, template_store, tmp_path):
                        "obj_trans": tr.astype(np.float32)}
     sub, _ = import_results("chois", chois, template_store, tmp_path / "sc")
     same_samples(sub, direct(tmp_path, expect_c, "dc"), ids[:3], atol=1e-5)
+    stray = tmp_path / "chois_stray"                  # no test id names the file: no clip gives its frame
+    stray.mkdir()
+    np.savez(stray / "my_prompt_7.npz", global_jpos=g)
+    with pytest.raises(ImportProblem, match=r"my_prompt\[_<r>\]\.npz: not named by a test id"):
+        import_results("chois", stray, template_store, tmp_path / "sx")
     sub, _ = import_results("features", feats, template_store, tmp_path / "sf", normalized=True)
     same_samples(sub, direct(tmp_path, expect_f, "df"), ids[:3], atol=2e-4)
 

@@ -80,8 +80,8 @@ def fmt(m: dict | None, k=None, name: str = "") -> str:
 
 def budget(e: dict) -> str:
     """The row's training budget in words (``1,500 steps, 1.78 M params, 10.2 min, CPU ...``;
-    a resumed run's time is its last segment's, ``33.5 min since step 1,308``), ``not stated``
-    for a baseline row without one, "" for other rows."""
+    a time that does not reach back to step 0 says where it starts, ``33.5 min since step
+    1,308``), ``not stated`` for a baseline row without one, "" for other rows."""
     t = training_of(e)
     if not t:
         return "not stated" if e.get("role") == "baseline" and e.get("source") != "reported" else ""

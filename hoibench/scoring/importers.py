@@ -491,18 +491,20 @@ def _read_joints(req: ImportRequest) -> list:
 
 def _read_chois(req: ImportRequest) -> list:
     """CHOIS's saved joints are in its window frame of the test clip (frame 0's heading along
-    +x, frame 0's translation at xy = 0; :mod:`hoibench.metrics.chois_inputs`): a file named
-    by a test id is put back in that clip's world frame (:func:`~hoibench.metrics.chois_inputs.from_window`)."""
+    +x, frame 0's translation at xy = 0; :mod:`hoibench.metrics.chois_inputs`): each file,
+    named by its test id (``<id>[_<r>].npz``), is put back in that clip's world frame
+    (:func:`~hoibench.metrics.chois_inputs.from_window`); a file named otherwise is refused,
+    since no clip gives its frame."""
     from ..metrics.chois_inputs import from_window
-    entries = read_joint_files(req.results, req.ids, "z", True, req.budget)
     known = set(req.ids)
     out = []
-    for key, text, arrays in entries:
-        cid = key.rsplit("_", 1)[0] if key not in known and key.rsplit("_", 1)[0] in known else key
-        if cid in known:
-            gt = req.store.load(cid, keys=("joints",))["joints"]
-            arrays = {**arrays, "joints": np.stack([from_window(j, gt) for j in arrays["joints"]])}
-        out.append((key, text, arrays))
+    for key, text, arrays in read_joint_files(req.results, req.ids, "z", True, req.budget):
+        if key not in known:
+            raise ImportProblem(f"{req.results}: {key}[_<r>].npz: not named by a test id of {req.store.root}: CHOIS's "
+                                f"joints are in the window frame of their test clip, so a file must be named "
+                                f"<id>[_<r>].npz")
+        gt = req.store.load(key, keys=("joints",))["joints"]
+        out.append((key, text, {**arrays, "joints": np.stack([from_window(j, gt) for j in arrays["joints"]])}))
     return out
 
 
