@@ -108,8 +108,9 @@ def _add_evaluate(sub) -> None:
     s = sub.add_parser("evaluate", help="score a submission under a protocol (writes a result JSON with --out)",
                        epilog="example: hoibench evaluate sub.zip --data data --evaluator ev --out result.json")
     add_submission_args(s)
-    s.add_argument("--evaluator", type=Path, required=True,
-                   help="the evaluator folder (hoibench train-evaluator; train-recognizer for multi-body stores)")
+    s.add_argument("--evaluator", type=Path, default=None,
+                   help="the evaluator folder (hoibench train-evaluator; train-recognizer for multi-body stores); "
+                        "not read by InterAct's o2h/h2o protocols (--protocol interact-o2h-clean)")
     s.add_argument("--protocol", default=None, help="protocol id (default: <dataset>-<mode> of the store)")
     s.add_argument("--executor", default="serial", type=executor_arg, help=H_EXECUTOR)
     s.add_argument("--out", type=Path, default=None,

@@ -20,9 +20,9 @@ def _cmd_tracks(args) -> int:
             raise ValueError("tracks show: name a track, e.g. hoibench tracks show rich-cat")
         print(json.dumps(get_track(args.name).to_dict(), indent=1))
         return 0
-    print(f"{'track':20s} {'store':9s} {'evaluator':11s} {'scorer':9s} protocols")
+    print(f"{'track':20s} {'store':9s} {'evaluator':11s} {'scorer':13s} protocols")
     for t in list_tracks():
-        print(f"{t.name:20s} {t.store_kind:9s} {t.evaluator_kind:11s} {t.scorer:9s} {', '.join(t.protocols)}")
+        print(f"{t.name:20s} {t.store_kind:9s} {t.evaluator_kind:11s} {t.scorer:13s} {', '.join(t.protocols)}")
     return 0
 
 
@@ -39,7 +39,7 @@ def _cmd_validate(args) -> int:
 def _cmd_submission(args) -> int:
     if args.action == "prompts":
         from ..scoring.prompts import write_prompts
-        text = write_prompts(args.data, args.out)
+        text = write_prompts(args.data, args.out, protocol=args.protocol)
         if args.out is None:
             print(text, end="")
         else:
@@ -49,7 +49,7 @@ def _cmd_submission(args) -> int:
         raise ValueError(f"submission {args.action}: --out is required")
     from ..scoring.reference_rows import main_reference
     return main_reference(args.action, args.data, args.out, args.kind, as_zip=args.zip, samples=args.samples,
-                          sigma=args.sigma, seed=args.seed)
+                          sigma=args.sigma, seed=args.seed, protocol=args.protocol)
 
 
 def track_names() -> list[str]:
@@ -102,7 +102,9 @@ def _add_submissions(sub) -> None:
                        epilog="examples:\n  hoibench submission from-store data --out gt_submission\n"
                               "  hoibench submission reference data --kind gt-noise --sigma 0.03 --out gt3cm\n"
                               "  hoibench submission reference data --kind mismatched-texts --out mismatched\n"
-                              "  hoibench submission prompts data --out prompts.jsonl   # what a generator needs",
+                              "  hoibench submission prompts data --out prompts.jsonl   # what a generator needs\n"
+                              "  hoibench submission prompts data --protocol interact-o2h-clean --out o2h/prompts.jsonl"
+                              "   # + conditions/",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     s.add_argument("action", choices=["from-store", "reference", "prompts"],
                    help="from-store, reference or prompts (see above)")
@@ -118,6 +120,10 @@ def _add_submissions(sub) -> None:
     s.add_argument("--sigma", type=float, default=0.01, help="gt-noise: noise std in metres (default 0.01)")
     s.add_argument("--seed", type=int, default=0, help="reference: seed of the noise or the shuffle (default 0)")
     s.add_argument("--samples", "-k", type=int, default=1, help="multi-body gt-noise: samples per prompt")
+    s.add_argument("--protocol", default=None,
+                   help="the protocol whose track the rows are for (default: the store's); InterAct's "
+                        "interact-o2h-clean / interact-h2o-clean: prompts carry the conditions, reference kinds "
+                        "gt and static-first-pose")
     s.add_argument("--zip", action="store_true", help=H_ZIP)
     s.set_defaults(func=_cmd_submission)
 

@@ -27,7 +27,8 @@ _SCORERS_OF_KIND = {"embedding": ("hoi",), "physical": ("hoi",), "multibody": ("
 class MetricInfo:
     """What a reported metric (or a per-clip column) is.
 
-    ``kind``: ``embedding`` | ``physical`` | ``multibody`` | ``count`` (a count the scorer
+    ``kind``: ``embedding`` | ``physical`` | ``multibody`` | ``task`` (a metric of InterAct's
+    object-to-human or human-to-object task, per selected sample) | ``count`` (a count the scorer
     reports beside the metrics) | ``reported`` (only in rows copied from papers) | ``clip``
     (a per-clip column that is no metric of the whole split). ``per_clip``: the metric has a
     column in a result's per-clip table; ``failure_end``: ``high`` or ``low``, the end of that
@@ -333,6 +334,49 @@ for _name, _dir, _unit, _obj, _summary, _paper in (
                         settings_check="hoibench.metrics.chois_clip:check_settings",
                         requires="sklearn" if "foot_sliding" in _name else "",
                         install_hint="pip install scikit-learn" if "foot_sliding" in _name else ""))
+# InterAct's object-to-human and human-to-object tasks (hoibench.metrics.interact_tasks; the
+# interact-o2h and interact-h2o tracks): per test sequence, the sample the protocol's selection
+# rule keeps, then the mean over sequences (docs/metrics.md "InterAct's other tasks")
+_IT = "hoibench.metrics.interact_tasks"
+_TASK = dict(scorers=("interact-task",))
+_CONTACT = (("contact_precision", "higher", "fraction", "per-frame contact precision (0 without predicted contact)"),
+            ("contact_recall", "higher", "fraction", "per-frame contact recall (0 without ground-truth contact)"),
+            ("contact_acc", "higher", "fraction", "per-frame contact accuracy"),
+            ("contact_f1", "higher", "fraction", "per-frame contact F1 (0 when precision and recall are 0)"),
+            ("contact_dist", "gt", "m", "the prediction's nearest distance, mean over the GT's contact frames"),
+            ("gt_contact_dist", "gt", "m", "the ground truth's own nearest distance over its contact frames"))
+_MARKER_GROUPS = (("full", "all 77 markers"), ("hand", "the 10 hand markers"),
+                  ("non_hand", "the 67 markers off the hands"), ("foot", "the 11 toe markers (55 twice)"))
+for _name, _dir, _unit, _summary in (
+        ("lhand_jpe", "lower", "cm", "left-hand marker error (markers 72-76)"),
+        ("rhand_jpe", "lower", "cm", "right-hand marker error (markers 67-71)"),
+        ("hand_jpe", "lower", "cm", "mean of the two hand marker errors"),
+        ("mpvpe", "lower", "m", "marker error relative to marker 0"),
+        ("foot_sliding", "lower", "m x 1000 / (frame x toe marker)",
+         "height-weighted xz sliding of the toe markers below 4 cm"),
+        ("gt_foot_sliding", "gt", "m x 1000 / (frame x toe marker)", "the same of the ground truth")):
+    register(MetricInfo(f"o2h_{_name}", "task", _dir, _unit, "physical" if _dir != "gt" else "extras",
+                        f"object-to-human: {_summary}", "InterAct object2human/evaluation_metrics.py",
+                        f"{_name} (InterAct o2h)", f"{_IT}:object2human_metrics", **_TASK))
+for _group, _what in _MARKER_GROUPS:
+    register(MetricInfo(f"o2h_jpe_{_group}", "task", "lower", "cm", "physical" if _group == "full" else "extras",
+                        f"object-to-human: marker error of {_what} (markers lowered to y = 0 first)",
+                        "InterAct compute_metrics_marker", f"{_group} jpe (InterAct o2h)",
+                        f"{_IT}:object2human_metrics", **_TASK))
+    for _name, _dir, _unit, _summary in _CONTACT:
+        register(MetricInfo(f"o2h_{_name}_{_group}", "task", _dir, _unit,
+                            "physical" if _group == "full" and _name == "contact_f1" else "extras",
+                            f"object-to-human, {_what}: {_summary}", "contact: marker within 0.05 m of the object",
+                            f"{_group} {_name} (InterAct o2h)", f"{_IT}:object2human_metrics", **_TASK))
+for _name, _dir, _unit, _summary in (
+        ("mpvpe", "lower", "m", "object point error relative to point 0"),
+        ("mpmpe", "lower", "m", "object point error"),
+        ("t_err", "lower", "m", "object translation error (InterAct's object frame)"),
+        ("o_err", "lower", "Frobenius", "object rotation error ||I - R_p R_g^-1||_F")) + _CONTACT:
+    register(MetricInfo(f"h2o_{_name}", "task", _dir, _unit,
+                        "physical" if _name in ("mpvpe", "mpmpe", "t_err", "o_err", "contact_f1") else "extras",
+                        f"human-to-object: {_summary}", "contact: a marker within 0.05 m of the object",
+                        f"{_name} (InterAct h2o)", f"{_IT}:human2object_metrics", **_TASK))
 # only in rows copied from papers
 register(MetricInfo("ait_s", "reported", "lower", "s", "reported", "average inference time per sample, as reported"))
 # per-clip columns that are no metric of the whole split
@@ -341,7 +385,7 @@ register(MetricInfo("gt_mm_dist", "clip", "gt", _EMB, "clip", "the real motion's
 register(MetricInfo("text_rank", "clip", "lower", "rank", "clip",
                     "1 + the scored clips whose captions are nearer to the sample than its own", per_clip=True,
                     failure_end="high"))
-del _k
+del _k, _name, _dir, _unit, _summary, _group, _what
 
 __all__ = ["MetricInfo", "METRICS", "DIRECTIONS", "GROUPS", "ARROWS", "FID_ROUNDING", "register", "get_metric_info",
            "metric_names", "metrics_for", "settings_keys", "check_settings", "unavailable", "object_metrics",

@@ -1,7 +1,8 @@
 """``hoibench evaluate``: score a submission under a versioned protocol, for every track.
 
 :func:`evaluate` is the one evaluation function: the store names its track
-(:func:`hoibench.tracks.registry.track_for_store`), the track its protocol kind, evaluator
+(:func:`hoibench.tracks.registry.track_for`: a given protocol may name another track of the
+store's dataset), the track its protocol kind, evaluator
 kind and scorer; the scorer runs the stages of :mod:`hoibench.scoring.pipeline`
 (prepare -> validate -> stream per-clip units on the executor -> replications -> summary).
 What each stage does for single-body tracks is in :mod:`hoibench.scoring.hoi`, for
@@ -18,10 +19,15 @@ from .pipeline import EvaluationRefused
 from .report import format_result
 
 
-def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, protocol=None,
+def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | None, protocol=None,
              executor: str = "serial", allow_failed_gate: bool = False, allow_protocol_mismatch: bool = False,
              allow_evaluator_mismatch: bool = False, lead=None, clip_data: dict | None = None) -> dict:
     """Score ``submission`` against the store ``data`` with the evaluator folder ``evaluator``.
+
+    The track is the store's (:func:`hoibench.tracks.registry.track_for`), or the one a given
+    protocol names among the tracks of the store's dataset (``interact-o2h-clean`` on an
+    interact store: the ``interact-o2h`` track). ``evaluator`` may be None for a track that
+    reads none (InterAct's o2h and h2o tracks).
 
     Returns the result dictionary (also what ``--out`` writes). Raises
     :class:`EvaluationRefused` when the protocol or evaluator does not fit the store (unless
@@ -38,25 +44,31 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     from ..core.parallel import map_units
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
-    from ..tracks.registry import track_for_store
+    from ..tracks.registry import track_for
     from .pipeline import get_scorer
 
     started = time.perf_counter()
     store = Store(Path(data))
-    track = track_for_store(store)
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
+    track = track_for(store, proto if protocol else None)
     if proto.kind != track.protocol_kind:
         raise EvaluationRefused(f"protocol {proto.ref} is a {proto.kind} protocol; {data} is a store of the "
                                 f"{track.name} track, scored under {track.protocol_kind} protocols "
                                 f"({', '.join(track.protocols)})")
     scorer_cls = get_scorer(track.scorer)
-    backend = backend_of(evaluator)
+    needs_evaluator = track.evaluator_kind != "none"          # InterAct's o2h/h2o tracks read none
+    if needs_evaluator and evaluator is None:
+        raise EvaluationRefused(f"--evaluator: required: {data} is scored under {proto.ref} with a "
+                                f"{track.evaluator_kind} evaluator")
+    backend = backend_of(evaluator) if needs_evaluator else None
     options = {"allow_failed_gate": allow_failed_gate, "allow_protocol_mismatch": allow_protocol_mismatch,
                "allow_evaluator_mismatch": allow_evaluator_mismatch,
                "evaluator_backend": backend.name if backend else track.evaluator_kind, "clip_data": clip_data}
     # the card alone decides a mismatch: refuse it before the weights and the text encoder load
-    scorer_cls.check_fit(store, proto, peek_card(evaluator, track.evaluator_kind), options)
-    ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options)
+    card = peek_card(evaluator, track.evaluator_kind) if needs_evaluator else {}
+    scorer_cls.check_fit(store, proto, card, options)
+    ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options) \
+        if needs_evaluator else None
     scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
     scorer.timings["load_s"] = time.perf_counter() - started      # store, protocol, evaluator
     scorer.prepare()
@@ -77,7 +89,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path, pr
     return result
 
 
-def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str | Path,
+def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str | Path | None,
                         out: str | Path | None = None, protocol: str | None = None, executor: str = "serial",
                         overwrite: bool = False):
     """Refuse bad arguments of ``hoibench evaluate`` before any store is read (one line each):
@@ -90,7 +102,11 @@ def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str
     resolved = get_protocol(protocol) if protocol is not None else None
     if not (Path(data) / "manifest.json").is_file():
         raise FileNotFoundError(f"--data {data}: not a hoibench store (no manifest.json)")
-    if not Path(evaluator).is_dir():
+    if evaluator is None:
+        if resolved is None or resolved.kind == "hoi" or resolved.kind == "multibody":
+            raise ValueError("--evaluator: required (InterAct's o2h and h2o protocols read none: name one of them "
+                             "with --protocol to score without)")
+    elif not Path(evaluator).is_dir():
         raise FileNotFoundError(f"--evaluator {evaluator}: no such folder (make one with `hoibench train-evaluator "
                                 f"DATA --out EV`, or `hoibench train-recognizer` for a multi-body store)")
     sub = Path(submission)

@@ -100,6 +100,7 @@ def register_scorer(name: str, path: str) -> None:
 
 register_scorer("hoi", ".hoi:HOIScorer")
 register_scorer("multibody", ".multibody:MultiBodyScorer")
+register_scorer("interact-task", ".interact_task:InteractTaskScorer")
 
 
 def get_scorer(name: str) -> type[Scorer]:

@@ -8,7 +8,11 @@ use the GT length), ``fps``, ``object`` (name, or null on a human-only store), `
 (path of the centred template ``.npz`` with ``vertices`` (V, 3) metres and ``faces`` (F, 3);
 the submission's object pose maps it as ``R v + t``), ``group`` (semantic group id),
 ``representation`` (the store's representation version, for ``submission.json``) and the
-store's frame conventions (``up`` y, metres, canonical frame of frame 0).
+store's frame conventions (``up`` y, metres, canonical frame of frame 0). InterAct's
+object-to-human and human-to-object tracks (``--protocol interact-o2h-clean`` /
+``interact-h2o-clean``) add ``task``, ``condition`` and ``submit``: the object's motion or the
+human's markers per frame in ``conditions/<id>.npz`` beside the prompts file
+(:mod:`hoibench.scoring.interact_task_files`; ``interact`` stores keep InterAct's frame).
 
 A ten-line generation loop (docs/leaderboards.md has it with the zip step)::
 
@@ -40,16 +44,36 @@ def _group_id(path: Path) -> str | None:
     return group
 
 
-def prompts(data: str | Path, split: str = "test") -> list[dict]:
+def task_of(st: Store, protocol=None) -> str | None:
+    """The InterAct task (``o2h``, ``h2o``) whose track ``protocol`` selects on store ``st``
+    (:func:`hoibench.tracks.registry.track_for`), or None for a text-to-motion track."""
+    if protocol is None:
+        return None
+    from ..tracks.protocol import get_protocol
+    from ..tracks.registry import track_for
+    return track_for(st, get_protocol(protocol)).extras.get("task")
+
+
+def prompts(data: str | Path, split: str = "test", protocol=None, conditions: str | Path | None = None) -> list[dict]:
     """One dict per clip of ``split`` (fields above); ValueError naming the clip and file when
-    a clip has no captions."""
+    a clip has no captions. Under a protocol of InterAct's o2h or h2o track each line also
+    carries ``task``, ``condition`` (``conditions/<id>.npz``, written into the folder
+    ``conditions``) and ``submit`` (:mod:`hoibench.scoring.interact_task_files`)."""
     from ..evaluator.text import read_captions
     st = Store(data)
+    task = task_of(st, protocol)
+    if task and conditions is None:
+        raise ValueError(f"submission prompts --protocol {protocol}: --out is required: the {task} task's "
+                         f"conditions files are written beside the prompts file")
     fps = float(st.manifest["config"]["fps"])
     rep = st.manifest.get("representations", {}).get("hml263", "")
     ids = st.clip_ids(split)
     if not ids:
         raise ValueError(f"{data}: split {split!r} has no clips")
+    paths = {}
+    if task:
+        from .interact_task_files import write_conditions
+        paths = write_conditions(st, ids, task, Path(conditions))
     out = []
     for cid in ids:
         caps = read_captions(st.root, cid)
@@ -65,6 +89,9 @@ def prompts(data: str | Path, split: str = "test") -> list[dict]:
                     "object_mesh": str((st.root / "objects" / f"{name}.npz").resolve()) if name else None,
                     "group": group, "representation": rep, "up": "y", "units": "m", "frame": "canonical (frame 0: root at x = z = 0, "
                                                                      "facing +z, floor y = 0)"})
+        if task:
+            from .interact_task_files import prompt_fields
+            out[-1].update(prompt_fields(task, paths[cid]))
     return out
 
 
@@ -94,13 +121,16 @@ def check_prompts_out(out: str | Path) -> None:
                               f"overwritten; choose a new file")
 
 
-def write_prompts(data: str | Path, out: str | Path | None = None, split: str = "test") -> str:
+def write_prompts(data: str | Path, out: str | Path | None = None, split: str = "test", protocol=None) -> str:
     """The JSON lines of :func:`prompts`; written atomically to ``out`` when given. An existing
     ``out`` is replaced only when it is a prompts file (:func:`is_prompts_file`): any other file
-    is refused before the store is read, never overwritten."""
+    is refused before the store is read, never overwritten. ``protocol``: one of InterAct's
+    o2h/h2o protocols adds the conditions, in ``conditions/`` beside ``out``."""
     if out is not None:
         check_prompts_out(out)
-    text = "".join(json.dumps(p, sort_keys=True, allow_nan=False) + "\n" for p in prompts(data, split))
+    cond = Path(out).parent / "conditions" if out is not None else None
+    text = "".join(json.dumps(p, sort_keys=True, allow_nan=False) + "\n"
+                   for p in prompts(data, split, protocol, cond))
     if out is not None:
         atomic_write_text(out, text)
     return text

@@ -130,15 +130,27 @@ def _main_multibody(action: str, data, out, kind: str | None, *, as_zip: bool, s
     return 0
 
 
+def _main_interact_task(action: str, data, out, kind: str | None, *, as_zip: bool, samples: int, sigma: float,
+                        seed: int, task: str = "") -> int:
+    from .interact_task_files import write_task_reference
+    kind = "gt" if action == "from-store" else (kind or "gt")
+    path = write_task_reference(kind, data, out, task, as_zip=as_zip)
+    print(f"wrote {path} ({kind}, InterAct {task})")
+    return 0
+
+
 #: the reference-submission writers, by a track's submission schema
-REFERENCE_WRITERS = {"hoi": _main_hoi, "multibody": _main_multibody}
+REFERENCE_WRITERS = {"hoi": _main_hoi, "multibody": _main_multibody, "interact-task": _main_interact_task}
 
 
 def main_reference(action: str, data, out, kind: str | None = None, *, as_zip: bool = False, samples: int = 1,
-                   sigma: float = 0.01, seed: int = 0) -> int:
+                   sigma: float = 0.01, seed: int = 0, protocol=None) -> int:
     """``hoibench submission from-store|reference DATA --out OUT``: the ground truth or a
-    reference row of the store's test split, written in its track's submission schema."""
-    from ..tracks.registry import track_for_store
-    track = track_for_store(Store(data))
+    reference row of the store's test split, written in its track's submission schema (the
+    track a given ``protocol`` selects, :func:`hoibench.tracks.registry.track_for`)."""
+    from ..tracks.protocol import get_protocol
+    from ..tracks.registry import track_for
+    track = track_for(Store(data), get_protocol(protocol) if protocol is not None else None)
+    task = {"task": track.extras["task"]} if track.extras.get("task") else {}
     return REFERENCE_WRITERS[track.submission](action, data, out, kind, as_zip=as_zip, samples=samples,
-                                               sigma=sigma, seed=seed)
+                                               sigma=sigma, seed=seed, **task)

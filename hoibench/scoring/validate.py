@@ -236,7 +236,7 @@ def submission_context(st, protocol, split: str = "test") -> tuple[dict, float, 
     if protocol is None:        # the store's default protocol fixes the K cap when it exists
         from ..tracks.protocol import default_protocol
         protocol = default_protocol(st.manifest)
-    cap = protocol.max_samples_per_prompt if protocol is not None and protocol.kind == "hoi" \
+    cap = protocol.max_samples_per_prompt if protocol is not None and protocol.kind in ("hoi", "interact-task") \
         else DEFAULT_MAX_SAMPLES_PER_PROMPT           # a multi-body protocol reads every sample
     mode = "legacy" if str(st.manifest["config"].get("mode", "clean")).startswith("legacy") else "clean"
     return rows, fps, int(cap), mode
@@ -290,6 +290,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         return multibody_report(sub, st, split, protocol)
     rows, fps, cap, mode = submission_context(st, protocol, split)
     required = required_arrays(protocol)
+    task = protocol.task if protocol is not None and protocol.kind == "interact-task" else None
     limits = limits_for(rows, fps, cap)
     if max_array_bytes is not None:
         limits = SubmissionLimits({k: min(v, max_array_bytes) for k, v in limits.per_id_bytes.items()},
@@ -317,10 +318,14 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         for sid in test_ids:
             if sid not in found or sid in refused:
                 continue
-            ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
-                              bool(flags.get("uses_gt_length", False)) is True, cap, mode, required,
-                              human_only=flags.get("human_only") is True, encoded=sink)
-            probs, K, up = _check_clip(s, sid, ctx, keep)
+            if task:            # InterAct's o2h/h2o tracks: markers or object poses only
+                from .interact_task_files import file_problems
+                (probs, K), up = file_problems(s, sid, task, int(rows[sid]["frames"]), cap), None
+            else:
+                ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
+                                  bool(flags.get("uses_gt_length", False)) is True, cap, mode, required,
+                                  human_only=flags.get("human_only") is True, encoded=sink)
+                probs, K, up = _check_clip(s, sid, ctx, keep)
             problems += probs
             if K is not None:
                 ks[sid] = K

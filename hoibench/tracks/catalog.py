@@ -35,6 +35,27 @@ register_track(Track(
     description="InterAct's unified HOI data (BEHAVE, GRAB, OMOMO, InterCap, NeuralDome, IMHD, CHAIRS; "
                 "hoibench prepare interact), 30 fps, scored with InterAct's evaluator (markers + object BPS).",
     extras={"submission_arrays": ("markers",)}))
+#: InterAct's conditioned tasks on the interact dataset (chosen by naming their protocol)
+O2H_COLUMNS = ("o2h_hand_jpe", "o2h_mpvpe", "o2h_jpe_full", "o2h_contact_f1_full", "o2h_foot_sliding")
+H2O_COLUMNS = ("h2o_mpvpe", "h2o_mpmpe", "h2o_t_err", "h2o_o_err", "h2o_contact_f1")
+
+
+def _interact_task(name: str, task: str, columns: tuple[str, ...], arrays: tuple[str, ...], description: str) -> Track:
+    return Track(name=name, datasets=("interact",), store_kind="hoi", representation="hoi269",
+                 submission="interact-task", evaluator_kind="none", columns=columns, headline=columns[:4],
+                 protocols=(f"{name}-clean",), scorer="interact-task", renderer="hoi", description=description,
+                 extras={"protocol_kind": "interact-task", "by_protocol": True, "task": task,
+                         "submission_arrays": arrays})
+
+
+register_track(_interact_task(
+    "interact-o2h", "o2h", O2H_COLUMNS, ("markers",),
+    "InterAct's object-to-human task: the human's 77 body-surface markers from the object's motion and the text "
+    "(best of 10 by marker error); name its protocol: --protocol interact-o2h-clean."))
+register_track(_interact_task(
+    "interact-h2o", "h2o", H2O_COLUMNS, ("obj_rot", "obj_trans"),
+    "InterAct's human-to-object task: the object's motion from the human's markers and the text "
+    "(best of 5 by MPVPE); name its protocol: --protocol interact-h2o-clean."))
 register_track(Track(
     name="multibody-synthetic", datasets=("multibody-synthetic",), store_kind="multibody",
     representation="multibody-syncdiff", submission="multibody",

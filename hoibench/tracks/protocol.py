@@ -1,10 +1,12 @@
 """Evaluation protocols: versioned YAML files that fix everything a number depends on.
 
-One :class:`Protocol` type for every track, of two kinds. A protocol file
+One :class:`Protocol` type for every track, of three kinds. A protocol file
 (``hoibench/tracks/protocols/<id>.yaml``, shipped with the package) names its ``track``
 (:mod:`hoibench.tracks.registry`), which gives its kind. A ``multibody`` protocol fixes the
 contact thresholds, voxel size, pair reduction, diversity frames and the recognizer's split
-(docs/multibody.md). A ``hoi`` protocol fixes the dataset and split, ``legacy|clean`` mode, frame rate, representation version, replications (20), seeds,
+(docs/multibody.md). An ``interact-task`` protocol fixes one of InterAct's conditioned tasks
+(``o2h``: the human from the object's motion; ``h2o``: the object from the human's), the
+samples per sequence K, the metric that selects one of them and the contact threshold. A ``hoi`` protocol fixes the dataset and split, ``legacy|clean`` mode, frame rate, representation version, replications (20), seeds,
 R-precision pools (32, drawn from a seeded permutation of the sorted test ids, independent
 of compute batch size), diversity pairs (300; 200 on BEHAVE as HOI-Diff), MultiModality
 (100 texts x 30 samples x 10 pairs) and the physical metrics' settings (body surface for
@@ -50,7 +52,11 @@ KIND_FIELDS: dict[str, tuple[str, ...]] = {
     "multibody": ("id", "version", "dataset", "split", "fps", "representation", "samples_per_prompt", "surfaces",
                   "csr_threshold_m", "crr_threshold_m", "csiou_empty_union", "voxel_m", "pair_reduction",
                   "diversity_frames", "recognizer_split", "metrics", "description"),
+    "interact-task": ("id", "version", "dataset", "split", "fps", "representation", "task", "samples_per_prompt",
+                      "selection", "contact_threshold_m", "metrics", "description", "changelog"),
 }
+#: InterAct's tasks besides text-to-interaction: what a protocol of the ``interact-task`` kind scores
+INTERACT_TASKS = ("o2h", "h2o")
 
 
 @dataclass(frozen=True)
@@ -110,6 +116,11 @@ class Protocol:
     pair_reduction: str | None = None
     diversity_frames: int | None = None
     recognizer_split: str | None = None
+    # --- interact-task (samples_per_prompt above: the K the selection rule picks from)
+    task: str | None = None
+    #: the metric whose best value (by its catalogue direction) picks each sequence's sample
+    selection: str | None = None
+    contact_threshold_m: float | None = None
 
     # ------------------------------------------------------------------ identity
     def to_dict(self) -> dict:
@@ -194,6 +205,8 @@ class Protocol:
         """K cap for submissions: ``max(replications, mm_samples)``. Replication r uses
         sample ``r mod K`` and MultiModality the first ``mm_samples``, so no metric reads a
         sample beyond this; larger files are refused before loading (docs/security.md)."""
+        if self.kind == "interact-task":       # best of K: no sample beyond the protocol's K is read
+            return int(self.samples_per_prompt)
         return max(int(self.replications), int(self.mm_samples))
 
     @staticmethod
@@ -320,7 +333,7 @@ def protocol_from_dict(d: dict, source: str = "<dict>") -> Protocol:
             raise ValueError(f"{w}: field 'track': {e.args[0]}") from None
     else:
         kind = "multibody" if "contact" in d and "r_precision" not in d else "hoi"
-    parse = _parse_multibody if kind == "multibody" else _parse_hoi
+    parse = {"multibody": _parse_multibody, "interact-task": _parse_interact_task}.get(kind, _parse_hoi)
     proto = parse(d, w, track)
     if "preview" in d:
         if not isinstance(d["preview"], bool):
@@ -418,6 +431,32 @@ def _parse_multibody(d: dict, w: str, track: str) -> Protocol:
     if proto.pair_reduction not in ("sum", "max", "mean"):
         raise ValueError(f"{w}: penetration.pair_reduction: expected sum, max or mean")
     return proto
+
+
+def _parse_interact_task(d: dict, w: str, track: str) -> Protocol:
+    """The ``interact-task`` kind's settings (InterAct's object-to-human and human-to-object
+    evaluation, :mod:`hoibench.metrics.interact_tasks`), validated: ``task`` (o2h | h2o),
+    ``samples_per_prompt`` (K, the samples per sequence the selection picks from),
+    ``selection`` (a listed metric whose best value keeps a sample; not one best at the
+    ground truth's value) and ``contact_threshold_m``."""
+    from ..metrics.catalog import METRICS
+    task = _need(d, "task", str, w)
+    if task not in INTERACT_TASKS:
+        raise ValueError(f"{w}: field 'task' must be one of {INTERACT_TASKS}, got {task!r}")
+    metrics = _listed_metrics(d, [m for m in metrics_for("interact-task") if m.startswith(task + "_")], w)
+    selection = _need(d, "selection", str, w)
+    if selection not in metrics or METRICS[selection].direction == "gt":
+        raise ValueError(f"{w}: field 'selection' must be a listed metric with a lower or higher direction, "
+                         f"got {selection!r}")
+    return Protocol(
+        id=_need(d, "id", str, w), version=_need(d, "version", str, w), dataset=_need(d, "dataset", str, w),
+        split=_need(d, "split", str, w), fps=_positive(_need(d, "fps", float, w), "fps", w),
+        representation=_need(d, "representation", str, w), task=task,
+        samples_per_prompt=_positive(_need(d, "samples_per_prompt", int, w), "samples_per_prompt", w),
+        selection=selection,
+        contact_threshold_m=_positive(_need(d, "contact_threshold_m", float, w), "contact_threshold_m", w),
+        metrics=metrics, description=str(d.get("description", "")).strip(),
+        changelog=tuple(str(c) for c in d.get("changelog", []) or []), source=w, kind="interact-task", track=track)
 
 
 def read_protocol_yaml(path: str | Path):
@@ -560,6 +599,13 @@ def format_multibody_table(protocols: Sequence[Protocol]) -> str:
         for p in protocols if p.kind == "multibody")
 
 
+def format_task_table(protocols: Sequence[Protocol]) -> str:
+    """The ``interact-task`` protocols, one line each."""
+    return "\n".join(
+        f"{p.id:22s} {p.version:>7s} {p.dataset:10s} task {p.task}  K {p.samples_per_prompt}  best {p.selection}  "
+        f"contact {p.contact_threshold_m * 100:g} cm" for p in protocols if p.kind == "interact-task")
+
+
 def main_protocols(action: str = "ls", name: str | None = None) -> int:
     """``hoibench protocols ls`` (table of the shipped protocols) or ``hoibench protocols show
     NAME`` (the YAML file, its path and sha256). Returns an exit status."""
@@ -569,6 +615,8 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
             print(format_table(shipped))
             print("\nmulti-body (docs/multibody.md):")
             print(format_multibody_table(shipped))
+            print("\nInterAct's object-to-human and human-to-object tasks (docs/metrics.md):")
+            print(format_task_table(shipped))
             return 0
         if action == "show":
             if not name:
@@ -586,5 +634,5 @@ def main_protocols(action: str = "ls", name: str | None = None) -> int:
         return 2
 
 
-__all__ = ["format_multibody_table", "KIND_FIELDS", "default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
+__all__ = ["format_multibody_table", "format_task_table", "INTERACT_TASKS", "KIND_FIELDS", "default_protocol_id", "protocol_mismatches", "Protocol", "PROTOCOLS_DIR", "protocol_from_dict", "load_protocol", "list_protocols", "get_protocol",
            "summarize", "summarize_replications", "format_table", "main_protocols"]

@@ -8,9 +8,9 @@ that acts on a track is found by name in the stage that owns it:
 =================  ==========================================  ==============================
 field              resolved by                                 entries today
 =================  ==========================================  ==============================
-``scorer``         :func:`hoibench.scoring.pipeline.get_scorer`  ``hoi``, ``multibody``
-``evaluator_kind`` :func:`hoibench.evaluator.backends.get_backend` ``contrastive``, ``recognizer``
-``submission``     :data:`hoibench.scoring.reference_rows.REFERENCE_WRITERS` ``hoi``, ``multibody``
+``scorer``         :func:`hoibench.scoring.pipeline.get_scorer`  ``hoi``, ``multibody``, ``interact-task``
+``evaluator_kind`` :func:`hoibench.evaluator.backends.get_backend` ``contrastive``, ``recognizer`` (``none``: no evaluator)
+``submission``     :data:`hoibench.scoring.reference_rows.REFERENCE_WRITERS` ``hoi``, ``multibody``, ``interact-task``
 ``renderer``       :data:`hoibench.publish.renderers.RENDERERS`      ``hoi``, ``multibody``
 =================  ==========================================  ==============================
 
@@ -48,7 +48,7 @@ def track_for_dataset(dataset: str, multibody: bool = False) -> Track:
     generic track of its kind (``multibody-synthetic`` settings are not assumed: the caller's
     protocol lookup then names what is missing)."""
     for t in _TRACKS.values():
-        if dataset in t.datasets:
+        if dataset in t.datasets and not t.by_protocol:
             return t
     kind = "multibody" if multibody else "hoi"
     generic = [t for t in _TRACKS.values() if t.extras.get("generic_for") == kind]
@@ -63,5 +63,23 @@ def track_for_store(store) -> Track:
     return track_for_dataset(str(store.manifest.get("dataset", "")), multibody=store.is_multibody)
 
 
-__all__ = ["track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
+def track_for(store, protocol=None) -> Track:
+    """The track that scores ``store`` under ``protocol`` (a
+    :class:`~hoibench.tracks.protocol.Protocol`, or None for the store's default): the track
+    the protocol names when that track scores the store's dataset (a dataset with several
+    tracks, e.g. ``interact``, ``interact-o2h`` and ``interact-h2o``), else
+    :func:`track_for_store` (whose protocol-kind check then refuses a protocol of another
+    dataset's track)."""
+    default = track_for_store(store)
+    name = getattr(protocol, "track", "") if protocol is not None else ""
+    if not name or name == default.name:
+        return default
+    try:
+        named = get_track(name)
+    except KeyError:
+        return default
+    return named if str(store.manifest.get("dataset", "")) in named.datasets else default
+
+
+__all__ = ["track_for", "track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
            "track_for_dataset"]

@@ -43,8 +43,15 @@ class Track:
 
     @property
     def protocol_kind(self) -> str:
-        """The kind of protocol this track's YAML files hold (``hoi`` or ``multibody``)."""
-        return "multibody" if self.store_kind == "multibody" else "hoi"
+        """The kind of protocol this track's YAML files hold: its ``protocol_kind`` extra
+        (``interact-task``), else ``hoi`` or ``multibody`` by its store kind."""
+        return self.extras.get("protocol_kind") or ("multibody" if self.store_kind == "multibody" else "hoi")
+
+    @property
+    def by_protocol(self) -> bool:
+        """Whether the track is chosen only by naming one of its protocols: a second task on a
+        dataset another track scores by default (:func:`hoibench.tracks.registry.track_for`)."""
+        return bool(self.extras.get("by_protocol"))
 
     @property
     def metrics(self) -> tuple[str, ...]:
