@@ -329,3 +329,28 @@ def test_bad_inputs_are_refused_naming_the_argument():
         tx.caption_swap({"c": "a person walks"}, 0.5, 0, CTX)
     with pytest.raises(ValueError, match="ctx: objects"):
         ob.object_swap({"c": a, "d": a}, 1.0, 0, Context(objects=("boxsmall",)))
+
+
+# ---------------------------------------------------------------- markers (marker tracks)
+def test_markers_follow_the_corrupted_joints():
+    """``follow_markers``: equal joints keep the markers; a rigid shift of the whole body shifts
+    every marker by it exactly; markers on the proxy body itself become the proxy's markers of
+    the corrupted joints (so a frozen tail holds frame t0's markers, to the 0.6 mm by which the
+    proxy's body scale, a statistic of the whole clip, moves when half the clip is held)."""
+    from hoibench.metrics.body_surface import proxy_markers
+    clip = _clip(T=30, K=1)
+    J = clip["joints"][0].astype(np.float64)
+    rng = _rng(3)
+    markers = proxy_markers(J) + rng.normal(scale=0.01, size=(30, 77, 3))     # off the proxy by ~1 cm
+    np.testing.assert_array_equal(mo.follow_markers(markers, J, J.copy()), markers)
+    shift = np.array([0.3, 0.0, -0.2])
+    np.testing.assert_allclose(mo.follow_markers(markers, J, J + shift), markers + shift, atol=1e-12)
+    on_proxy = proxy_markers(J)
+    frozen = mo.freeze(clip, 0.5, rng, CTX)["joints"][0].astype(np.float64)
+    t0 = 14                                               # floor((1 - 0.5) * 29)
+    followed = mo.follow_markers(on_proxy, J, frozen)
+    np.testing.assert_allclose(followed[t0:], np.broadcast_to(on_proxy[t0], followed[t0:].shape), atol=1e-3)
+    np.testing.assert_allclose(followed[:t0], on_proxy[:t0], atol=1e-3)
+    assert np.abs(on_proxy[t0 + 1:] - on_proxy[t0]).max() > 0.05          # the tail did move before
+    with pytest.raises(ValueError, match="markers: expected shape"):
+        mo.follow_markers(markers[:, :10], J, J)

@@ -229,11 +229,32 @@ def test_protocol_scores_a_synthetic_interact_store_end_to_end(scored):
     assert len(res["per_replication"]) == 2
 
 
-def test_the_audit_refuses_a_marker_track_in_one_line(scored, tmp_path):
-    """The audit corrupts joints and object poses; InterAct's evaluator reads markers, which it
-    cannot move consistently with them, so it refuses rather than score stale markers."""
-    from hoibench.audit.runner import load_setup
-    from hoibench.scoring.pipeline import EvaluationRefused
+def test_the_audit_moves_markers_with_the_corrupted_body(scored, tmp_path):
+    """On a marker track the corruptions carry the markers along (``follow_markers``): severity
+    0 is the ground truth (FID 0 with InterAct's evaluator at random weights), jitter moves the
+    markers and the embeddings (FID > 0 at the top severity), a floating object leaves the
+    markers as they were. InterAct's rows place the object's BPS basis at the object's own
+    translation, so they do not see the object move away from the body: FID stays 0 under
+    ``object_float`` (a blind spot of the evaluator, not of the audit)."""
+    from hoibench.audit.corruptions import FAMILIES
+    from hoibench.audit.document import run_audit
+    from hoibench.audit.runner import corrupted_split, ground_truth, split_context
+    from hoibench.datasets.store import Store
     _, root = scored
-    with pytest.raises(EvaluationRefused, match=r"interact track's submissions carry markers; the audit corrupts"):
-        load_setup(root / "data", root / "ev", allow_failed_gate=True)
+    doc = run_audit(root / "data", root / "ev", tmp_path / "audit", families=["jitter", "object_float"],
+                    allow_failed_gate=True, log=lambda _m: None)
+    fid = doc["corruptions"]["jitter"]["values"]["fid"]
+    assert fid[0] == pytest.approx(0.0, abs=1e-3) and fid[-1] > fid[0] + 1e-3
+    assert max(abs(v) for v in doc["corruptions"]["object_float"]["values"]["fid"]) < 1e-3
+    store = Store(root / "data")
+    ids = store.clip_ids("test")
+    clips, caps = ground_truth(store, ids, ["markers"])
+    ctx = split_context(clips, caps)
+    top = FAMILIES["jitter"].severities[-1]
+    jit = corrupted_split(store, clips, caps, "jitter", top, 0, ctx, {})
+    flt = corrupted_split(store, clips, caps, "object_float", FAMILIES["object_float"].severities[-1], 0, ctx, {})
+    for cid in ids:
+        m = clips[cid]["markers"]
+        np.testing.assert_array_equal(flt.samples[cid]["markers"][0], m)
+        moved = np.linalg.norm(jit.samples[cid]["markers"][0] - m, axis=-1)
+        assert 0.5 * top < np.median(moved) < 3 * top     # jitter of amplitude a moves a marker by ~a

@@ -200,3 +200,23 @@ def mirror(clips: Mapping[str, Arrays], severity: float, seed: int, ctx: Context
     check_clips(clips)
     chosen = set(selected(clips, s, check_seed(seed), "mirror"))
     return {cid: mirror_arrays(a) if cid in chosen else unchanged(a) for cid, a in clips.items()}
+
+
+def follow_markers(markers: np.ndarray, joints: np.ndarray, new_joints: np.ndarray) -> np.ndarray:
+    """Body-surface markers (T, 77, 3) moved as a corruption moved the joints (T, 22, 3) ->
+    ``new_joints``: ``m' = m + P(J') - P(J)``, with ``P`` the 77 markers of the proxy body
+    posed to the joints (:func:`hoibench.metrics.body_surface.proxy_markers`). Each marker
+    keeps its offset from the proxy surface, so noise, jitter, drift, held or reversed frames,
+    a new speed and a mirror reach the markers the way they reach the joints (exactly for
+    rigid shifts of the whole body, to the proxy's fit otherwise); equal joints return the
+    markers unchanged (a copy). Same dtype as ``markers``."""
+    from ..metrics.body_surface import proxy_markers
+    m = np.asarray(markers)
+    J, J2 = np.asarray(joints), np.asarray(new_joints)
+    if m.ndim != 3 or m.shape[1:] != (77, 3):
+        raise ValueError(f"markers: expected shape (T, 77, 3), got {m.shape}")
+    if J.shape != J2.shape or J.ndim != 3 or len(J) != len(m):
+        raise ValueError(f"new_joints: expected the joints' shape {J.shape} with T = {len(m)}, got {J2.shape}")
+    if np.array_equal(J, J2):
+        return m.copy()
+    return (m + (proxy_markers(J2) - proxy_markers(J))).astype(m.dtype)

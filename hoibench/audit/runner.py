@@ -31,11 +31,14 @@ import numpy as np
 from ..scoring.hoi import HOIScorer
 from ..scoring.pipeline import EvaluationRefused
 from .corruptions import FAMILIES, apply, split_context
-from .motion import mirror_template
+from .motion import follow_markers, mirror_template
 from .streams import selected
 
 #: the default seed of the corruptions and the paired bootstrap
 DEFAULT_SEED = 0
+#: sample arrays besides joints and object poses that the corruptions carry along: the body's
+#: markers follow the corrupted joints (:func:`~hoibench.audit.motion.follow_markers`)
+FOLLOWING_ARRAYS = ("markers",)
 
 
 @dataclass(frozen=True)
@@ -138,15 +141,18 @@ class AuditScorer(HOIScorer):
 
 
 # ---------------------------------------------------------------------------- the split
-def ground_truth(store, test_ids: Sequence[str]) -> tuple[dict, dict]:
+def ground_truth(store, test_ids: Sequence[str], body_arrays: Sequence[str] = ()) -> tuple[dict, dict]:
     """``(clips, captions)`` of the test split: each clip's ``joints``, ``obj_rot``,
-    ``obj_trans`` as float32 (what ``hoibench submission from-store`` writes) and
-    ``object_name``; its whole-clip caption lines (what the scorer reads)."""
+    ``obj_trans`` as float32 (what ``hoibench submission from-store`` writes), the
+    ``body_arrays`` the track's submissions carry (``markers``) and ``object_name``; its
+    whole-clip caption lines (what the scorer reads)."""
     from ..scoring.hoi import _caption_lines
     clips, captions = {}, {}
     for cid in test_ids:
-        clip = store.load(cid, keys=("joints", "obj_rot", "obj_trans", "object_name"))
+        clip = store.load(cid, keys=("joints", "obj_rot", "obj_trans", "object_name", *body_arrays))
         arrays = {"joints": np.asarray(clip["joints"], np.float32)}
+        for key in body_arrays:
+            arrays[key] = np.asarray(clip[key], np.float32)
         if "obj_rot" in clip and "obj_trans" in clip:
             arrays["obj_rot"] = np.asarray(clip["obj_rot"], np.float32)
             arrays["obj_trans"] = np.asarray(clip["obj_trans"], np.float32)
@@ -177,6 +183,9 @@ def corrupted_split(store, clips: Mapping[str, Mapping], captions: Mapping, fami
     for cid, arrays in new_clips.items():
         samples[cid] = {k: np.asarray(arrays[k], np.float32)[None] for k in ("joints", "obj_rot", "obj_trans")
                         if k in arrays}
+        if "markers" in clips[cid]:       # markers follow the corrupted joints (follow_markers)
+            markers = follow_markers(clips[cid]["markers"], clips[cid]["joints"], arrays["joints"])
+            samples[cid]["markers"] = markers[None]
         name = str(arrays.get("object_name", ""))
         if name and (name != str(clips[cid].get("object_name", "")) or cid in mirrored):
             if name not in template_cache:
@@ -246,7 +255,7 @@ def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_fai
                                 f"corrupts single-body clips (tracks scored by the hoi scorer)")
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
     from ..scoring.validate import required_arrays
-    extra = required_arrays(proto)
+    extra = [a for a in required_arrays(proto) if a not in FOLLOWING_ARRAYS]
     if extra:
         raise EvaluationRefused(f"--data {data}: the {track.name} track's submissions carry {', '.join(extra)}; the "
                                 f"audit corrupts joints and object poses and cannot move {extra[0]} with them yet")
@@ -296,7 +305,8 @@ def score_conditions(setup: Setup, families: Sequence[str], seed: int = DEFAULT_
     base = AuditScorer(store, proto, ev, setup.track, Corrupted({}, {}), "ground truth", setup.options)
     base.prepare()
     test_ids = list(base.st.test_ids)
-    clips, captions = ground_truth(store, test_ids)
+    from ..scoring.validate import required_arrays
+    clips, captions = ground_truth(store, test_ids, [a for a in required_arrays(proto) if a in FOLLOWING_ARRAYS])
     ctx = split_context(clips, captions, fps=base.st.fps, spec=annotator_spec())
     known = _known_captions(base, captions)
     templates: dict = {}

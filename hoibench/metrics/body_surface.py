@@ -186,6 +186,26 @@ def proxy_vertices_from_joints(joints, frames: slice | None = None) -> np.ndarra
     return out
 
 
+def proxy_markers(joints) -> np.ndarray:
+    """InterAct's 77 markers (T, 77, 3) float64, metres, on the proxy body posed to ``joints``
+    (T, 22, 3): the SMPL-H marker vertices (:data:`hoibench.bodies.markers.MARKERS_SMPLH`) of
+    :func:`proxy_vertices_from_joints`, posed alone."""
+    from ..bodies.markers import MARKERS_SMPLH
+    J = np.asarray(joints, dtype=np.float64)
+    if J.ndim != 3 or J.shape[1:] != (sk.NUM_JOINTS, 3):
+        raise ValueError(f"joints: expected shape (T, 22, 3), got {J.shape}")
+    v_template, _, rest, groups = _proxy()
+    s = body_scale(J)
+    R = joint_global_rotations(J, rest * s)
+    ids = np.asarray(MARKERS_SMPLH)
+    out = np.empty((len(J), len(ids), 3))
+    for j, idx in groups:
+        keep = np.flatnonzero(np.isin(ids, idx))
+        if len(keep):
+            out[:, keep] = _rigid(R[:, j], J[:, j], (v_template[ids[keep]] - rest[j]) * s)
+    return out
+
+
 def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
                           margin_m: float, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The proxy body surface of ``frames`` in the object's template frame, posed only where
