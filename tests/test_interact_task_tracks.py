@@ -203,3 +203,24 @@ def test_results_are_identical_on_serial_and_processes_and_the_cli_needs_no_eval
     assert "interact-h2o-clean@1.0" in capsys.readouterr().out
     assert main(["evaluate", str(root / "h2o-gt"), "--data", str(root / "data")]) != 0
     assert "--evaluator: required" in capsys.readouterr().err
+
+
+def test_the_documented_generation_loop_makes_a_valid_submission(setup, tmp_path, monkeypatch):
+    """docs/leaderboards.md's o2h loop, run as written with a stand-in model."""
+    from pathlib import Path
+
+    from hoibench.datasets.store import Store
+    from hoibench.scoring.submission import validation_report
+    root, _ = setup
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "leaderboards.md").read_text()
+    code = doc.split("Ten lines (o2h):\n\n```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    assert main(["submission", "prompts", str(root / "data"), "--protocol", "interact-o2h-clean",
+                 "--out", "o2h/prompts.jsonl"]) == 0
+    first = Store(root / "data").load(Store(root / "data").clip_ids("test")[0], keys=("markers",))["markers"][0]
+
+    def my_model(caption, obj_rot, obj_trans, points):
+        return np.repeat(first[None, None], len(obj_rot), 1).repeat(2, 0)     # (K = 2, T, 77, 3)
+    exec(code, {"my_model": my_model})
+    rep = validation_report(tmp_path / "my_o2h", root / "data", protocol="interact-o2h-clean")
+    assert rep.complete and rep.samples_per_prompt == 2, [str(p) for p in rep.problems]
