@@ -52,37 +52,28 @@ def _worst(clip, gt, step=1):
     return max(errs)
 
 
-def _synth(tmp_path_factory, layout: str, clips: int) -> Path:
-    root = tmp_path_factory.mktemp(layout) / "raw"
-    assert main(["synth", "--layout", layout, "--out", str(root), "--clips", str(clips)]) == 0
-    return root
+def _layout_fixtures(prefix: str, layout: str, clips: int, fps: int):
+    """The module-scoped fixtures ``<prefix>_raw`` (``clips`` clips of ``layout``'s release
+    layout, synthesised) and ``<prefix>_store`` (those prepared at ``fps``)."""
+    @pytest.fixture(scope="module", name=f"{prefix}_raw")
+    def raw(tmp_path_factory) -> Path:
+        root = tmp_path_factory.mktemp(layout) / "raw"
+        assert main(["synth", "--layout", layout, "--out", str(root), "--clips", str(clips)]) == 0
+        return root
+
+    @pytest.fixture(scope="module", name=f"{prefix}_store")
+    def store(request) -> Path:
+        root = request.getfixturevalue(f"{prefix}_raw")
+        out = root.parent / "data"
+        assert main(["prepare", layout, "--root", str(root), "--body-models", str(root / "body_models"),
+                     "--out", str(out), "--fps", str(fps)]) == 0
+        return out
+
+    return raw, store
 
 
-def _prepare(raw: Path, layout: str, fps: int) -> Path:
-    out = raw.parent / "data"
-    assert main(["prepare", layout, "--root", str(raw), "--body-models", str(raw / "body_models"),
-                 "--out", str(out), "--fps", str(fps)]) == 0
-    return out
-
-
-@pytest.fixture(scope="module")
-def taco_raw(tmp_path_factory):
-    return _synth(tmp_path_factory, "taco", 5)
-
-
-@pytest.fixture(scope="module")
-def taco_store(taco_raw):
-    return _prepare(taco_raw, "taco", 30)
-
-
-@pytest.fixture(scope="module")
-def oi_raw(tmp_path_factory):
-    return _synth(tmp_path_factory, "oakink2", 3)
-
-
-@pytest.fixture(scope="module")
-def oi_store(oi_raw):
-    return _prepare(oi_raw, "oakink2", 120)
+taco_raw, taco_store = _layout_fixtures("taco", "taco", 5, 30)
+oi_raw, oi_store = _layout_fixtures("oi", "oakink2", 3, 120)
 
 
 # --------------------------------------------------------------------------- splits
