@@ -198,3 +198,19 @@ def test_render_refuses_a_nan_sample_naming_id_and_array(tmp_path):
     with pytest.raises(ValueError, match=r"samples/t0.npz: joints: non-finite values \(NaN or inf\) in sample 0"):
         render_comparison(sub, data, "t0", tmp_path / "out.png")
     assert not (tmp_path / "out.png").exists()
+
+
+def test_about_tables_render_as_html_tables_with_every_cell_escaped():
+    """A pipe table in about.md becomes an HTML table (right-aligned where the rule says
+    ``---:``); its cells are escaped like any about text; a block that only looks like a
+    table (no rule row) stays a paragraph."""
+    import re
+    from hoibench.publish.pages import about_html
+    text = ("| row | value |\n|---|---:|\n| <script>x</script> | **1.0** [a](javascript:y) |\n| `ok` | 2 |\n\n"
+            "| not | a table |\n| no | rule |")
+    out = about_html(text)
+    assert out.count("<table") == 1 and "<script" not in out and "javascript:" not in out
+    assert re.search(r'<td class="num"><b>1\.0</b> a</td>', out)
+    assert "<td>&lt;script&gt;x&lt;/script&gt;</td>" in out and "<td><code>ok</code></td>" in out
+    assert "<th>row</th><th class=\"num\">value</th>" in out
+    assert "<p>| not | a table | | no | rule |</p>" in out

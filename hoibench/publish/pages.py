@@ -234,10 +234,39 @@ _BOLD = re.compile(r"\*\*(.+?)\*\*")
 _LINK = re.compile(r"\[([^\]]+)\]\(\s*([^)\s]*)\s*\)")
 
 
+def _inline_html(text: str) -> str:
+    """One line of ``about.md`` as HTML: escaped, then inline code, bold and safe links."""
+    t = html.escape(text, quote=True)
+    t = _CODE.sub(r"<code>\1</code>", t)
+    t = _BOLD.sub(r"<b>\1</b>", t)
+    return _LINK.sub(lambda m: f'<a href="{m.group(2)}">{m.group(1)}</a>' if safe_link(html.unescape(m.group(2)))
+                     else m.group(1), t)
+
+
+_RULE_ROW = re.compile(r"^\|(\s*:?-+:?\s*\|)+$")
+
+
+def _table_html(lines: list[str]) -> str | None:
+    """A Markdown pipe table (header, ``|---|`` rule, rows) as an HTML table; None when the
+    block is not one. Cells right-aligned where the rule says ``---:``."""
+    rows = [line.strip() for line in lines]
+    if len(rows) < 2 or not all(r.startswith("|") and r.endswith("|") for r in rows) or not _RULE_ROW.match(rows[1]):
+        return None
+    right = [c.strip().endswith(":") for c in rows[1].strip("|").split("|")]
+
+    def cells(row: str, tag: str) -> str:
+        parts = [c.strip() for c in row.strip("|").split("|")]
+        num = ' class="num"'
+        return "".join(f"<{tag}{num if i < len(right) and right[i] else ''}>{_inline_html(c)}</{tag}>"
+                       for i, c in enumerate(parts))
+    body = "".join(f"<tr>{cells(r, 'td')}</tr>" for r in rows[2:])
+    return f'<table class="about-table"><tr>{cells(rows[0], "th")}</tr>{body}</table>'
+
+
 def about_html(text: str) -> str:
-    """A track's ``about.md`` for index.html: paragraphs, indented code blocks, inline code,
-    bold and links (http(s) or relative only; others keep their text). Everything is
-    HTML-escaped first, so no tag of the file survives."""
+    """A track's ``about.md`` for index.html: paragraphs, indented code blocks, pipe tables,
+    inline code, bold and links (http(s) or relative only; others keep their text). Every
+    piece of text is HTML-escaped first, so no tag of the file survives."""
     blocks = [b for b in re.split(r"\n\s*\n", text.strip()) if b.strip()]
     out = []
     for b in blocks:
@@ -245,12 +274,8 @@ def about_html(text: str) -> str:
         if all(line.startswith("    ") or not line.strip() for line in lines):
             out.append("<pre>" + html.escape("\n".join(line[4:] for line in lines)) + "</pre>")
             continue
-        t = html.escape(" ".join(line.strip() for line in lines), quote=True)
-        t = _CODE.sub(r"<code>\1</code>", t)
-        t = _BOLD.sub(r"<b>\1</b>", t)
-        t = _LINK.sub(lambda m: f'<a href="{m.group(2)}">{m.group(1)}</a>' if safe_link(html.unescape(m.group(2)))
-                      else m.group(1), t)
-        out.append(f"<p>{t}</p>")
+        table = _table_html(lines)
+        out.append(table if table is not None else f"<p>{_inline_html(' '.join(line.strip() for line in lines))}</p>")
     return '<div class="about">' + "\n".join(out) + "</div>" if out else ""
 
 
@@ -547,6 +572,9 @@ tr.reported { color: #a0aec0; }
 .legend ul { margin: 0.2em 0; padding-left: 1.2em; }
 .about { font-size: 14px; max-width: 70em; }
 .about pre { background: #f7fafc; padding: 0.5em; overflow-x: auto; }
+.about-table { border-collapse: collapse; margin: 0.5em 0; }
+.about-table th, .about-table td { border-bottom: 1px solid #e2e8f0; padding: 2px 8px; text-align: left; }
+.about-table td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .swatch { display: inline-block; width: 0.9em; height: 0.9em; vertical-align: middle; margin-right: 0.3em; }
 figure { display: inline-block; margin: 1em 1em 0 0; }
 img { max-width: 100%; }
