@@ -71,7 +71,7 @@ def check_divisible(cfg, name: str, by: str, section: str) -> None:
 
 def check_architecture(cfg, section: str) -> None:
     """ValueError naming ``section.field`` for a field of :data:`ARCH_LIMITS` over its bound."""
-    for f in fields(cfg):
+    for f in own_fields_first(cfg):
         if f.name in ARCH_LIMITS:
             check_ints(cfg, (f.name,), section, lo=1, hi=ARCH_LIMITS[f.name])
 
@@ -125,8 +125,35 @@ def _flat_ints(d: dict, prefix: str = "") -> dict[str, int]:
     return out
 
 
+@dataclass(frozen=True)
+class ConditioningConfig:
+    """The object and text conditioning fields of ChainHOI's and EJIM's model configs (their
+    ``ModelConfig`` derives from this). A dataclass lists a base's fields first; checks and
+    :meth:`RunConfig.to_dict` take a model's own fields first (:func:`own_fields_first`)."""
+    dropout: float = 0.1
+    object_points: int = 512         # surface samples given to the point encoder
+    object_tokens: int = 16
+    object_knn: int = 32
+    text_encoder: str = "minilm"
+    text_max_tokens: int = 32
+    text_layers: int = 1             # transformer layers of the ``tokens`` encoder
+
+
+#: the integer fields of :class:`ConditioningConfig`, in the order a model config checks them
+CONDITIONING_INTS = ("object_points", "object_tokens", "object_knn", "text_max_tokens", "text_layers")
+
+
+def own_fields_first(cfg) -> list:
+    """``fields(cfg)``, those it shares from :class:`ConditioningConfig` last: the order in
+    which a model config's fields are checked and reported (its architecture first)."""
+    shared = {f.name for f in fields(ConditioningConfig)} if isinstance(cfg, ConditioningConfig) else set()
+    return sorted(fields(cfg), key=lambda f: f.name in shared)
+
+
 def check_conditioning(cfg) -> None:
-    """The fields every baseline model config shares: text encoder, object points, dropout."""
+    """The checks of :class:`ConditioningConfig`'s fields other than the integer ranges (a
+    model config checks :data:`CONDITIONING_INTS` with its own): object sampling, dropout, text
+    encoder."""
     check_object_sampling(cfg, "model")
     check_interval(cfg, ("dropout",), "model", "[0, 1)")
     check_choice(cfg, "text_encoder", "model", TEXT_ENCODERS)
@@ -192,23 +219,30 @@ CONTACT_DISTANCES = ("samples", "exact")
 
 
 @dataclass(frozen=True)
-class TrainConfig:
-    steps: int = 50_000
+class TrainLoopConfig:
+    """The optimiser and bookkeeping fields of every baseline's ``train`` section: the
+    diffusion baselines' :class:`TrainConfig` and CATMO's ``CatmoTrainConfig`` (which sets its
+    own defaults of four) derive from this, each checking them with its own fields."""
     batch_size: int = 32
     lr: float = 1e-4
     weight_decay: float = 0.01
-    max_frames: int = 196
-    min_frames: int = 8
-    ema_decay: float = 0.999
     grad_clip: float = 1.0
+    min_frames: int = 8
+    checkpoint_every: int = 500
+    log_every: int = 50
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class TrainConfig(TrainLoopConfig):
+    steps: int = 50_000
+    max_frames: int = 196
+    ema_decay: float = 0.999
     lambda_contact: float = 2.0      # ChainHOI lambda_1 (L_h); 0 for EJIM
     lambda_object: float = 1.0       # ChainHOI lambda_2 / EJIM lambda_o (L_o)
     lambda_smooth: float = 0.0       # EJIM lambda_s (L_smooth); 0 for ChainHOI
     contact_points: int = 256        # GT object surface samples for L_h ("samples")
     contact_distance: str = "samples"   # L_h distance: nearest of contact_points samples | exact point-to-mesh
-    checkpoint_every: int = 500
-    log_every: int = 50
-    seed: int = 0
 
     def __post_init__(self) -> None:
         check_ints(self, ("steps",), "train", lo=0)
@@ -235,9 +269,9 @@ class RunConfig:
 
     def to_dict(self) -> dict:
         d = sections_to_dict(self, ("model", "train", "diffusion"))
-        for k, v in d["model"].items():
-            if isinstance(v, tuple):
-                d["model"][k] = list(v)
+        model = d["model"]
+        d["model"] = {f.name: list(model[f.name]) if isinstance(model[f.name], tuple) else model[f.name]
+                      for f in own_fields_first(self.model)}
         return d
 
     @classmethod

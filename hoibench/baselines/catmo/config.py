@@ -30,8 +30,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..config import (TEXT_ENCODERS, check_architecture, check_choice, check_divisible, check_interval, check_ints,
-                      check_nonnegative, check_object_sampling, dotted_replace, sections_from_dict, sections_to_dict)
+from ..config import (TEXT_ENCODERS, TrainLoopConfig, check_architecture, check_choice, check_divisible, check_interval,
+                      check_ints, check_nonnegative, check_object_sampling, dotted_replace, sections_from_dict,
+                      sections_to_dict)
 
 CORRUPTION_MODES = ("token", "unit")
 SECTIONS = ("vq", "text", "gpt", "object", "train")
@@ -129,18 +130,14 @@ class ObjectHeadConfig:
 
 
 @dataclass(frozen=True)
-class CatmoTrainConfig:
+class CatmoTrainConfig(TrainLoopConfig):
     vq_steps: int = 300_000
     contact_steps: int = 300_000
     gpt_steps: int = 100_000
     batch_size: int = 16
     lr: float = 2e-4
     weight_decay: float = 0.0
-    grad_clip: float = 1.0
-    min_frames: int = 8
-    checkpoint_every: int = 500
     log_every: int = 100
-    seed: int = 0
 
     def __post_init__(self) -> None:
         check_ints(self, ("vq_steps", "contact_steps", "gpt_steps"), "train", lo=0)

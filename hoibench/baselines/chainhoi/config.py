@@ -28,32 +28,26 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import RunConfig, TrainConfig, check_choice, check_conditioning, check_divisible, check_ints
+from ..config import (CONDITIONING_INTS, ConditioningConfig, RunConfig, TrainConfig, check_choice, check_conditioning,
+                      check_divisible, check_ints)
 
 MASK_MODES = ("paper", "released")
 
 
 @dataclass(frozen=True)
-class ModelConfig:
+class ModelConfig(ConditioningConfig):
     blocks: int = 6
     d_model: int = 64
     d_text: int = 256
     heads: int = 8
     ff_mult: int = 2
-    dropout: float = 0.1
     temporal_kernel: int = 3
     temporal_dilations: tuple[int, ...] = (1, 2)
-    object_points: int = 512         # surface samples given to the point encoder
-    object_tokens: int = 16
-    object_knn: int = 32
-    text_encoder: str = "minilm"
-    text_max_tokens: int = 32
-    text_layers: int = 1             # transformer layers of the ``tokens`` encoder
     mask: str = "paper"              # Kinematic-aware Decoder mask: "paper" (boolean) | "released"
 
     def __post_init__(self) -> None:
-        check_ints(self, ("blocks", "d_model", "d_text", "heads", "ff_mult", "temporal_kernel", "object_points",
-                          "object_tokens", "object_knn", "text_max_tokens", "text_layers"), "model", hi=100_000)
+        check_ints(self, ("blocks", "d_model", "d_text", "heads", "ff_mult", "temporal_kernel") + CONDITIONING_INTS,
+                   "model", hi=100_000)
         check_conditioning(self)
         check_divisible(self, "d_text", "heads", "model")
         check_choice(self, "mask", "model", MASK_MODES)

@@ -29,11 +29,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import RunConfig, TrainConfig, check_conditioning, check_divisible, check_ints
+from ..config import (CONDITIONING_INTS, ConditioningConfig, RunConfig, TrainConfig, check_conditioning,
+                      check_divisible, check_ints)
 
 
 @dataclass(frozen=True)
-class ModelConfig:
+class ModelConfig(ConditioningConfig):
     modules: int = 6
     d_model: int = 128
     d_state: int = 16
@@ -41,17 +42,10 @@ class ModelConfig:
     d_conv: int = 4
     mask_k: int = 3
     heads: int = 1
-    dropout: float = 0.1
-    object_points: int = 512
-    object_tokens: int = 16
-    object_knn: int = 32
-    text_encoder: str = "minilm"
-    text_max_tokens: int = 32
-    text_layers: int = 1
 
     def __post_init__(self) -> None:
-        check_ints(self, ("modules", "d_model", "d_state", "expand", "d_conv", "heads", "object_points",
-                          "object_tokens", "object_knn", "text_max_tokens", "text_layers"), "model", hi=100_000)
+        check_ints(self, ("modules", "d_model", "d_state", "expand", "d_conv", "heads") + CONDITIONING_INTS, "model",
+                   hi=100_000)
         check_ints(self, ("mask_k",), "model", lo=0, hi=22)
         check_conditioning(self)
         check_divisible(self, "d_model", "heads", "model")
