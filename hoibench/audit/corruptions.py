@@ -53,6 +53,13 @@ class FamilySpec:
 _FRACTIONS = (0.0, 0.1, 0.25, 0.5, 0.75, 1.0)
 
 
+def _fraction_family(name: str, fn: Callable, corrupts: str, scope: str, description: str) -> tuple:
+    """The spec of a family whose severities are :data:`_FRACTIONS`: of the clip's frames
+    (``clip`` scope) or of the split's clips (``split``)."""
+    unit = "fraction of the clip" if scope == "clip" else "fraction of clips"
+    return (name, fn, _FRACTIONS, unit, corrupts, scope, description)
+
+
 def octaves(factor: float) -> float:
     """``|log2 c|``: how far a speed factor is from 1 (0.5 and 2.0 are both 1)."""
     return abs(math.log2(factor))
@@ -65,30 +72,27 @@ _SPECS = (
      "every joint oscillates +-a along a fixed random direction at fps/2"),
     ("foot_sliding", mo.foot_sliding, (0.0, 0.05, 0.1, 0.2, 0.5, 1.0), "m/s", "motion", "clip",
      "horizontal drift of body and object while a foot is planted"),
-    ("freeze", mo.freeze, _FRACTIONS, "fraction of the clip", "motion", "clip",
-     "the last fraction of the clip holds one frame (1: all of it at frame 0)"),
-    ("reverse", mo.reverse, _FRACTIONS, "fraction of the clip", "motion", "clip",
-     "the last fraction of the clip played backwards"),
+    _fraction_family("freeze", mo.freeze, "motion", "clip",
+                     "the last fraction of the clip holds one frame (1: all of it at frame 0)"),
+    _fraction_family("reverse", mo.reverse, "motion", "clip", "the last fraction of the clip played backwards"),
     ("speed", mo.speed, (1.0, 0.8, 1.25, 0.625, 1.6, 0.5, 2.0, 0.4, 2.5), "factor (magnitude |log2 c|)",
      "motion", "clip", "played c times as fast, resampled to the same length", octaves),
-    ("mirror", mo.mirror, _FRACTIONS, "fraction of clips", "motion", "split",
-     "left-right mirror (x -> -x, left/right joints swapped, object mirrored)"),
+    _fraction_family("mirror", mo.mirror, "motion", "split",
+                     "left-right mirror (x -> -x, left/right joints swapped, object mirrored)"),
     ("object_float", ob.object_float, (0.0, 0.02, 0.05, 0.1, 0.2, 0.5), "m", "motion", "clip",
      "the object lifted by h on every frame"),
-    ("object_detach", ob.object_detach, _FRACTIONS, "fraction of the clip", "motion", "clip",
-     "the object keeps its pose from a frame on while the body moves on"),
+    _fraction_family("object_detach", ob.object_detach, "motion", "clip",
+                     "the object keeps its pose from a frame on while the body moves on"),
     ("grasp_offset", ob.grasp_offset, (0.0, 0.02, 0.05, 0.1, 0.2, 0.5), "m", "motion", "clip",
      "the object moved d away from the body, horizontally"),
     ("object_penetrate", ob.object_penetrate, (0.0, 0.02, 0.05, 0.1, 0.2, 0.3), "m", "motion", "clip",
      "the object pushed d towards and into the body, horizontally"),
-    ("object_swap", ob.object_swap, _FRACTIONS, "fraction of clips", "motion", "split",
-     "the object's template swapped for another object's"),
-    ("caption_swap", tx.caption_swap, _FRACTIONS, "fraction of clips", "text", "split",
-     "captions passed round a cycle of clips (the multiset is kept)"),
-    ("noun_swap", tx.noun_swap, _FRACTIONS, "fraction of clips", "text", "split",
-     "the object noun replaced by another object's"),
-    ("verb_swap", tx.verb_swap, _FRACTIONS, "fraction of clips", "text", "split",
-     "the main verb replaced by another verb of the split"),
+    _fraction_family("object_swap", ob.object_swap, "motion", "split",
+                     "the object's template swapped for another object's"),
+    _fraction_family("caption_swap", tx.caption_swap, "text", "split",
+                     "captions passed round a cycle of clips (the multiset is kept)"),
+    _fraction_family("noun_swap", tx.noun_swap, "text", "split", "the object noun replaced by another object's"),
+    _fraction_family("verb_swap", tx.verb_swap, "text", "split", "the main verb replaced by another verb of the split"),
 )
 FAMILIES: dict[str, FamilySpec] = {s[0]: FamilySpec(*s) for s in _SPECS}
 
