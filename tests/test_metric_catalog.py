@@ -82,7 +82,7 @@ def test_every_entry_is_complete_and_directions_agree_with_the_metric_classes():
     for name, info in METRICS.items():
         assert info.unit and info.summary and info.direction in ARROWS, name
         if info.per_clip and info.kind != "clip":
-            assert info.kind == "physical" or name == "mm_dist", name
+            assert info.kind in ("physical", "task") or name == "mm_dist", name
     assert METRICS["csr"].higher_is_better is None and METRICS["od"].direction == "gt"   # closest to GT
     assert METRICS["fid"].set_level and not METRICS["cd"].set_level
 

@@ -338,7 +338,15 @@ for _name, _dir, _unit, _obj, _summary, _paper in (
 # interact-o2h and interact-h2o tracks): per test sequence, the sample the protocol's selection
 # rule keeps, then the mean over sequences (docs/metrics.md "InterAct's other tasks")
 _IT = "hoibench.metrics.interact_tasks"
-_TASK = dict(scorers=("interact-task",))
+
+
+def _task(direction: str) -> dict:
+    """Catalogue fields shared by the task metrics: scored by the interact-task scorer, a column
+    of the per-clip table (the selected sample), failing at the end its direction says."""
+    return dict(scorers=("interact-task",), per_clip=True,
+                failure_end={"lower": "high", "higher": "low"}.get(direction))
+
+
 _CONTACT = (("contact_precision", "higher", "fraction", "per-frame contact precision (0 without predicted contact)"),
             ("contact_recall", "higher", "fraction", "per-frame contact recall (0 without ground-truth contact)"),
             ("contact_acc", "higher", "fraction", "per-frame contact accuracy"),
@@ -357,17 +365,17 @@ for _name, _dir, _unit, _summary in (
         ("gt_foot_sliding", "gt", "m x 1000 / (frame x toe marker)", "the same of the ground truth")):
     register(MetricInfo(f"o2h_{_name}", "task", _dir, _unit, "physical" if _dir != "gt" else "extras",
                         f"object-to-human: {_summary}", "InterAct object2human/evaluation_metrics.py",
-                        f"{_name} (InterAct o2h)", f"{_IT}:object2human_metrics", **_TASK))
+                        f"{_name} (InterAct o2h)", f"{_IT}:object2human_metrics", **_task(_dir)))
 for _group, _what in _MARKER_GROUPS:
     register(MetricInfo(f"o2h_jpe_{_group}", "task", "lower", "cm", "physical" if _group == "full" else "extras",
                         f"object-to-human: marker error of {_what} (markers lowered to y = 0 first)",
                         "InterAct compute_metrics_marker", f"{_group} jpe (InterAct o2h)",
-                        f"{_IT}:object2human_metrics", **_TASK))
+                        f"{_IT}:object2human_metrics", **_task("lower")))
     for _name, _dir, _unit, _summary in _CONTACT:
         register(MetricInfo(f"o2h_{_name}_{_group}", "task", _dir, _unit,
                             "physical" if _group == "full" and _name == "contact_f1" else "extras",
                             f"object-to-human, {_what}: {_summary}", "contact: marker within 0.05 m of the object",
-                            f"{_group} {_name} (InterAct o2h)", f"{_IT}:object2human_metrics", **_TASK))
+                            f"{_group} {_name} (InterAct o2h)", f"{_IT}:object2human_metrics", **_task(_dir)))
 for _name, _dir, _unit, _summary in (
         ("mpvpe", "lower", "m", "object point error relative to point 0"),
         ("mpmpe", "lower", "m", "object point error"),
@@ -376,7 +384,7 @@ for _name, _dir, _unit, _summary in (
     register(MetricInfo(f"h2o_{_name}", "task", _dir, _unit,
                         "physical" if _name in ("mpvpe", "mpmpe", "t_err", "o_err", "contact_f1") else "extras",
                         f"human-to-object: {_summary}", "contact: a marker within 0.05 m of the object",
-                        f"{_name} (InterAct h2o)", f"{_IT}:human2object_metrics", **_TASK))
+                        f"{_name} (InterAct h2o)", f"{_IT}:human2object_metrics", **_task(_dir)))
 # only in rows copied from papers
 register(MetricInfo("ait_s", "reported", "lower", "s", "reported", "average inference time per sample, as reported"))
 # per-clip columns that are no metric of the whole split

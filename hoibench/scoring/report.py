@@ -78,11 +78,17 @@ def format_result(result: dict) -> str:
     lines += [f"note: {n}" for n in result.get("notes", []) if not any(n.startswith(u + ":") for u in undefined)]
     table = result.get("per_clip")
     if isinstance(table, dict) and table.get("rows"):
-        from .per_clip import worst
-        w = worst(result, 1, "mm_dist")
-        lines.append(f"per-clip table: {len(table['rows'])} test clips (sample {table.get('sample', 0)})"
-                     + (f"; farthest from its text: {w[0]['id']} (mm_dist {w[0]['mm_dist']:.3g})" if w else "")
-                     + "; draw the worst: hoibench render RESULT --worst 5 --by mm_dist --data DATA --out DIR")
+        from .per_clip import sortable_columns, worst
+        head = f"per-clip table: {len(table['rows'])} test clips (sample {table.get('sample', 0)})"
+        if "mm_dist" in table["rows"][0]:
+            w = worst(result, 1, "mm_dist")
+            lines.append(head + (f"; farthest from its text: {w[0]['id']} (mm_dist {w[0]['mm_dist']:.3g})" if w else "")
+                         + "; draw the worst: hoibench render RESULT --worst 5 --by mm_dist --data DATA --out DIR")
+        else:                                   # a task track: its first per-clip metric, no renderer hint
+            cols = sortable_columns()
+            by = next((m for m in result.get("metrics", {}) if m in table["rows"][0] and m in cols), None)
+            w = worst(result, 1, by) if by else []
+            lines.append(head + (f"; worst by {by}: {w[0]['id']} ({w[0][by]:.3g})" if w else ""))
     return "\n".join(lines)
 
 
