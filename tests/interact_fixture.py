@@ -131,3 +131,17 @@ def clip_inputs() -> list[dict]:
             np.float32), "rot": rot.astype(np.float32), "rot6d": rot[:, :2, :].reshape(T, 6).astype(np.float32),
             "trans": trans.astype(np.float32)})
     return clips
+
+
+def prepare_interact_store(raw: Path, data: Path, sequences: int = 12, seed: int = 0, fps: float = 30.0) -> Path:
+    """A synthetic InterAct-layout release of ``sequences`` sequences written to ``raw``,
+    prepared into the store ``data`` at ``fps`` (SMPL-X proxy body models) with its texts:
+    the store the InterAct tests score. Returns ``data``."""
+    from hoibench.datasets import interact
+    from hoibench.datasets.interact_layout import write_interact_layout
+    from hoibench.datasets.store import PrepareConfig, prepare
+    write_interact_layout(raw, sequences, seed=seed)
+    cfg = PrepareConfig("interact", fps=fps, body_model_type="smplx")
+    manifest = prepare(interact.prepare_jobs(raw, raw / "body_models", data, cfg), data, cfg)
+    interact.write_texts(data, manifest)
+    return data

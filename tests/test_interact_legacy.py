@@ -173,20 +173,13 @@ def scored(tmp_path_factory):
     random weights (tests/interact_fixture.py, seeded), the ground truth scored under
     interact-legacy with batches of 4 (a copy of the YAML: the store is smaller than 64 clips)."""
     pytest.importorskip("transformers")
-    from interact_fixture import write_interact_files
-    from hoibench.datasets import interact
-    from hoibench.datasets.interact_layout import write_interact_layout
-    from hoibench.datasets.store import PrepareConfig, prepare
+    from interact_fixture import prepare_interact_store, write_interact_files
     from hoibench.evaluator.backends import import_evaluator
     from hoibench.scoring.evaluate import evaluate
     from hoibench.scoring.submission_write import from_store
     from hoibench.tracks.protocol import get_protocol
     root = tmp_path_factory.mktemp("interact_legacy")
-    write_interact_layout(root / "raw", 12, seed=0)
-    cfg = PrepareConfig("interact", fps=30.0, body_model_type="smplx")
-    manifest = prepare(interact.prepare_jobs(root / "raw", root / "raw" / "body_models", root / "data", cfg),
-                       root / "data", cfg)
-    interact.write_texts(root / "data", manifest)
+    prepare_interact_store(root / "raw", root / "data")
     import_evaluator("interact", root / "ev", **write_interact_files(root / "src"))
     from_store(root / "data", root / "gt")
     text = open(get_protocol("interact-legacy").source).read().replace("pool_size: 64 ", "pool_size: 4 ")

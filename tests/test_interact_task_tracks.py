@@ -24,17 +24,11 @@ STRICT = {"o2h": ("o2h_hand_jpe", "o2h_mpvpe", "o2h_jpe_full", "o2h_contact_f1_f
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     pytest.importorskip("smplx")
-    from hoibench.datasets import interact
-    from hoibench.datasets.interact_layout import write_interact_layout
-    from hoibench.datasets.store import PrepareConfig, prepare
+    from interact_fixture import prepare_interact_store
     from hoibench.scoring.interact_task_files import write_task_reference
     from hoibench.tracks.protocol import get_protocol
     root = tmp_path_factory.mktemp("interact_tasks")
-    write_interact_layout(root / "raw", 12, seed=0)
-    cfg = PrepareConfig("interact", fps=30.0, body_model_type="smplx")
-    manifest = prepare(interact.prepare_jobs(root / "raw", root / "raw" / "body_models", root / "data", cfg),
-                       root / "data", cfg)
-    interact.write_texts(root / "data", manifest)
+    prepare_interact_store(root / "raw", root / "data")
     protos = {}
     for task in TASKS:
         text = open(get_protocol(f"interact-{task}-clean").source).read()

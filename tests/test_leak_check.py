@@ -21,16 +21,11 @@ from hoibench.datasets import leak_motion, leak_text
 @pytest.fixture(scope="module")
 def stores(tmp_path_factory):
     pytest.importorskip("smplx")
-    from hoibench.datasets import interact
-    from hoibench.datasets.interact_layout import write_interact_layout
+    from interact_fixture import prepare_interact_store
     from hoibench.datasets.leak_plant import plant_duplicates
-    from hoibench.datasets.store import PrepareConfig, prepare
     base = tmp_path_factory.mktemp("leak")
     raw, clean = base / "raw", base / "clean"
-    write_interact_layout(raw, 12, seed=0)
-    cfg = PrepareConfig("interact", fps=20.0, body_model_type="smplx")
-    manifest = prepare(interact.prepare_jobs(raw, raw / "body_models", clean, cfg), clean, cfg)
-    interact.write_texts(clean, manifest)
+    prepare_interact_store(raw, clean, fps=20.0)
     planted = plant_duplicates(clean, base / "planted", n=2, seed=0)
     return clean, base / "planted", planted
 
