@@ -1,7 +1,14 @@
 """Shared fixtures: a small synthetic dataset prepared into a store once per session."""
 from __future__ import annotations
 
+import os
+import tempfile
+
 import pytest
+
+# the ground truth's cached statistics (hoibench.scoring.reference_cache) go to a folder of this
+# test run, never to the user's ~/.cache; subprocesses inherit it
+os.environ["HOIBENCH_CACHE"] = tempfile.mkdtemp(prefix="hoibench-test-cache-")
 
 
 @pytest.fixture(scope="session")

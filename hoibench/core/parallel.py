@@ -26,8 +26,9 @@ import concurrent.futures as cf
 import multiprocessing as mp
 import os
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
+from functools import partial
 from collections import deque
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
@@ -155,9 +156,45 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
         yield client.get_executor()
 
 
-def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | ExecutorSpec = "serial",
+@contextmanager
+def warm_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None = None
+                  ) -> Iterator[str | ExecutorSpec | cf.Executor]:
+    """What :func:`map_units` can run on, started now: a process pool is opened at once and
+    every worker is given ``warm = (fn, args)`` (``fn(*args)``, e.g. importing modules and
+    building per-object caches) while the caller works on; it is shut down on exit (abandoned
+    on an error, like :func:`open_executor`). Serial and Dask specs come back as they are (a
+    Dask worker is not chosen by the caller: nothing to warm). Results never depend on the
+    warming: a unit computes whatever a cold worker would."""
+    parsed = parse_executor(spec) if isinstance(spec, str) else spec
+    if parsed.kind != "processes":
+        yield spec
+        return
+    with open_executor(parsed) as ex:
+        if warm is not None:
+            fn, args = warm
+            n = parsed.workers or os.cpu_count() or 1
+            for _ in range(n):        # no idle worker at each submit: one task per new worker
+                with hold_sigint():
+                    ex.submit(_quiet(fn), *args)
+        yield ex
+
+
+def _quiet(fn: Callable) -> Callable:
+    """``fn`` whose failure is swallowed (a warm-up that fails only leaves the cache cold)."""
+    return partial(_call_quietly, fn)
+
+
+def _call_quietly(fn: Callable, *args) -> None:
+    try:
+        fn(*args)
+    except Exception:                 # noqa: BLE001 - the unit that needs it raises the real error
+        pass
+
+
+def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | ExecutorSpec | cf.Executor = "serial",
               progress: str | None = None, window: int | None = None) -> Iterator[Any]:
-    """Yield ``fn(unit)`` for every unit, in input order, running on ``executor``.
+    """Yield ``fn(unit)`` for every unit, in input order, running on ``executor`` (a spec, or
+    an executor already open, e.g. from :func:`warm_executor`, which stays open).
 
     ``serial`` runs each unit when its result is asked for. A pool gets every unit up front,
     or at most ``window`` units ahead of the one being yielded when ``window`` is given
@@ -168,15 +205,17 @@ def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | Ex
     ``HOIBENCH_PROGRESS=1``), else a line every 10 s and one at the end (:class:`LineProgress`);
     ``HOIBENCH_PROGRESS=0`` silences it.
     """
-    spec = parse_executor(executor) if isinstance(executor, str) else executor
+    opened = executor if isinstance(executor, cf.Executor) else None
+    spec = ExecutorSpec("pool") if opened is not None else \
+        parse_executor(executor) if isinstance(executor, str) else executor
     bar = _progress_bar(progress, len(units) if hasattr(units, "__len__") else None)
     finished = False
     try:
-        if spec.kind == "serial":
+        if spec.kind == "serial" or isinstance(opened, _SerialExecutor):
             for unit in units:
                 yield _tick(bar, fn(unit))
         else:
-            yield from _map_pool(fn, units, spec, bar, window)
+            yield from _map_pool(fn, units, spec, bar, window, opened)
         finished = True
     finally:
         if isinstance(bar, LineProgress):
@@ -194,9 +233,10 @@ def _tick(bar, result: Any) -> Any:
 
 
 def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec, bar,
-              window: int | None = None) -> Iterator[Any]:
-    """:func:`map_units` on a process pool or Dask; abandons the pool on any early exit."""
-    with open_executor(spec) as ex:
+              window: int | None = None, opened: cf.Executor | None = None) -> Iterator[Any]:
+    """:func:`map_units` on a process pool or Dask (``opened``: one already open, left open
+    unless the loop ends early); abandons the pool on any early exit."""
+    with (nullcontext(opened) if opened is not None else open_executor(spec)) as ex:
         futures: deque[cf.Future] = deque()
         todo = iter(units)
         limit = max(1, int(window)) if window is not None else None

@@ -352,6 +352,24 @@ def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(),
     return out
 
 
+def warm_fields(root: str, names: Sequence[str], config: PhysicalConfig = PhysicalConfig()) -> int:
+    """Build, in this process, the signed-distance fields (mesh checks and bounds grid) the
+    physical units will ask for: the templates ``names`` of the store at ``root``, with the
+    options :func:`_core_stats` uses (same bytes, so the same cache entries). Run on each pool
+    worker while the main process embeds the ground truth and validates the submission
+    (:func:`hoibench.core.parallel.warm_executor`); returns how many fields were built."""
+    from ..datasets.store import Store
+    store = Store(root)
+    built = 0
+    for name in names:
+        v, f = store.object_template(name)
+        field_ = signed_distance_field(v, f, inside_test=config.inside_test,
+                                       **({} if config.mesh_repair else {"repair": False}))
+        field_._grid()
+        built += 1
+    return built
+
+
 def _unit(inp: ClipInput, config: PhysicalConfig, extra: Sequence = ()) -> tuple:
     """``(key, stats)``; with windows ``(key, {"replications": {r: stats}})``."""
     if inp.windows:

@@ -41,7 +41,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
     with the result's per-clip arrays (:mod:`hoibench.scoring.clip_data`; single-body tracks);
     the result then carries per-slice tables (``slices``, :mod:`hoibench.scoring.slices`).
     """
-    from ..core.parallel import map_units
+    from ..core.parallel import map_units, warm_executor
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
     from ..tracks.registry import track_for
@@ -67,21 +67,24 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
     # the card alone decides a mismatch: refuse it before the weights and the text encoder load
     card = peek_card(evaluator, track.evaluator_kind) if needs_evaluator else {}
     scorer_cls.check_fit(store, proto, card, options)
-    ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options) \
-        if needs_evaluator else None
-    scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
-    scorer.timings["load_s"] = time.perf_counter() - started      # store, protocol, evaluator
-    scorer.prepare()
-    with scorer.open_submission() as sub:
-        if lead is not None:
-            from .validate import foreign_ids_line
-            line = foreign_ids_line(submission, data, list(sub.ids), store.clip_ids("test"))
-            if line:
-                lead(line)
-        ids = scorer.validate(sub)
-        units = scorer.stream(sub, ids)          # sets up the unit's settings before the map
-        for out in map_units(scorer.unit, units, executor, **scorer.map_options):
-            scorer.update(out)
+    # a process pool starts now: its workers build their caches while this process loads the
+    # evaluator, embeds the ground truth and validates the submission
+    with warm_executor(executor, scorer_cls.warm_up(store, proto)) as pool:
+        ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options) \
+            if needs_evaluator else None
+        scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
+        scorer.timings["load_s"] = time.perf_counter() - started      # store, protocol, evaluator
+        scorer.prepare()
+        with scorer.open_submission() as sub:
+            if lead is not None:
+                from .validate import foreign_ids_line
+                line = foreign_ids_line(submission, data, list(sub.ids), store.clip_ids("test"))
+                if line:
+                    lead(line)
+            ids = scorer.validate(sub)
+            units = scorer.stream(sub, ids)          # sets up the unit's settings before the map
+            for out in map_units(scorer.unit, units, pool, **scorer.map_options):
+                scorer.update(out)
     result = scorer.summary(scorer.replications())
     if clip_data:
         from .slices import result_slices

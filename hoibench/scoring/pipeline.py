@@ -55,6 +55,13 @@ class Scorer(ABC):
         """Refuse, before the evaluator is loaded, what its ``card`` (read without weights;
         ``{}`` when unknown) already shows does not fit the store or protocol."""
 
+    @classmethod
+    def warm_up(cls, store, protocol) -> tuple[Callable, tuple] | None:
+        """``(fn, args)`` each pool worker runs before its first unit (building what every
+        unit would otherwise build on first use: :func:`hoibench.core.parallel.warm_executor`),
+        or None. It must not change any result."""
+        return None
+
     # --- stages
     def prepare(self) -> None:
         """Checks that need no submission, and the ground truth's statistics."""
