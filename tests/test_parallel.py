@@ -28,3 +28,35 @@ def test_line_progress_for_logs_and_silence_on_error(monkeypatch, capsys):
     monkeypatch.setenv("HOIBENCH_PROGRESS", "0")
     list(parallel.map_units(abs, [-1], progress="demo"))
     assert capsys.readouterr().err == ""
+
+
+def _threads_and_warm(_unit):
+    """In a pool worker: torch's thread count once a unit imports it, and whether the warm-up ran."""
+    import os
+    import torch
+    return torch.get_num_threads(), os.environ.get("HOIBENCH_TEST_WARMED")
+
+
+def _mark_warm(value):
+    import os
+    os.environ["HOIBENCH_TEST_WARMED"] = value
+
+
+def _fail_warm(_value):
+    raise RuntimeError("a warm-up that fails leaves the worker cold, nothing else")
+
+
+def test_warm_executor_runs_the_warm_up_on_each_worker_and_units_get_one_thread():
+    """A warmed pool: every worker ran the warm-up before its units; torch, imported by a unit,
+    gets one thread (the worker set OMP_NUM_THREADS instead of importing it); the pool stays
+    open across map_units calls; a failing warm-up changes nothing; serial specs pass through."""
+    from hoibench.core.parallel import map_units, warm_executor
+    with warm_executor("processes:2", (_mark_warm, ("yes",))) as pool:
+        first = list(map_units(_threads_and_warm, range(6), pool))
+        second = list(map_units(_threads_and_warm, range(2), pool))
+    assert {t for t, _ in first + second} == {1}
+    assert {w for _, w in first + second} == {"yes"}
+    with warm_executor("processes:1", (_fail_warm, ("x",))) as pool:
+        assert [t for t, _ in map_units(_threads_and_warm, range(2), pool)] == [1, 1]
+    with warm_executor("serial", (_mark_warm, ("no",))) as spec:
+        assert spec == "serial" and list(map_units(abs, [-3], spec)) == [3]

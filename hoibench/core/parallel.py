@@ -28,7 +28,6 @@ import os
 import time
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
-from functools import partial
 from collections import deque
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
@@ -93,22 +92,26 @@ def _single_threaded_children() -> Iterator[None]:
 
 def _single_threaded_worker() -> None:
     """One compute thread per worker process: N workers x M library threads would
-    oversubscribe the cores (torch and BLAS default to one thread per core)."""
+    oversubscribe the cores (torch and BLAS default to one thread per core). torch is not
+    imported for this (2 s a worker, and the physical units never use it): it reads
+    ``OMP_NUM_THREADS`` when a unit first imports it; if it is already loaded it is told."""
+    import sys
     for var in _THREAD_VARS:
         os.environ[var] = "1"
-    try:
-        import torch
+    torch = sys.modules.get("torch")
+    if torch is not None:
         torch.set_num_threads(1)
-    except ImportError:  # pragma: no cover
-        pass
 
 
-def _pool_worker(parent_pid: int) -> None:
+def _pool_worker(parent_pid: int, warm: tuple[Callable, tuple] | None = None) -> None:
     """Process-pool initializer: dies with ``parent_pid``, ignores SIGINT (the parent
-    decides), one compute thread."""
+    decides), one compute thread; then ``warm = (fn, args)`` if given (a failure is ignored:
+    it only leaves the worker's caches cold)."""
     die_with_parent(parent_pid)
     ignore_sigint()
     _single_threaded_worker()
+    if warm is not None:
+        _call_quietly(warm[0], *warm[1])
 
 
 class _SerialExecutor(cf.Executor):
@@ -122,8 +125,9 @@ class _SerialExecutor(cf.Executor):
 
 
 @contextmanager
-def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
-    """A ``concurrent.futures.Executor`` for ``spec``, shut down on exit."""
+def open_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None = None) -> Iterator[cf.Executor]:
+    """A ``concurrent.futures.Executor`` for ``spec``, shut down on exit; a process pool's
+    workers run ``warm = (fn, args)`` when they start (:func:`_pool_worker`)."""
     spec = parse_executor(spec) if isinstance(spec, str) else spec
     if spec.kind == "serial":
         yield _SerialExecutor()
@@ -132,7 +136,7 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
         with _single_threaded_children():
             ex = cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
                                         mp_context=mp.get_context("spawn"),
-                                        initializer=_pool_worker, initargs=(os.getpid(),))
+                                        initializer=_pool_worker, initargs=(os.getpid(), warm))
         try:
             yield ex
             ex.shutdown(wait=True)        # an interrupt while waiting for the workers: abandoned below
@@ -159,29 +163,25 @@ def open_executor(spec: str | ExecutorSpec) -> Iterator[cf.Executor]:
 @contextmanager
 def warm_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None = None
                   ) -> Iterator[str | ExecutorSpec | cf.Executor]:
-    """What :func:`map_units` can run on, started now: a process pool is opened at once and
-    every worker is given ``warm = (fn, args)`` (``fn(*args)``, e.g. importing modules and
-    building per-object caches) while the caller works on; it is shut down on exit (abandoned
-    on an error, like :func:`open_executor`). Serial and Dask specs come back as they are (a
+    """What :func:`map_units` can run on, started now: a process pool is opened and its
+    workers started at once, each running ``warm = (fn, args)`` (``fn(*args)``, e.g. building
+    per-object caches) as it starts, while the caller works on; it is shut down on exit
+    (abandoned on an error, like :func:`open_executor`). Serial and Dask specs come back as they are (a
     Dask worker is not chosen by the caller: nothing to warm). Results never depend on the
     warming: a unit computes whatever a cold worker would."""
     parsed = parse_executor(spec) if isinstance(spec, str) else spec
     if parsed.kind != "processes":
         yield spec
         return
-    with open_executor(parsed) as ex:
-        if warm is not None:
-            fn, args = warm
-            n = parsed.workers or os.cpu_count() or 1
-            for _ in range(n):        # no idle worker at each submit: one task per new worker
-                with hold_sigint():
-                    ex.submit(_quiet(fn), *args)
+    with open_executor(parsed, warm) as ex:
+        for _ in range(parsed.workers or os.cpu_count() or 1):
+            with hold_sigint():           # no worker idle at each submit: each starts one now
+                ex.submit(_noop)
         yield ex
 
 
-def _quiet(fn: Callable) -> Callable:
-    """``fn`` whose failure is swallowed (a warm-up that fails only leaves the cache cold)."""
-    return partial(_call_quietly, fn)
+def _noop() -> None:
+    """A task that only makes the pool start a worker."""
 
 
 def _call_quietly(fn: Callable, *args) -> None:
