@@ -174,9 +174,13 @@ def warm_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None 
         yield spec
         return
     with open_executor(parsed, warm) as ex:
-        for _ in range(parsed.workers or os.cpu_count() or 1):
-            with hold_sigint():           # no worker idle at each submit: each starts one now
-                ex.submit(_noop)
+        # each submit finds no idle worker and starts one, with one-thread settings in its
+        # environment: unpickling the warm-up's arguments may import numpy (and size BLAS's
+        # thread pool) before the initializer runs
+        with _single_threaded_children():
+            for _ in range(parsed.workers or os.cpu_count() or 1):
+                with hold_sigint():
+                    ex.submit(_noop)
         yield ex
 
 
