@@ -93,7 +93,7 @@ def load_reference(key: str, n_clips: int) -> tuple[np.ndarray, list[np.ndarray]
         if str(z["format"]) != FORMAT or str(z["key"]) != key:
             return None
         real, captions, counts = z["real"], z["captions"], z["caption_counts"]
-        gate = json.loads(str(z["gate"]))
+        gate = json.loads(str(z["gate"]))   # read-ok: a member of the npz read through load_raw_npz
     except (KeyError, ValueError, TypeError):
         return None
     if len(real) != n_clips or len(counts) != n_clips or int(counts.sum()) != len(captions):
