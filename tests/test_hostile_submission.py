@@ -382,3 +382,38 @@ def test_write_submission_refuses_ids_outside_the_rule(tmp_path):
     with pytest.raises(ValueError, match="not a valid id"):
         S.write_submission(tmp_path / "s", {"method": "m"}, {"../evil": {"joints": np.zeros((1, 2, 22, 3))}})
     assert not (tmp_path / "evil.npz").exists() and not (tmp_path / "s").exists()
+
+
+def test_batched_encoding_keeps_each_samples_features_and_its_own_message(gt_sub, tmp_path):
+    """Validation encodes the samples in batches (EncodeBatcher): the features it keeps for
+    scoring are bit-identical to encoding each sample alone, and a file whose second sample
+    encodes to non-finite features is refused with the message the one-at-a-time check gives
+    (naming sample 1 and the frame), while the other files stay valid."""
+    import shutil
+    from hoibench.scoring.read_cache import ReadCache
+    from hoibench.scoring.validate import validation_report
+    from hoibench.scoring.validate_arrays import ClipContext, _check_encodes, encode_sample
+    data, sub, ids = gt_sub
+    mine = tmp_path / "sub"
+    shutil.copytree(sub, mine)
+    bad = ids[0]
+    a = _arrays(mine, bad)
+    a = {k: np.concatenate([v, v], 0) for k, v in a.items()}         # K = 2 ...
+    a["joints"][1, 4, 2] = a["joints"][1, 4, 1]                      # ... the second: coincident hips and
+    a["joints"][1, 4, 17] = a["joints"][1, 4, 16]                    # shoulders at frame 4 (no facing)
+    _save(mine, bad, a)
+    for sid in ids[1:]:                                              # every other file: K = 2 as well
+        b = _arrays(mine, sid)
+        _save(mine, sid, {k: np.concatenate([v, v], 0) for k, v in b.items()})
+    cache = ReadCache()
+    report = validation_report(mine, data, keep=cache)
+    (problem,) = [p for p in report.problems if p.id == bad and p.severity == "error"]
+    fps = 20.0
+    alone = _check_encodes(bad, _arrays(mine, bad), ClipContext(0, True, fps, False, 30, "clean"))
+    assert problem.field == "joints" and problem.message == alone[0].message and "sample 1" in problem.message
+    assert sorted(report.valid_ids) == sorted(ids[1:]) and cache.take_arrays(bad) is None
+    for sid in ids[1:]:
+        arrays = _arrays(mine, sid)
+        for k in range(2):
+            kept = cache.take_features(sid, k)
+            assert kept is not None and np.array_equal(kept, encode_sample(arrays, k, "clean", fps))

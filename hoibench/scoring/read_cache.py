@@ -49,6 +49,14 @@ class ReadCache:
         self.hits += 1
         return got if keys is None else {k: v for k, v in got.items() if k in set(keys)}
 
+    def drop(self, sid: str) -> None:
+        """Forget the arrays and features of ``sid`` (a file found invalid after it was kept)."""
+        got = self.arrays.pop(sid, None)
+        if got is not None:
+            self.used -= sum(int(a.nbytes) for a in got.values())
+        for key in [key for key in self.encoded if key[0] == sid]:
+            self.used -= int(self.encoded.pop(key).nbytes)
+
     def take_features(self, sid: str, k: int) -> np.ndarray | None:
         got = self.encoded.pop((sid, k), None)
         if got is not None:

@@ -21,7 +21,7 @@ import numpy as np
 from ..core.ids import ID_RULE, is_valid_id
 from .submission_read import (DEFAULT_MAX_SAMPLES_PER_PROMPT, KNOWN_ARRAYS, SAMPLES_DIR, SUBMISSION_JSON, ArrayHeader,
                               Problem, Submission, SubmissionError, SubmissionLimits, limits_for, max_frames)
-from .validate_arrays import ClipContext, check_arrays
+from .validate_arrays import ClipContext, EncodeBatcher, check_arrays
 
 ACCEPTED_DTYPES = (np.dtype("float32"), np.dtype("float64"))
 REQUIRED_FIELDS = {"method": str, "version": str, "representation": str, "fps": (int, float)}
@@ -315,6 +315,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         refused = {p.id for p in problems if p.severity == "error" and p.id != "*"}
         valid, ks, ups = [], {}, {}
         sink = feature_sink(keep)
+        batcher = EncodeBatcher(mode, fps, sink)
         for sid in test_ids:
             if sid not in found or sid in refused:
                 continue
@@ -324,7 +325,7 @@ def validation_report(sub, store, split: str = "test", protocol=None,
             else:
                 ctx = ClipContext(int(rows[sid]["frames"]), bool(rows[sid].get("object")), fps,
                                   bool(flags.get("uses_gt_length", False)) is True, cap, mode, required,
-                                  human_only=flags.get("human_only") is True, encoded=sink)
+                                  human_only=flags.get("human_only") is True, encoded=sink, batcher=batcher)
                 probs, K, up = _check_clip(s, sid, ctx, keep)
             problems += probs
             if K is not None:
@@ -333,6 +334,13 @@ def validation_report(sub, store, split: str = "test", protocol=None,
                 ups[sid] = up
             if not any(p.severity == "error" for p in probs):
                 valid.append(sid)
+        late = batcher.finish()             # the samples' encodings, checked in batches
+        if late:
+            problems += late.values()
+            valid = [sid for sid in valid if sid not in late]
+            if keep is not None:
+                for sid in late:
+                    keep.drop(sid)               # kept before its encoding failed
         kvals = sorted(set(ks.values()))
         spp = flags.get("samples_per_prompt")
         if len(kvals) > 1:
