@@ -19,7 +19,10 @@ InterAct-layout store scored with InterAct's evaluator architecture under random
    under ``interact-legacy``) with ``--allow-failed-gate``; with ``--add`` the
    ``interact-clean`` results are added to ``leaderboards/interact`` (``hoibench leaderboard
    add --replace``: a track's page holds the rows of one protocol, its default); the
-   ``interact-legacy`` figures are the ones docs/metrics.md compares.
+   ``interact-legacy`` figures are the ones docs/metrics.md compares;
+5. with ``--physics DIR`` every row is also scored under ``interact-clean@1.1`` (the physics
+   tier, a preview) into ``DIR/<entry name>.json``, the folder ``benchmarks/physics_rows.py
+   --results DIR --entries leaderboards/interact/entries`` reads.
 
 Prints one line per row (the headline metrics). Deterministic for the seeds above.
 """
@@ -97,6 +100,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", type=Path, required=True, help="a new folder for the store, evaluator and results")
     ap.add_argument("--add", action="store_true", help="add the results to leaderboards/interact")
+    ap.add_argument("--physics", type=Path, default=None,
+                    help="also score every row under interact-clean@1.1 (physics tier) into this folder")
     args = ap.parse_args()
     w = args.work
     if not (w / "data").is_dir():
@@ -115,8 +120,12 @@ def main() -> int:
             res = w / f"{kind}-{proto}.json"
             if not res.exists():
                 _run(HB + ["evaluate", subs[kind], "--data", w / "data", "--evaluator", w / "ev", "--protocol", proto,
-                           "--allow-failed-gate", "--out", res], ok=(0, 1), stdout=subprocess.DEVNULL)
-                # exit 1: scored but marked (the failed gate's override), as every row here
+                           "--allow-failed-gate", "--out", res], ok=(0, 1, 2), stdout=subprocess.DEVNULL)
+                # exit 1: scored but marked (the failed gate's override), as every row here; exit 2:
+                # refused (interact-legacy keeps clips of 40-300 frames, the synthetic ones have 36)
+            if not res.exists():
+                print(f"{method:22s} {proto:16s} refused (its one line is above)")
+                continue
             r = json.loads(res.read_text())
             line = {k: round(r["metrics"][k]["mean"], 4) for k in ("r_precision_top1", "fid", "mm_dist", "diversity")
                     if k in r["metrics"]}
@@ -125,6 +134,14 @@ def main() -> int:
                 name = f"{method} (random-weight evaluator)"
                 _run(HB + ["leaderboard", "add", res, "--track", "interact", "--method", name, "--role", role,
                            "--notes", NOTE, "--allow-incomplete", "--replace", "--root", ROOT / "leaderboards"])
+        if args.physics is not None:
+            from hoibench.publish.leaderboard import slug
+            res = args.physics / f"{slug(f'{method} (random-weight evaluator)')}.json"
+            if not res.exists():
+                args.physics.mkdir(parents=True, exist_ok=True)
+                _run(HB + ["evaluate", subs[kind], "--data", w / "data", "--evaluator", w / "ev", "--protocol",
+                           "interact-clean@1.1", "--executor", "processes:2", "--allow-failed-gate", "--out", res],
+                     ok=(0, 1), stdout=subprocess.DEVNULL)
     return 0
 
 
