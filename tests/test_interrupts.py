@@ -229,7 +229,9 @@ def test_strict_stops_at_the_first_failing_sequence(raw, tmp_path):
     assert len(lines) == 1 and "--strict" in lines[0] and victim in lines[0], res.stderr
     errors = [json.loads(line) for line in (out / "errors.jsonl").read_text().splitlines()]
     assert [e["sequence"] for e in errors] == [victim]
-    assert len(_clips(out)) <= N_CLIPS // 3
+    # the units in flight when the failure is seen still finish: how many depends on how fast the
+    # two workers start (4-5 of 12 measured), never the whole run
+    assert len(_clips(out)) <= N_CLIPS // 2
     assert not (out / "manifest.json").exists()
 
 

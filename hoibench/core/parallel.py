@@ -247,7 +247,10 @@ def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec
 
         def fill() -> None:
             for unit in todo:             # reading the next unit may be interrupted at once
-                with hold_sigint():       # a submit is not: workers start with SIGINT blocked
+                # a submit is not: workers start with SIGINT blocked, and in the one-thread
+                # environment (a submit may start a worker, which may import numpy before its
+                # initializer runs)
+                with hold_sigint(), _single_threaded_children():
                     futures.append(ex.submit(fn, unit))
                 if limit is not None and len(futures) >= limit:
                     return
