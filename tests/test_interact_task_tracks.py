@@ -218,3 +218,16 @@ def test_the_documented_generation_loop_makes_a_valid_submission(setup, tmp_path
     exec(code, {"my_model": my_model})
     rep = validation_report(tmp_path / "my_o2h", root / "data", protocol="interact-o2h-clean")
     assert rep.complete and rep.samples_per_prompt == 2, [str(p) for p in rep.problems]
+
+
+def test_a_task_protocol_on_another_datasets_store_is_refused_in_one_line(template_store, tmp_path, capsys):
+    """prompts and reference rows refuse an o2h/h2o protocol on a store of another dataset, as
+    evaluate does, instead of writing the store's own rows under it."""
+    for argv in (["submission", "prompts", str(template_store), "--protocol", "interact-h2o-clean",
+                  "--out", str(tmp_path / "p.jsonl")],
+                 ["submission", "reference", str(template_store), "--protocol", "interact-o2h-clean", "--kind", "gt",
+                  "--out", str(tmp_path / "ref")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "interact-task protocol" in err and "synthetic track" in err, err
+    assert not (tmp_path / "p.jsonl").exists() and not (tmp_path / "ref").exists()

@@ -44,17 +44,16 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
     from ..core.parallel import map_units, warm_executor
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
-    from ..tracks.registry import track_for
+    from ..tracks.registry import protocol_misfit, track_for
     from .pipeline import get_scorer
 
     started = time.perf_counter()
     store = Store(Path(data))
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
     track = track_for(store, proto if protocol else None)
-    if proto.kind != track.protocol_kind:
-        raise EvaluationRefused(f"protocol {proto.ref} is a {proto.kind} protocol; {data} is a store of the "
-                                f"{track.name} track, scored under {track.protocol_kind} protocols "
-                                f"({', '.join(track.protocols)})")
+    misfit = protocol_misfit(store, proto, track)
+    if misfit:
+        raise EvaluationRefused(misfit)
     scorer_cls = get_scorer(track.scorer)
     needs_evaluator = track.evaluator_kind != "none"          # InterAct's o2h/h2o tracks read none
     if needs_evaluator and evaluator is None:

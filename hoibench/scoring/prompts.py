@@ -50,8 +50,13 @@ def task_of(st: Store, protocol=None) -> str | None:
     if protocol is None:
         return None
     from ..tracks.protocol import get_protocol
-    from ..tracks.registry import track_for
-    return track_for(st, get_protocol(protocol)).extras.get("task")
+    from ..tracks.registry import protocol_misfit, track_for
+    proto = get_protocol(protocol)
+    track = track_for(st, proto)
+    misfit = protocol_misfit(st, proto, track)
+    if misfit:
+        raise ValueError(f"--protocol {protocol}: {misfit}")
+    return track.extras.get("task")
 
 
 def prompts(data: str | Path, split: str = "test", protocol=None, conditions: str | Path | None = None) -> list[dict]:

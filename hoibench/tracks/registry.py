@@ -81,5 +81,15 @@ def track_for(store, protocol=None) -> Track:
     return named if str(store.manifest.get("dataset", "")) in named.datasets else default
 
 
-__all__ = ["track_for", "track_for_store", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
+def protocol_misfit(store, protocol, track: Track | None = None) -> str | None:
+    """Why ``protocol`` cannot score ``store`` (its track, :func:`track_for`, takes protocols
+    of another kind: a protocol made for another dataset's track), or None when it fits."""
+    track = track or track_for(store, protocol)
+    if protocol is None or protocol.kind == track.protocol_kind:
+        return None
+    return (f"protocol {protocol.ref} is a {protocol.kind} protocol; {store.root} is a store of the {track.name} "
+            f"track, scored under {track.protocol_kind} protocols ({', '.join(track.protocols)})")
+
+
+__all__ = ["track_for", "track_for_store", "protocol_misfit", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
            "track_for_dataset"]
