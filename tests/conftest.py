@@ -1,14 +1,17 @@
 """Shared fixtures: a small synthetic dataset prepared into a store once per session."""
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 
 import pytest
 
 # the ground truth's cached statistics (hoibench.scoring.reference_cache) go to a folder of this
-# test run, never to the user's ~/.cache; subprocesses inherit it
+# test run, never to the user's ~/.cache; subprocesses inherit it; removed when the run ends
 os.environ["HOIBENCH_CACHE"] = tempfile.mkdtemp(prefix="hoibench-test-cache-")
+atexit.register(shutil.rmtree, os.environ["HOIBENCH_CACHE"], True)
 
 
 @pytest.fixture(scope="session")
