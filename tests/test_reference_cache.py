@@ -104,3 +104,13 @@ def test_a_damaged_file_is_recomputed_and_the_cache_can_be_off(annotated_store_w
         monkeypatch.setenv(rc.CACHE_ENV, off)
         assert rc.cache_dir() is None
         assert rc.save_reference("k", first.st.real_all, first.st.sets_all, first.st.gate) is None
+
+
+def test_an_evaluator_without_a_content_id_is_never_cached(annotated_store_with_evaluator, cache):
+    """Evaluators built in memory have no verified id: two of them must not share statistics."""
+    _, data, ev = annotated_store_with_evaluator
+    s = _scorer(data, ev)
+    s.ev.card = {k: v for k, v in s.ev.card.items() if k != "evaluator_id"}
+    assert s.ev.id is None
+    s.prepare()
+    assert not cache.exists() or not list(cache.glob("*.npz"))

@@ -327,15 +327,17 @@ class HOIScorer(Scorer):
             raise EvaluationRefused(f"{data}: no texts for {len(no_text)} test clip(s) (e.g. {no_text[0]}); "
                                     f"run hoibench annotate first")
         from .reference_cache import load_reference, reference_key, save_reference
-        key = reference_key(store, proto, ev.id, test_ids, lines, self.st.mode, self.st.fps)
-        cached = load_reference(key, len(test_ids))
+        # only an evaluator identified by its content (a loaded folder's verified id) is cached
+        key = reference_key(store, proto, ev.id, test_ids, lines, self.st.mode, self.st.fps) if ev.id else None
+        cached = load_reference(key, len(test_ids)) if key else None
         if cached is not None:
             self.st.real_all, self.st.sets_all, self.st.gate = cached
         else:
             self.st.real_all, self.st.sets_all = self._ground_truth_embeddings(test_ids, lines)
             # the gate from the weights, on this store
             self.st.gate = gate_from_embeddings(self.st.real_all, self.st.sets_all, test_ids, proto)
-            save_reference(key, self.st.real_all, self.st.sets_all, self.st.gate)
+            if key:
+                save_reference(key, self.st.real_all, self.st.sets_all, self.st.gate)
         gate = self.st.gate
         if not gate["passed"]:
             if not opts.get("allow_failed_gate", False):

@@ -10,7 +10,8 @@ the caption embeddings of every test clip and the gate record.
 The key (sha256) covers everything the statistics are computed from: the toolkit version and
 its source files' bytes, the store's manifest sha256, each scored test clip's id, file size and modification time, its
 caption lines (text and tokens), the evaluator id (its weights and card), the protocol's
-sha256, the representation mode and frame rate. Anything else changing gives another key. A
+sha256, the representation mode and frame rate. Anything else changing gives another key. An
+evaluator without a verified content id (one built in memory) is never cached. A
 cached file holds the very arrays a fresh computation gives (float32 embeddings saved
 losslessly, the gate as the same JSON), so results are byte-identical with or without it
 (tested). A file that cannot be read is ignored and recomputed; a cache that cannot be
