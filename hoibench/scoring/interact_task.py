@@ -16,8 +16,8 @@ value in the catalogue's units):
 The sample whose ``selection`` metric is best (lowest JPE of all markers for o2h, lowest
 MPVPE for h2o; the first on ties) is kept, and every metric is read from it. A metric's value
 is the mean over the scored sequences, ``mean_i v_i``; its 95% interval is the 2.5 and 97.5
-percentiles of that mean over 1,000 seeded clip-bootstrap draws (:data:`CLIP_RESAMPLES`,
-:func:`hoibench.metrics.resampling.bootstrap_weights`), recorded as ``clips.ci95`` with the
+percentiles of that mean over 1,000 seeded clip-bootstrap draws
+(:func:`hoibench.scoring.paired.mean_intervals`, as the single-body scorer's clip intervals), recorded as ``clips.ci95`` with the
 half-width ``(hi - lo) / 2`` as ``ci95``. No evaluator is read. Units run on any executor and
 are reduced in sorted id order, so every executor gives the same numbers.
 """
@@ -33,11 +33,10 @@ from .. import __version__
 from ..metrics.catalog import METRICS
 from ..metrics.interact_tasks import best_sample, human2object_metrics, object2human_metrics
 from .interact_task_files import ground_truth, posed, sample_poses
+from .paired import CLIP_RESAMPLES, mean_intervals
 from .pipeline import EvaluationRefused, Scorer
 from .results import RESULT_FORMAT, metric_entry
 
-#: clip-bootstrap draws of each metric's interval (the single-body scorer's number at K = 1)
-CLIP_RESAMPLES = 1000
 _RENAME = {"contact_f1_score": "contact_f1"}
 
 
@@ -79,18 +78,6 @@ def score_clip(job: tuple) -> tuple[str, dict]:
     picks = [p[selection] for p in per]
     k = best_sample(picks, higher_is_better=METRICS[selection].direction == "higher")
     return cid, {"sample": k, "values": per[k], "selection_values": picks}
-
-
-def clip_interval(values: np.ndarray, seed: int, resamples: int = CLIP_RESAMPLES) -> list[float] | None:
-    """[lo, hi]: the 2.5 and 97.5 percentiles of the mean of ``values`` (one per clip) over
-    ``resamples`` seeded clip-bootstrap draws; None for fewer than 2 clips."""
-    from ..metrics.resampling import bootstrap_weights
-    if len(values) < 2:
-        return None
-    W = bootstrap_weights(len(values), resamples, seed)
-    means = W @ values / W.sum(1)
-    lo, hi = np.percentile(means, [2.5, 97.5])
-    return [float(lo), float(hi)]
 
 
 def ground_truth_values(metrics: dict) -> dict[str, float]:
@@ -170,14 +157,14 @@ class InteractTaskScorer(Scorer):
                 for cid in sorted(self.outputs)]
 
     def _metrics(self, rows: list[dict]) -> dict:
-        seed = 0                                            # the draws are fixed: same ids, same intervals
+        values = {name: np.array([r[name] for r in rows], np.float64) for name in self.proto.metrics}
+        intervals = mean_intervals(values, CLIP_RESAMPLES, seed=0)   # fixed draws: same ids, same intervals
         out = {}
-        for name in self.proto.metrics:
-            v = np.array([r[name] for r in rows], np.float64)
-            ci = clip_interval(v, seed)
-            extra = {"clips": {"ci95": ci, "resamples": CLIP_RESAMPLES, "over": "test clips"}} if ci else {}
-            out[name] = metric_entry(name, float(v.mean()), None if ci is None else (ci[1] - ci[0]) / 2, len(v),
-                                     "clips", **extra)
+        for name, v in values.items():
+            clips = intervals.get(name)
+            extra = {"clips": clips} if clips else {}
+            half = None if clips is None else (clips["ci95"][1] - clips["ci95"][0]) / 2
+            out[name] = metric_entry(name, float(v.mean()), half, len(v), "clips", **extra)
         return out
 
     def summary(self, rows: list[dict]) -> dict:
@@ -210,4 +197,4 @@ class InteractTaskScorer(Scorer):
         }
 
 
-__all__ = ["InteractTaskScorer", "task_values", "sample_values", "score_clip", "clip_interval", "CLIP_RESAMPLES"]
+__all__ = ["InteractTaskScorer", "task_values", "sample_values", "score_clip"]

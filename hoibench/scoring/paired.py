@@ -315,6 +315,24 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
         pairs = int(min(proto.diversity_pairs or 300, 300))
         got = _set_level_draws([side.motion], side.real, W, pairs, seed)
         boot.update(fid=got["fid"][:, 0], diversity=got["div"][:, 0])
+    return _percentile_intervals(boot, resamples)
+
+
+def mean_intervals(values: dict[str, np.ndarray], resamples: int = CLIP_RESAMPLES,
+                   seed: int = 0) -> dict[str, dict]:
+    """:func:`clip_intervals`' records for metrics that are means of per-clip ``values``
+    (``{metric: (N,)}``, aligned clips; NaN clips left out): the 2.5 and 97.5 percentiles of
+    the mean over ``resamples`` seeded draws of the N clips; none below 2 clips."""
+    n = len(next(iter(values.values()), ()))
+    if n < 2:
+        return {}
+    W = bootstrap_weights(n, resamples, seed).astype(np.float64)
+    return _percentile_intervals({m: _means(np.asarray(v, np.float64), W) for m, v in values.items()}, resamples)
+
+
+def _percentile_intervals(boot: dict[str, np.ndarray], resamples: int) -> dict[str, dict]:
+    """``{metric: {"ci95": [2.5th, 97.5th percentile], "resamples", "over"}}`` of each metric's
+    draws (non-finite draws left out; a metric with fewer than 2 gets none)."""
     out = {}
     for m, v in boot.items():
         v = v[np.isfinite(v)]
@@ -370,5 +388,5 @@ def clip_values(arrays: dict, proto) -> dict[str, np.ndarray]:
     return side.per_clip()
 
 
-__all__ = ["paired_compare", "compare_pair", "compare_many", "clip_values", "favours_b", "check_same_scale", "format_paired", "clip_intervals", "per_clip_draws",
+__all__ = ["paired_compare", "compare_pair", "compare_many", "clip_values", "favours_b", "check_same_scale", "format_paired", "clip_intervals", "mean_intervals", "per_clip_draws",
            "set_level_draws", "MIN_RESAMPLES", "CLIP_RESAMPLES"]
