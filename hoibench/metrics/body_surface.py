@@ -167,10 +167,12 @@ def joint_global_rotations(joints, rest_joints) -> np.ndarray:
     return R
 
 
-def proxy_vertices_from_joints(joints, frames: slice | None = None) -> np.ndarray:
+def proxy_vertices_from_joints(joints, frames: slice | None = None, vertices=None) -> np.ndarray:
     """Proxy body surface (T, 6890, 3) float64, metres, posed to ``joints`` (T, 22, 3).
 
-    ``frames`` limits the output to some frames (the scale still comes from the whole clip).
+    ``frames`` limits the output to some frames (the scale still comes from the whole clip);
+    ``vertices`` (vertex ids) to those vertices, in that order (T, len(vertices), 3), each
+    posed exactly as in the whole surface.
     """
     J = np.asarray(joints, dtype=np.float64)
     if J.ndim != 3 or J.shape[1:] != (sk.NUM_JOINTS, 3):
@@ -179,31 +181,22 @@ def proxy_vertices_from_joints(joints, frames: slice | None = None) -> np.ndarra
     s = body_scale(J)
     Jf = J if frames is None else J[frames]
     R = joint_global_rotations(Jf, rest * s)
-    out = np.empty((len(Jf), len(v_template), 3))
+    ids = None if vertices is None else np.asarray(vertices, dtype=np.int64)
+    out = np.empty((len(Jf), len(v_template) if ids is None else len(ids), 3))
     for j, idx in groups:
-        local = (v_template[idx] - rest[j]) * s                      # (n, 3)
-        out[:, idx] = _rigid(R[:, j], Jf[:, j], local)
+        where = idx if ids is None else np.flatnonzero(np.isin(ids, idx))   # output rows of this joint's part
+        if len(where):
+            local = (v_template[idx if ids is None else ids[where]] - rest[j]) * s      # (n, 3)
+            out[:, where] = _rigid(R[:, j], Jf[:, j], local)
     return out
 
 
 def proxy_markers(joints) -> np.ndarray:
     """InterAct's 77 markers (T, 77, 3) float64, metres, on the proxy body posed to ``joints``
     (T, 22, 3): the SMPL-H marker vertices (:data:`hoibench.bodies.markers.MARKERS_SMPLH`) of
-    :func:`proxy_vertices_from_joints`, posed alone."""
+    :func:`proxy_vertices_from_joints`."""
     from ..bodies.markers import MARKERS_SMPLH
-    J = np.asarray(joints, dtype=np.float64)
-    if J.ndim != 3 or J.shape[1:] != (sk.NUM_JOINTS, 3):
-        raise ValueError(f"joints: expected shape (T, 22, 3), got {J.shape}")
-    v_template, _, rest, groups = _proxy()
-    s = body_scale(J)
-    R = joint_global_rotations(J, rest * s)
-    ids = np.asarray(MARKERS_SMPLH)
-    out = np.empty((len(J), len(ids), 3))
-    for j, idx in groups:
-        keep = np.flatnonzero(np.isin(ids, idx))
-        if len(keep):
-            out[:, keep] = _rigid(R[:, j], J[:, j], (v_template[ids[keep]] - rest[j]) * s)
-    return out
+    return proxy_vertices_from_joints(joints, vertices=MARKERS_SMPLH)
 
 
 def proxy_template_points(joints, frames: slice, field, obj_rot, obj_trans,
