@@ -206,12 +206,16 @@ def _check_rotations(sid: str, R: np.ndarray) -> list[Problem]:
 def encode_sample(arrays: Mapping[str, np.ndarray], k: int, mode: str, fps: float) -> np.ndarray:
     """Features evaluate embeds for sample ``k``: hoi269 rows when the object pose is given,
     hml263 rows otherwise (``mode``: ``clean`` | ``legacy``)."""
+    return _encode_parts(*_encode_inputs(arrays, k), mode, fps)
+
+
+def _encode_parts(joints, rot, trans, mode: str, fps: float) -> np.ndarray:
+    """hoi269 rows of ``joints``, ``rot``, ``trans``, or hml263 rows when ``rot`` is None; one
+    sample (T, ...) or a batch (B, T, ...)."""
     from ..representations import hml263, hoi269
-    joints = arrays["joints"][k]
-    if "obj_trans" in arrays and ("obj_rot" in arrays or "obj_rotvec" in arrays):
-        rot = arrays["obj_rot"][k] if "obj_rot" in arrays else arrays["obj_rotvec"][k]
-        return hoi269.encode(joints, rot, arrays["obj_trans"][k], mode=mode, fps=fps)
-    return hml263.encode(joints, mode=mode, fps=fps)
+    if rot is None:
+        return hml263.encode(joints, mode=mode, fps=fps)
+    return hoi269.encode(joints, rot, trans, mode=mode, fps=fps)
 
 
 def _encode_inputs(arrays: Mapping[str, np.ndarray], k: int) -> tuple:
@@ -250,12 +254,9 @@ class EncodeBatcher:
         self.groups: dict[tuple, list[tuple[str, int, tuple]]] = {}
         self.done: dict[str, dict[int, np.ndarray]] = {}
         self.failed: dict[str, tuple[int, Problem]] = {}
-        self.samples: dict[str, int] = {}
 
     def add(self, sid: str, arrays: Mapping[str, np.ndarray]) -> None:
-        K = len(arrays["joints"])
-        self.samples[sid] = K
-        for k in range(K):
+        for k in range(len(arrays["joints"])):
             parts = _encode_inputs(arrays, k)
             key = tuple(None if a is None else (np.asarray(a).shape, np.asarray(a).dtype.str) for a in parts)
             group = self.groups.setdefault(key, [])
@@ -264,36 +265,15 @@ class EncodeBatcher:
                 self._encode(self.groups.pop(key))
 
     def _encode(self, group: list) -> None:
-        joints = np.stack([p[0] for _, _, p in group])
-        try:
-            with np.errstate(invalid="ignore", divide="ignore"):   # non-finite features are reported
-                feats = self._batch(joints, group)
-        except _ENCODE_ERRORS:
-            for item in group:
-                self._one(*item)
+        parts = [p for _, _, p in group]
+        stacked = [None if parts[0][i] is None else np.stack([p[i] for p in parts]) for i in range(3)]
+        feats, error = _try_encode(stacked, self.mode, self.fps)
+        if error is not None:                  # found again one sample at a time, with its own message
+            for sid, k, p in group:
+                self._keep(sid, k, *_try_encode(p, self.mode, self.fps))
             return
         for (sid, k, _), f in zip(group, feats):
             self._keep(sid, k, np.ascontiguousarray(f), None)
-
-    def _batch(self, joints: np.ndarray, group: list) -> np.ndarray:
-        if group[0][2][1] is None:
-            from ..representations import hml263
-            return hml263.encode(joints, mode=self.mode, fps=self.fps)
-        from ..representations import hoi269
-        return hoi269.encode(joints, np.stack([p[1] for _, _, p in group]), np.stack([p[2] for _, _, p in group]),
-                             mode=self.mode, fps=self.fps)
-
-    def _one(self, sid: str, k: int, parts: tuple) -> None:
-        from ..representations import hml263, hoi269
-        joints, rot, trans = parts
-        try:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                feats = hml263.encode(joints, mode=self.mode, fps=self.fps) if rot is None else \
-                    hoi269.encode(joints, rot, trans, mode=self.mode, fps=self.fps)
-        except _ENCODE_ERRORS as e:
-            self._keep(sid, k, None, e)
-            return
-        self._keep(sid, k, feats, None)
 
     def _keep(self, sid: str, k: int, feats: np.ndarray | None, error: Exception | None) -> None:
         problem = _encode_problem(sid, k, feats, error)
@@ -316,6 +296,16 @@ class EncodeBatcher:
         return {sid: problem for sid, (_, problem) in self.failed.items()}
 
 
+def _try_encode(parts, mode: str, fps: float) -> tuple[np.ndarray | None, Exception | None]:
+    """``(features, None)`` of :func:`_encode_parts`, or ``(None, the error)`` it raised; without
+    floating-point warnings (non-finite features are reported by :func:`_encode_problem`)."""
+    try:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return _encode_parts(*parts, mode, fps), None
+    except _ENCODE_ERRORS as e:
+        return None, e
+
+
 def _check_encodes(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext) -> list[Problem]:
     if "joints" not in arrays or (ctx.has_object and not ctx.human_only and "obj_trans" not in arrays):
         return []
@@ -323,12 +313,7 @@ def _check_encodes(sid: str, arrays: Mapping[str, np.ndarray], ctx: ClipContext)
         ctx.batcher.add(sid, arrays)
         return []
     for k in range(len(arrays["joints"])):
-        feats = error = None
-        try:
-            with np.errstate(invalid="ignore", divide="ignore"):   # non-finite features are reported
-                feats = encode_sample(arrays, k, ctx.mode, ctx.fps)
-        except _ENCODE_ERRORS as e:
-            error = e
+        feats, error = _try_encode(_encode_inputs(arrays, k), ctx.mode, ctx.fps)
         problem = _encode_problem(sid, k, feats, error)
         if problem is not None:
             return [problem]
