@@ -105,7 +105,7 @@ def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str
     if not (Path(data) / "manifest.json").is_file():
         raise FileNotFoundError(f"--data {data}: not a hoibench store (no manifest.json)")
     if evaluator is None:
-        if resolved is None or resolved.kind == "hoi" or resolved.kind == "multibody":
+        if resolved is None or not _reads_no_evaluator(resolved):
             raise ValueError("--evaluator: required (InterAct's o2h and h2o protocols read none: name one of them "
                              "with --protocol to score without)")
     elif not Path(evaluator).is_dir():
@@ -118,6 +118,15 @@ def check_evaluate_args(submission: str | Path, data: str | Path, evaluator: str
     if out is not None:
         check_result_free(out, overwrite)
     return resolved
+
+
+def _reads_no_evaluator(protocol) -> bool:
+    """Whether ``protocol``'s track reads no evaluator (its ``evaluator_kind`` is ``none``)."""
+    from ..tracks.registry import get_track
+    try:
+        return get_track(protocol.track).evaluator_kind == "none"
+    except KeyError:
+        return False
 
 
 def check_result_free(out: str | Path, overwrite: bool = False) -> None:

@@ -46,17 +46,13 @@ def _group_id(path: Path) -> str | None:
 
 def task_of(st: Store, protocol=None) -> str | None:
     """The InterAct task (``o2h``, ``h2o``) whose track ``protocol`` selects on store ``st``
-    (:func:`hoibench.tracks.registry.track_for`), or None for a text-to-motion track."""
+    (:func:`hoibench.tracks.registry.fitting_track`: a protocol of another dataset's track is
+    refused), or None for a text-to-motion track."""
     if protocol is None:
         return None
     from ..tracks.protocol import get_protocol
-    from ..tracks.registry import protocol_misfit, track_for
-    proto = get_protocol(protocol)
-    track = track_for(st, proto)
-    misfit = protocol_misfit(st, proto, track)
-    if misfit:
-        raise ValueError(f"--protocol {protocol}: {misfit}")
-    return track.extras.get("task")
+    from ..tracks.registry import fitting_track
+    return fitting_track(st, get_protocol(protocol)).extras.get("task")
 
 
 def prompts(data: str | Path, split: str = "test", protocol=None, conditions: str | Path | None = None) -> list[dict]:

@@ -147,14 +147,10 @@ def main_reference(action: str, data, out, kind: str | None = None, *, as_zip: b
                    sigma: float = 0.01, seed: int = 0, protocol=None) -> int:
     """``hoibench submission from-store|reference DATA --out OUT``: the ground truth or a
     reference row of the store's test split, written in its track's submission schema (the
-    track a given ``protocol`` selects, :func:`hoibench.tracks.registry.track_for`)."""
+    track a given ``protocol`` selects, :func:`hoibench.tracks.registry.fitting_track`)."""
     from ..tracks.protocol import get_protocol
-    from ..tracks.registry import protocol_misfit, track_for
-    store, proto = Store(data), get_protocol(protocol) if protocol is not None else None
-    track = track_for(store, proto)
-    misfit = protocol_misfit(store, proto, track)
-    if misfit:
-        raise ValueError(f"--protocol {protocol}: {misfit}")
+    from ..tracks.registry import fitting_track
+    track = fitting_track(Store(data), get_protocol(protocol) if protocol is not None else None)
     task = {"task": track.extras["task"]} if track.extras.get("task") else {}
     return REFERENCE_WRITERS[track.submission](action, data, out, kind, as_zip=as_zip, samples=samples,
                                                sigma=sigma, seed=seed, **task)

@@ -91,5 +91,15 @@ def protocol_misfit(store, protocol, track: Track | None = None) -> str | None:
             f"track, scored under {track.protocol_kind} protocols ({', '.join(track.protocols)})")
 
 
-__all__ = ["track_for", "track_for_store", "protocol_misfit", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
+def fitting_track(store, protocol=None) -> Track:
+    """:func:`track_for`, refusing in one line (ValueError: :func:`protocol_misfit`'s) a
+    protocol made for another dataset's track."""
+    track = track_for(store, protocol)
+    misfit = protocol_misfit(store, protocol, track)
+    if misfit:
+        raise ValueError(misfit)
+    return track
+
+
+__all__ = ["track_for", "track_for_store", "protocol_misfit", "fitting_track", "Track", "STORE_KINDS", "register_track", "list_tracks", "get_track", "headline_of",
            "track_for_dataset"]
