@@ -74,9 +74,9 @@ _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 def _single_threaded_children() -> Iterator[None]:
     """Processes started inside this block inherit one-thread settings for OpenMP and BLAS.
 
-    They must be in the environment when a worker starts: a spawned worker imports numpy
-    (and BLAS sizes its thread pool) while unpickling its first task, before any initializer
-    could change them. N workers x M BLAS threads on N cores spin against each other (2.1x
+    They must be in the environment when a worker starts: a spawned worker may import numpy
+    (and BLAS sizes its thread pool) while unpickling its initializer's arguments or its first
+    task, before the initializer could change them. N workers x M BLAS threads on N cores spin against each other (2.1x
     slower on the physical metrics here)."""
     saved = {v: os.environ.get(v) for v in _THREAD_VARS}
     os.environ.update({v: "1" for v in _THREAD_VARS})
@@ -132,11 +132,10 @@ def open_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None 
     if spec.kind == "serial":
         yield _SerialExecutor()
         return
-    if spec.kind == "processes":
-        with _single_threaded_children():
-            ex = cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
-                                        mp_context=mp.get_context("spawn"),
-                                        initializer=_pool_worker, initargs=(os.getpid(), warm))
+    if spec.kind == "processes":      # its workers start at a submit (:func:`_submit`), not here
+        ex = cf.ProcessPoolExecutor(max_workers=spec.workers or os.cpu_count() or 1,
+                                    mp_context=mp.get_context("spawn"),
+                                    initializer=_pool_worker, initargs=(os.getpid(), warm))
         try:
             yield ex
             ex.shutdown(wait=True)        # an interrupt while waiting for the workers: abandoned below
@@ -174,14 +173,18 @@ def warm_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None 
         yield spec
         return
     with open_executor(parsed, warm) as ex:
-        # each submit finds no idle worker and starts one, with one-thread settings in its
-        # environment: unpickling the warm-up's arguments may import numpy (and size BLAS's
-        # thread pool) before the initializer runs
-        with _single_threaded_children():
-            for _ in range(parsed.workers or os.cpu_count() or 1):
-                with hold_sigint():
-                    ex.submit(_noop)
+        for _ in range(parsed.workers or os.cpu_count() or 1):
+            _submit(ex, _noop)            # each finds no idle worker and starts one
         yield ex
+
+
+def _submit(ex: cf.Executor, fn: Callable, *args) -> cf.Future:
+    """``ex.submit(fn, *args)`` with SIGINT held (workers start with it blocked) and in the
+    one-thread environment (:func:`_single_threaded_children`): a process pool starts its
+    workers at a submit, and a worker may import numpy, sizing BLAS's thread pool, while it
+    unpickles its initializer's arguments, before the initializer runs."""
+    with hold_sigint(), _single_threaded_children():
+        return ex.submit(fn, *args)
 
 
 def _noop() -> None:
@@ -246,12 +249,8 @@ def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec
         limit = max(1, int(window)) if window is not None else None
 
         def fill() -> None:
-            for unit in todo:             # reading the next unit may be interrupted at once
-                # a submit is not: workers start with SIGINT blocked, and in the one-thread
-                # environment (a submit may start a worker, which may import numpy before its
-                # initializer runs)
-                with hold_sigint(), _single_threaded_children():
-                    futures.append(ex.submit(fn, unit))
+            for unit in todo:             # reading the next unit may be interrupted at once, a submit not
+                futures.append(_submit(ex, fn, unit))
                 if limit is not None and len(futures) >= limit:
                     return
 
