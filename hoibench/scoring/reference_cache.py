@@ -8,11 +8,11 @@ and read back afterwards: ``<cache>/reference/<key>.npz`` holds the ground-truth
 the caption embeddings of every test clip and the gate record.
 
 The key (sha256) covers everything the statistics are computed from: the toolkit version and
-its source files' bytes, the store's manifest sha256, each scored test clip's id, file size and modification time, its
-caption lines (text and tokens), the evaluator id (its weights and card), the protocol's
-sha256, the representation mode and frame rate. Anything else changing gives another key. An
-evaluator without a verified content id (one built in memory) is never cached. A
-cached file holds the very arrays a fresh computation gives (float32 embeddings saved
+its source files' bytes, the store's manifest sha256, each scored test clip's id, file size
+and modification time, its caption lines (text and tokens), the evaluator id (its weights and
+card), the protocol's sha256, the representation mode and frame rate. Anything else changing
+gives another key. An evaluator without a verified content id (one built in memory) is never
+cached. A cached file holds the very arrays a fresh computation gives (float32 embeddings saved
 losslessly, the gate as the same JSON), so results are byte-identical with or without it
 (tested). A file that cannot be read is ignored and recomputed; a cache that cannot be
 written is skipped.
@@ -108,15 +108,14 @@ def save_reference(key: str, real: np.ndarray, sets: Sequence[np.ndarray], gate:
     path = _path(key)
     if path is None:
         return None
+    try:
+        record = json.dumps(gate, sort_keys=True, allow_nan=True)
+    except (TypeError, ValueError):          # a record JSON cannot hold exactly: not cached
+        return None
     arrays = {"format": np.array(FORMAT), "key": np.array(key), "real": np.asarray(real),
               "captions": np.concatenate([np.asarray(s) for s in sets]) if len(sets) else np.zeros((0, real.shape[1]),
                                                                                                    real.dtype),
-              "caption_counts": np.array([len(s) for s in sets], np.int64),
-              "gate": None}
-    try:
-        arrays["gate"] = np.array(json.dumps(gate, sort_keys=True, allow_nan=True))
-    except (TypeError, ValueError):          # a record JSON cannot hold exactly: not cached
-        return None
+              "caption_counts": np.array([len(s) for s in sets], np.int64), "gate": np.array(record)}
     try:
         return atomic_write_bytes(path, npz_bytes(arrays, compressed=False))
     except OSError:
