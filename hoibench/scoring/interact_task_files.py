@@ -36,7 +36,8 @@ from .. import __version__
 from ..core.io import atomic_write_bytes, npz_bytes
 from ..core.plausibility import ROTATION_TOL
 from ..datasets.store import Store
-from .submission_read import ArrayHeader, Problem, Submission, SubmissionError
+from .submission_read import Problem, Submission, SubmissionError
+from .validate_arrays import expect_shape
 
 #: the arrays a sample file of each task may hold (the first listed are required; h2o takes
 #: ``obj_rot`` or ``obj_rotvec``) and their shapes after (K, T)
@@ -53,13 +54,6 @@ MAX_ABS_M = 1000.0
 
 
 # ====================================================================== ground truth
-def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
-    """(..., 3) axis-angle -> (..., 3, 3) rotation matrices (Rodrigues)."""
-    from scipy.spatial.transform import Rotation
-    r = np.asarray(rotvec, np.float64)
-    return Rotation.from_rotvec(r.reshape(-1, 3)).as_matrix().reshape(r.shape[:-1] + (3, 3))
-
-
 def posed(points: np.ndarray, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
     """(T, N, 3) points ``R_t p + t_t`` of (N, 3) ``points`` under (T, 3, 3) ``rot`` and
     (T, 3) ``trans`` (metres)."""
@@ -132,16 +126,6 @@ def prompt_fields(task: str, condition: Path) -> dict:
 
 
 # ====================================================================== sample files
-def _shape_problem(sid: str, name: str, h: ArrayHeader, tail: tuple[int, ...]) -> Problem | None:
-    where = f"samples/{sid}.npz"
-    if len(h.shape) != 2 + len(tail) or tuple(h.shape[2:]) != tail:
-        want = "(K, T" + "".join(f", {t}" for t in tail) + ")"
-        return Problem(sid, name, f"{where}: expected shape {want}, got {h.shape}")
-    if h.dtype not in (np.dtype("float32"), np.dtype("float64")):
-        return Problem(sid, name, f"{where}: expected float32 or float64, got {h.dtype}")
-    return None
-
-
 def _missing(task: str, headers: dict, sid: str) -> list[Problem]:
     where = f"samples/{sid}.npz"
     if task == "o2h":
@@ -183,7 +167,8 @@ def file_problems(sub: Submission, sid: str, task: str, frames: int, cap: int) -
                      "warning") for k in headers if k not in known]
     probs += _missing(task, headers, sid)
     used = [k for k in known if k in headers]
-    probs += [p for p in (_shape_problem(sid, k, headers[k], known[k]) for k in used) if p is not None]
+    for k in used:
+        probs += expect_shape(headers[k], known[k], k, sid, where=f"samples/{sid}.npz: ")
     if any(p.severity == "error" for p in probs):
         return probs, None
     kts = {k: headers[k].shape[:2] for k in used}
@@ -208,8 +193,8 @@ def file_problems(sub: Submission, sid: str, task: str, frames: int, cap: int) -
 
 def sample_poses(arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """(K, T, 3, 3) rotations and (K, T, 3) translations of an h2o sample file."""
-    rot = arrays["obj_rot"] if "obj_rot" in arrays else rotvec_to_matrix(arrays["obj_rotvec"])
-    return np.asarray(rot, np.float64), np.asarray(arrays["obj_trans"], np.float64)
+    from ..metrics.physical import _rotation
+    return np.asarray(_rotation(arrays), np.float64), np.asarray(arrays["obj_trans"], np.float64)
 
 
 # ====================================================================== reference rows
@@ -247,6 +232,6 @@ def write_task_reference(kind: str, data: str | Path, out: str | Path, task: str
     return write_submission(out, meta, reference_samples(st, ids, task, kind), as_zip=as_zip)
 
 
-__all__ = ["TASK_ARRAYS", "SUBMIT", "REFERENCE_KINDS", "ground_truth", "posed", "rotvec_to_matrix",
+__all__ = ["TASK_ARRAYS", "SUBMIT", "REFERENCE_KINDS", "ground_truth", "posed",
            "condition_arrays", "write_conditions", "prompt_fields", "file_problems", "sample_poses",
            "reference_samples", "write_task_reference"]

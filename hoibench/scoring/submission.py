@@ -53,9 +53,9 @@ from .submission_read import (BYTES_PER_VALUE, DEFAULT_MAX_SAMPLES_PER_PROMPT, F
                               SubmissionError, SubmissionLimits, limits_for, load_npz, max_frames, npz_headers,
                               zip_directory_size)
 from .submission_write import check_output_free, from_store, main_submission_from_store, write_submission
-from .validate import (ACCEPTED_DTYPES, FLAG_FIELDS, REQUIRED_FIELDS, UP_AXIS_MIN_CLIPS, ValidationReport,
+from .validate import (FLAG_FIELDS, REQUIRED_FIELDS, UP_AXIS_MIN_CLIPS, ValidationReport,
                        main_validate, submission_context, validate, validation_report)
-from .validate_arrays import (BODY_HEIGHT_RANGE_M, MAX_ABS_COORD_M, MAX_FEATURE_ABS, MAX_OBJECT_DISTANCE_FRAME_M,
+from .validate_arrays import (ACCEPTED_DTYPES, BODY_HEIGHT_RANGE_M, MAX_ABS_COORD_M, MAX_FEATURE_ABS, MAX_OBJECT_DISTANCE_FRAME_M,
                               MAX_OBJECT_DISTANCE_M, MAX_ROTVEC_RAD, MAX_SPEED_MPS, MEAN_BODY_HEIGHT_M, ClipContext,
                               check_arrays, encode_sample)
 

@@ -16,14 +16,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
 
-import numpy as np
 
 from ..core.ids import ID_RULE, is_valid_id
-from .submission_read import (DEFAULT_MAX_SAMPLES_PER_PROMPT, KNOWN_ARRAYS, SAMPLES_DIR, SUBMISSION_JSON, ArrayHeader,
+from .submission_read import (DEFAULT_MAX_SAMPLES_PER_PROMPT, KNOWN_ARRAYS, SAMPLES_DIR, SUBMISSION_JSON,
                               Problem, Submission, SubmissionError, SubmissionLimits, limits_for, max_frames)
-from .validate_arrays import ClipContext, EncodeBatcher, check_arrays
+from .validate_arrays import ClipContext, EncodeBatcher, check_arrays, expect_shape
 
-ACCEPTED_DTYPES = (np.dtype("float32"), np.dtype("float64"))
 REQUIRED_FIELDS = {"method": str, "version": str, "representation": str, "fps": (int, float)}
 FLAG_FIELDS = {"uses_gt_length": bool, "samples_per_prompt": int, "checkpoint_selection": str, "human_only": bool}
 
@@ -116,23 +114,6 @@ def _check_meta(meta: dict | None, store_fps: float, protocol, accepted: set[str
     return out
 
 
-def _expect_shape(h: ArrayHeader | None, tail: tuple, name: str, sid: str, dtype: str | None = None) -> list[Problem]:
-    if h is None:
-        return []
-    out = []
-    ndim = 2 + len(tail)
-    if len(h.shape) != ndim or tuple(h.shape[2:]) != tail:
-        want = "(K, T" + "".join(f", {t}" for t in tail) + ")"
-        out.append(Problem(sid, name, f"expected shape {want}, got {h.shape}"))
-    if dtype is not None and h.dtype != np.dtype(dtype):
-        out.append(Problem(sid, name, f"expected dtype {dtype}, got {h.dtype} "
-                                      f"(convert with .astype(np.{dtype}))"))
-    elif h.dtype not in ACCEPTED_DTYPES:
-        out.append(Problem(sid, name, f"expected float32 or float64, got {h.dtype} (half precision, extended "
-                                      "precision, integer and complex arrays are not accepted)"))
-    return out
-
-
 def _check_clip(sub: Submission, sid: str, ctx: ClipContext,
                 keep=None) -> tuple[list[Problem], int | None, str | None]:
     """Problems of one sample file, its K (None when unknown) and the up axis its joints
@@ -173,12 +154,12 @@ def _check_clip(sub: Submission, sid: str, ctx: ClipContext,
             if k in headers:
                 probs.append(Problem(sid, k, "the ground-truth clip has no object (human-only store): this "
                                              "array is not used by any metric", "warning"))
-    shape_probs = (_expect_shape(headers.get("joints"), (22, 3), "joints", sid, dtype="float32")
-                   + _expect_shape(headers.get("obj_rot"), (3, 3), "obj_rot", sid)
-                   + _expect_shape(headers.get("obj_rotvec"), (3,), "obj_rotvec", sid)
-                   + _expect_shape(headers.get("obj_trans"), (3,), "obj_trans", sid)
-                   + _expect_shape(headers.get("hml263"), (263,), "hml263", sid)
-                   + _expect_shape(headers.get("markers"), (77, 3), "markers", sid))
+    shape_probs = (expect_shape(headers.get("joints"), (22, 3), "joints", sid, dtype="float32")
+                   + expect_shape(headers.get("obj_rot"), (3, 3), "obj_rot", sid)
+                   + expect_shape(headers.get("obj_rotvec"), (3,), "obj_rotvec", sid)
+                   + expect_shape(headers.get("obj_trans"), (3,), "obj_trans", sid)
+                   + expect_shape(headers.get("hml263"), (263,), "hml263", sid)
+                   + expect_shape(headers.get("markers"), (77, 3), "markers", sid))
     probs += shape_probs
     bad = {p.field for p in shape_probs}
     present = [k for k in KNOWN_ARRAYS if k in headers and k not in bad]

@@ -10,7 +10,7 @@ from typing import Mapping
 import numpy as np
 
 from ..core.plausibility import ROTATION_TOL
-from .submission_read import Problem
+from .submission_read import ArrayHeader, Problem
 
 #: height of the proxy body (the SMPL mean shape), metres; a skeleton's height is estimated as
 #: this times its bone-length scale (:func:`hoibench.bodies.contact.body_scale`)
@@ -31,6 +31,29 @@ MAX_FEATURE_ABS = 1e6
 _VALUE_BOUNDS = {"joints": (MAX_ABS_COORD_M, "m"), "obj_trans": (MAX_ABS_COORD_M, "m"),
                  "markers": (MAX_ABS_COORD_M, "m"),
                  "obj_rotvec": (MAX_ROTVEC_RAD, "rad"), "hml263": (MAX_FEATURE_ABS, "units")}
+
+
+ACCEPTED_DTYPES = (np.dtype("float32"), np.dtype("float64"))
+
+
+def expect_shape(h: ArrayHeader | None, tail: tuple, name: str, sid: str, dtype: str | None = None,
+                  where: str = "") -> list[Problem]:
+    """Problems of array ``name``'s header: shape (K, T, *tail) and dtype (``dtype``, else
+    float32 or float64); ``where`` prefixes each message (the task tracks name the file)."""
+    if h is None:
+        return []
+    out = []
+    ndim = 2 + len(tail)
+    if len(h.shape) != ndim or tuple(h.shape[2:]) != tail:
+        want = "(K, T" + "".join(f", {t}" for t in tail) + ")"
+        out.append(Problem(sid, name, f"{where}expected shape {want}, got {h.shape}"))
+    if dtype is not None and h.dtype != np.dtype(dtype):
+        out.append(Problem(sid, name, f"{where}expected dtype {dtype}, got {h.dtype} "
+                                      f"(convert with .astype(np.{dtype}))"))
+    elif h.dtype not in ACCEPTED_DTYPES:
+        out.append(Problem(sid, name, f"{where}expected float32 or float64, got {h.dtype} (half precision, extended "
+                                      "precision, integer and complex arrays are not accepted)"))
+    return out
 
 
 @dataclass(frozen=True)
