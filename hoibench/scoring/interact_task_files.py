@@ -193,8 +193,9 @@ def file_problems(sub: Submission, sid: str, task: str, frames: int, cap: int) -
 
 def sample_poses(arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """(K, T, 3, 3) rotations and (K, T, 3) translations of an h2o sample file."""
-    from ..metrics.physical import _rotation
-    return np.asarray(_rotation(arrays), np.float64), np.asarray(arrays["obj_trans"], np.float64)
+    from ..core.geometry import axis_angle_to_matrix
+    rot = arrays["obj_rot"] if "obj_rot" in arrays else axis_angle_to_matrix(np.asarray(arrays["obj_rotvec"], np.float64))
+    return np.asarray(rot, np.float64), np.asarray(arrays["obj_trans"], np.float64)
 
 
 # ====================================================================== reference rows
