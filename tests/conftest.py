@@ -8,7 +8,7 @@ import tempfile
 
 import pytest
 
-# the ground truth's cached statistics (hoibench.scoring.reference_cache) go to a folder of this
+# the disk cache (hoibench.core.disk_cache: ground-truth statistics, distance grids) goes to a folder of this
 # test run, never to the user's ~/.cache; subprocesses inherit it; removed when the run ends
 os.environ["HOIBENCH_CACHE"] = tempfile.mkdtemp(prefix="hoibench-test-cache-")
 atexit.register(shutil.rmtree, os.environ["HOIBENCH_CACHE"], True)

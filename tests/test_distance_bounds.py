@@ -79,3 +79,32 @@ def test_joint_contacts_match_every_exact_distance(field):
     none, pred2 = cm.joint_contacts(J, R, t, field, tau)
     np.testing.assert_array_equal(pred2, pred)
     assert np.isnan(none).sum() > np.isnan(d).sum()
+
+
+@pytest.mark.parametrize("name", ["yogaball", "backpack"])          # one closest-point grid, one per-component
+def test_the_grid_read_back_from_the_disk_cache_is_the_computed_one(name, tmp_path, monkeypatch):
+    from hoibench.core import disk_cache
+    monkeypatch.setenv(disk_cache.CACHE_ENV, str(tmp_path / "cache"))
+    obj = build_object(name)
+    computed = SignedDistance(obj.vertices, obj.faces)._grid()
+    (entry,) = (tmp_path / "cache" / "distance-grid").glob("*.npz")
+
+    def no_queries(*_a, **_k):
+        raise AssertionError("the grid was computed again although cached")
+    fresh = SignedDistance(obj.vertices, obj.faces)
+    monkeypatch.setattr(fresh, "_exact", no_queries)
+    read = fresh._grid()
+    assert read.values.dtype == np.float64 and np.array_equal(read.values, computed.values)
+    assert (read.closest is None) == (computed.closest is None)
+    if computed.closest is not None:
+        assert np.array_equal(read.closest, computed.closest) and read.closest.dtype == computed.closest.dtype
+    # another mesh (moved by 1 mm) has another entry; a damaged entry is computed again
+    SignedDistance(obj.vertices + 0.001, obj.faces)._grid()
+    assert len(list(entry.parent.glob("*.npz"))) == 2
+    entry.write_bytes(entry.read_bytes()[:100])
+    again = SignedDistance(obj.vertices, obj.faces)._grid()
+    assert np.array_equal(again.values, computed.values)
+    monkeypatch.setenv(disk_cache.CACHE_ENV, "off")               # off: computed, nothing read or written
+    entry.unlink()
+    assert np.array_equal(SignedDistance(obj.vertices, obj.faces)._grid().values, computed.values)
+    assert not entry.exists()

@@ -57,12 +57,40 @@ def test_partial_submission_is_scored_on_valid_ids_and_marked_incomplete(setup, 
     assert res["counts"]["scored_ids"] == res["counts"]["test_ids"] - 2
 
 
+def test_units_started_during_validation_are_kept_only_when_every_test_id_is_scored(setup, tmp_path, monkeypatch):
+    from hoibench.scoring.evaluate import evaluate
+    from hoibench.scoring.hoi import HOIScorer
+    base, data = setup
+    kept, keep = [], HOIScorer._keep_ahead
+
+    def spy(self, ids):
+        keep(self, ids)
+        kept.append(len(self.st.ahead))
+    monkeypatch.setattr(HOIScorer, "_keep_ahead", spy)
+    full = evaluate(base / "gt", data, base / "ev", executor="processes:2")
+    assert kept == [full["counts"]["scored_ids"]]          # K = 1: one unit per clip, all started ahead
+    sub = tmp_path / "partial"                            # one file missing: the group members change
+    shutil.copytree(base / "gt", sub)
+    sorted((sub / "samples").glob("*.npz"))[0].unlink()
+    pooled = evaluate(sub, data, base / "ev", executor="processes:2")
+    assert kept[-1] == 0                                  # dropped: the stream scored every unit
+    serial = evaluate(sub, data, base / "ev")
+    assert json.dumps(pooled["metrics"], sort_keys=True) == json.dumps(serial["metrics"], sort_keys=True)
+
+
 def test_executors_give_identical_results(setup):
     from hoibench.scoring.evaluate import evaluate
     base, data = setup
-    a = evaluate(base / "gt", data, base / "ev", executor="serial")
-    b = evaluate(base / "gt", data, base / "ev", executor="processes:2")
+    a = evaluate(base / "gt", data, base / "ev", executor="serial", clip_data={})
+    b = evaluate(base / "gt", data, base / "ev", executor="processes:2", clip_data={})
     assert json.dumps(a["metrics"], sort_keys=True) == json.dumps(b["metrics"], sort_keys=True)
+    # the pool reads every test clip's slice labels ahead (a worker, while the evaluator loads);
+    # the serial run reads the scored clips' at the end: the same slices
+    assert json.dumps(a["slices"], sort_keys=True) == json.dumps(b["slices"], sort_keys=True)
+    from hoibench.datasets.store import Store
+    from hoibench.scoring.slices import clip_labels
+    ids = sorted(next(iter(a["slices"]["labels"].values())))
+    assert a["slices"]["labels"] == clip_labels(Store(data), ids)
 
 
 # ---------------------------------------------------------------- labels that must not lie

@@ -243,6 +243,38 @@ def test_loaded_evaluator_reproduces_the_card_scores(trained, store_root):
     assert again["fid_gt_halves"] == pytest.approx(res.card["gt_retrieval"]["fid_gt_halves"], rel=1e-5, abs=1e-7)
 
 
+def test_a_loaded_evaluator_builds_its_text_branch_on_first_text_use(trained, store_root, tmp_path):
+    from hoibench.evaluator import text as text_mod
+    from hoibench.evaluator.embed import Evaluator
+    from hoibench.evaluator.model import TextMotionModel
+    out, _ = trained
+    ev = load_evaluator(out)
+    clips = _test_clips(store_root)
+    motion = ev.embed_motion(clips)
+    assert ev._model is None                       # no text used yet: the transformer is not built
+    # every tensor loaded into one model at once (what loading did before) gives the same bytes
+    te = ev.card["text_encoder"]
+    tok, transformer = text_mod.load_pretrained(text_mod.resolve_text_encoder(te["name"])[1])
+    whole = TextMotionModel(ev.config.model, transformer, te["pooling"])
+    whole.load_state_dict(_load_tensors(out), strict=False)
+    eager = Evaluator(ev.config, whole, tok, ev.stats, ev.card)
+    texts = ["a person lifts the box", "a person sits on the chair"]
+    assert np.array_equal(eager.embed_motion(clips), motion)
+    assert np.array_equal(eager.embed_text(texts), ev.embed_text(texts))
+    assert ev.model.motion is ev._motion and np.array_equal(ev.embed_motion(clips), motion)
+    # a text tensor of the wrong shape (the id made consistent) is refused when the branch is built
+    bad = tmp_path / "bad_text"
+    shutil.copytree(out, bad)
+    tensors = _load_tensors(bad)
+    name = next(k for k in sorted(tensors) if k.startswith("text.proj."))
+    tensors[name] = torch.zeros(tuple(tensors[name].shape) + (1,))
+    card_mod.write_folder(bad, tensors, json.loads((bad / "card.json").read_text()))
+    loaded = load_evaluator(bad)
+    assert np.array_equal(loaded.embed_motion(clips), motion)
+    with pytest.raises(EvaluatorIntegrityError, match=f"wrong shape.*{name}"):
+        loaded.embed_text(texts)
+
+
 def test_card_names_data_stats_encoder_and_versions(trained, store_root):
     _, res = trained
     c = res.card

@@ -9,6 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
+from hoibench.core import disk_cache as dc
 from hoibench.scoring import reference_cache as rc
 
 
@@ -39,7 +40,7 @@ def _same(a, b):
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv(rc.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setenv(dc.CACHE_ENV, str(tmp_path / "cache"))
     return tmp_path / "cache" / "reference"
 
 
@@ -50,15 +51,17 @@ def test_a_second_evaluation_reads_the_cache_and_gets_the_same_statistics(annota
     first = _prepared(data, ev)
     files = list(cache.glob("*.npz"))
     assert len(files) == 1
-    monkeypatch.setenv(rc.CACHE_ENV, "off")
+    monkeypatch.setenv(dc.CACHE_ENV, "off")
     fresh = _prepared(data, ev)                                       # computed, nothing written
     _same(first, fresh)
-    monkeypatch.setenv(rc.CACHE_ENV, str(cache.parent))
+    monkeypatch.setenv(dc.CACHE_ENV, str(cache.parent))
 
     def refuse(*_a, **_k):
         raise AssertionError("embedded again although cached")
     monkeypatch.setattr(HOIScorer, "_ground_truth_embeddings", refuse)
-    _same(_prepared(data, ev), fresh)
+    hit = _prepared(data, ev)
+    _same(hit, fresh)
+    assert hit.ev._model is None            # nothing embeds text: the text branch is never built
 
 
 def test_the_key_follows_captions_clip_files_protocol_and_evaluator(annotated_store_with_evaluator, tmp_path):
@@ -101,8 +104,8 @@ def test_a_damaged_file_is_recomputed_and_the_cache_can_be_off(annotated_store_w
     assert rc.load_reference(path.stem, len(first.st.test_ids)) is not None
     assert rc.load_reference(path.stem, len(first.st.test_ids) + 1) is None    # another split size
     for off in ("off", "0", ""):
-        monkeypatch.setenv(rc.CACHE_ENV, off)
-        assert rc.cache_dir() is None
+        monkeypatch.setenv(dc.CACHE_ENV, off)
+        assert dc.cache_dir() is None
         assert rc.save_reference("k", first.st.real_all, first.st.sets_all, first.st.gate) is None
 
 

@@ -480,8 +480,10 @@ class SignedDistance:
 
     def _grid(self) -> "_Grid":
         """The bounds grid, built on first use with :meth:`__call__` at every node (so with
-        this field's inside test)."""
+        this field's inside test), or read back from the disk cache
+        (:mod:`hoibench.core.disk_cache`, kind ``distance-grid``: the same arrays bit for bit)."""
         if getattr(self, "_grid_cache", None) is None:
+            from .grid_cache import grid_key, read_grid, write_grid
             ext0 = self.box_max - self.box_min
             h = self.GRID_STEP_M
             for _ in range(2):   # the pad depends on the step, the step on the padded volume
@@ -490,15 +492,21 @@ class SignedDistance:
             pad = max(self.GRID_PAD_M, h)
             origin = self.box_min - pad
             shape = np.ceil((ext0 + 2 * pad) / h).astype(np.int64) + 1
-            axes = [origin[i] + h * np.arange(shape[i]) for i in range(3)]
-            nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-            closest = None
-            if self.method == "open3d" and not self.inside_test.endswith("per-component"):
-                o3d = _o3d()
-                res = self._scene.compute_closest_points(
-                    o3d.core.Tensor(np.ascontiguousarray(nodes, dtype=np.float32)), nthreads=_threads())
-                closest = res["points"].numpy()
-            self._grid_cache = _Grid(origin, h, shape, self._exact(nodes), pad, closest)
+            with_closest = self.method == "open3d" and not self.inside_test.endswith("per-component")
+            key = grid_key(self, h, with_closest)
+            got = read_grid(key, int(np.prod(shape)), with_closest)
+            if got is None:
+                axes = [origin[i] + h * np.arange(shape[i]) for i in range(3)]
+                nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+                closest = None
+                if with_closest:
+                    o3d = _o3d()
+                    res = self._scene.compute_closest_points(
+                        o3d.core.Tensor(np.ascontiguousarray(nodes, dtype=np.float32)), nthreads=_threads())
+                    closest = res["points"].numpy()
+                got = self._exact(nodes), closest
+                write_grid(key, *got)
+            self._grid_cache = _Grid(origin, h, shape, got[0], pad, got[1])
         return self._grid_cache
 
     def distance_upper(self, points) -> np.ndarray:

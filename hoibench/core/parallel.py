@@ -178,6 +178,22 @@ def warm_executor(spec: str | ExecutorSpec, warm: tuple[Callable, tuple] | None 
         yield ex
 
 
+def submit_ahead(executor: cf.Executor, fn: Callable, *args) -> cf.Future:
+    """``fn(*args)`` started now on an open pool (e.g. from :func:`warm_executor`: an idle
+    worker takes it at once), in the environment every unit of this module runs in. Its
+    future may be given to :func:`map_units` as a unit: it is waited for, not run again."""
+    return _submit(executor, fn, *args)
+
+
+def run_early(executor: Any, fn: Callable, *args) -> Callable[[], Any]:
+    """Start ``fn(*args)`` now on an open process pool (:func:`submit_ahead`); returns a
+    function giving its result. On anything else (a serial or Dask spec) ``fn`` runs when the
+    result is asked for."""
+    if not isinstance(executor, cf.ProcessPoolExecutor):
+        return lambda: fn(*args)
+    return submit_ahead(executor, fn, *args).result
+
+
 def _submit(ex: cf.Executor, fn: Callable, *args) -> cf.Future:
     """``ex.submit(fn, *args)`` with SIGINT held (workers start with it blocked) and in the
     one-thread environment (:func:`_single_threaded_children`): a process pool starts its
@@ -203,7 +219,8 @@ def map_units(fn: Callable[[Any], Any], units: Iterable[Any], executor: str | Ex
     """Yield ``fn(unit)`` for every unit, in input order, running on ``executor`` (a spec, or
     an executor already open, e.g. from :func:`warm_executor`, which stays open).
 
-    ``serial`` runs each unit when its result is asked for. A pool gets every unit up front,
+    ``serial`` runs each unit when its result is asked for. A pool gets every unit up front
+    (a unit that is a future of this pool, from :func:`submit_ahead`, is only waited for),
     or at most ``window`` units ahead of the one being yielded when ``window`` is given
     (then ``units`` may be a generator that is read lazily: streaming keeps memory bounded).
     If the caller stops early (``break``, ``close()``) or an exception or interrupt ends the
@@ -250,7 +267,8 @@ def _map_pool(fn: Callable[[Any], Any], units: Iterable[Any], spec: ExecutorSpec
 
         def fill() -> None:
             for unit in todo:             # reading the next unit may be interrupted at once, a submit not
-                futures.append(_submit(ex, fn, unit))
+                # a unit already started on this pool (submit_ahead) is waited for, not run again
+                futures.append(unit if isinstance(unit, cf.Future) else _submit(ex, fn, unit))
                 if limit is not None and len(futures) >= limit:
                     return
 

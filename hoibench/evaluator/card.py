@@ -291,9 +291,10 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
     Checks, each refusing with a one-line error naming the file and field: the card's
     schema, the safetensors file, the evaluator id (weights + card), the normalisation
     statistics against their sha256, the local text encoder against the card's hash, the
-    tensors against the config, and the sanity gate -- re-derived from the card's GT scores
-    with this version's rule (:func:`~hoibench.evaluator.gate.card_gate`), never read from
-    the card's ``gate`` block. ``allow_failed_gate=True`` loads a failing evaluator for
+    tensors against the config (the text branch's when it is built: on first text use, see
+    :class:`~hoibench.evaluator.embed.Evaluator`), and the sanity gate -- re-derived from the
+    card's GT scores with this version's rule (:func:`~hoibench.evaluator.gate.card_gate`),
+    never read from the card's ``gate`` block. ``allow_failed_gate=True`` loads a failing evaluator for
     inspection. To measure the gate from the weights on data, use
     :func:`~hoibench.evaluator.gate.recompute_gate`.
 
@@ -310,7 +311,7 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
     from .embed import Evaluator
     from .features import FeatureStats
     from .gate import card_gate, check_card_gate
-    from .model import TextMotionModel
+    from .model import MotionEncoder, TextMotionModel
 
     card, data = verify_folder(folder)
     cpath = Path(folder) / CARD
@@ -337,10 +338,30 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
             f"{folder}: text encoder mismatch: the card names {te['name']} with weights sha256 "
             f"{te['weights_sha256'][:12]}..., but {path} hashes to {sha[:12]}...; pass text_encoder=<folder of "
             f"the same pretrained model>")
-    tok, transformer = text_mod.load_pretrained(path)
-    model = TextMotionModel(config.model, transformer, te["pooling"])
     tensors = _load_tensors(data, Path(folder) / WEIGHTS)
-    expected = model.own_state_dict(config.train.text_finetune_layers if te["fine_tuned"] else None)
+    motion = MotionEncoder(config.model)
+    _check_tensors(folder, {f"motion.{k}": v for k, v in motion.state_dict().items()},
+                   {k: v for k, v in tensors.items() if k.startswith("motion.")})
+    with torch.no_grad():
+        motion.load_state_dict({k[len("motion."):]: v for k, v in tensors.items() if k.startswith("motion.")})
+
+    def load_text():
+        """The whole model and its tokenizer, on first text use (the motion branch shared)."""
+        tok, transformer = text_mod.load_pretrained(path)
+        model = TextMotionModel(config.model, transformer, te["pooling"])
+        _check_tensors(folder, model.own_state_dict(config.train.text_finetune_layers if te["fine_tuned"] else None),
+                       tensors)
+        with torch.no_grad():
+            model.load_state_dict(tensors, strict=False)
+        model.motion = motion
+        return model, tok
+
+    return Evaluator(config, None, None, stats, card, threads=threads, device=device, motion=motion,
+                     load_text=load_text)
+
+
+def _check_tensors(folder, expected: dict, tensors: dict) -> None:
+    """``EvaluatorIntegrityError`` unless ``tensors`` has exactly the names and shapes of ``expected``."""
     missing = sorted(set(expected) - set(tensors))
     extra = sorted(set(tensors) - set(expected))
     bad = sorted(k for k in set(expected) & set(tensors) if tuple(expected[k].shape) != tuple(tensors[k].shape))
@@ -348,9 +369,6 @@ def load_evaluator(folder: str | Path, *, allow_failed_gate: bool = False, text_
         raise EvaluatorIntegrityError(
             f"{folder}: weights do not match the card's config (missing {missing[:3]}, unexpected {extra[:3]}, "
             f"wrong shape {bad[:3]})")
-    with torch.no_grad():
-        model.load_state_dict(tensors, strict=False)
-    return Evaluator(config, model, tok, stats, card, threads=threads, device=device)
 
 
 def _load_tensors(data: bytes, path: Path) -> dict:

@@ -123,17 +123,44 @@ class Evaluator(CardBacked):
 
     Build one with :func:`hoibench.evaluator.load_evaluator` (from a verified folder) or
     :func:`hoibench.evaluator.build_untrained` (random weights: tests and the sanity gate).
+
+    A loaded evaluator builds its text branch (the pretrained transformer and its tokenizer:
+    importing ``transformers`` and reading the encoder's weights, seconds on a CPU) on first
+    text use: ``model=None`` with ``motion`` (the loaded motion branch, used by
+    :meth:`embed_motion`) and ``load_text() -> (model, tokenizer)``, whose model shares that
+    motion branch. An evaluation whose ground-truth statistics are cached embeds no text.
     """
 
-    def __init__(self, config: EvaluatorConfig, model: TextMotionModel, tokenizer, stats: FeatureStats,
-                 card: dict | None = None, threads: int | None = None, device: str | torch.device = "cpu"):
+    def __init__(self, config: EvaluatorConfig, model: TextMotionModel | None, tokenizer, stats: FeatureStats,
+                 card: dict | None = None, threads: int | None = None, device: str | torch.device = "cpu",
+                 motion: torch.nn.Module | None = None,
+                 load_text: Callable[[], tuple[TextMotionModel, object]] | None = None):
+        if model is None and (motion is None or load_text is None):
+            raise ValueError("Evaluator: give the model, or the motion branch and load_text")
         self.config = config
         self.device = torch.device(device)
-        self.model = model.to(self.device).eval()
-        self.tokenizer = tokenizer
+        self._model = None if model is None else model.to(self.device).eval()
+        self._motion = (model.motion if motion is None else motion).to(self.device).eval()
+        self._tokenizer = tokenizer
+        self._load_text = load_text
         self.stats = stats
         self.card = card or {}
         self.threads = EMBED_THREADS if threads is None else threads
+
+    @property
+    def model(self) -> TextMotionModel:
+        """The whole model (motion and text branches); built here on first use when the
+        evaluator was loaded with a deferred text branch."""
+        if self._model is None:
+            model, self._tokenizer = self._load_text()
+            self._model = model.to(self.device).eval()
+        return self._model
+
+    @property
+    def tokenizer(self):
+        if self._model is None:
+            self.model                     # builds the text branch and its tokenizer
+        return self._tokenizer
 
     @property
     def variant(self) -> str:
@@ -181,11 +208,11 @@ class Evaluator(CardBacked):
         clips = as_clip_list(features, lengths)
         out = np.zeros((len(clips), self.embed_dim), np.float32)
         with deterministic(self.threads), torch.inference_mode():
-            self.model.eval()
+            self._motion.eval()
             for s in range(0, len(clips), batch_size):
                 prepared = self.prepare_motion(clips[s:s + batch_size])
                 body, lens, obj = self._motion_batch(prepared)
-                out[s:s + len(prepared)] = self.model.motion(body, lens, obj).float().cpu().numpy()
+                out[s:s + len(prepared)] = self._motion(body, lens, obj).float().cpu().numpy()
         return out
 
     # ------------------------------------------------------------------ text

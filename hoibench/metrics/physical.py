@@ -542,6 +542,8 @@ def _rotation(m: Mapping[str, np.ndarray]) -> np.ndarray | None:
 
 #: the arrays of a store clip that its ground-truth labels and object name come from
 _GT_KEYS = ("contacts", "joints", "obj_rot", "obj_trans", "object_name")
+#: what stored labels alone need (:func:`gt_contact_labels` without a reference rule)
+_LABEL_KEYS = ("contacts", "object_name")
 
 
 def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[str]] | None = None,
@@ -569,11 +571,15 @@ def clip_input_factory(store, ids: Sequence[str], groups: Mapping[str, Sequence[
     names: dict[str, str] = {}
 
     last: dict[str, dict] = {}                     # the last clip read (its K samples and labels share it)
+    # only what the labels and ground-truth fields read (not the representations): stored
+    # labels alone unless they are measured or the ground truth's arrays are asked for
+    keys = _GT_KEYS if ground_truth or gt_rule != "signed" or gt_threshold_m is not None else _LABEL_KEYS
 
     def load(cid: str) -> dict:
-        if cid not in last:      # only what the labels and ground-truth fields read (not the representations)
+        if cid not in last:
             last.clear()
-            last[cid] = store.load(cid, keys=_GT_KEYS)
+            got = store.load(cid, keys=keys)
+            last[cid] = got if "contacts" in got or keys is _GT_KEYS else store.load(cid, keys=_GT_KEYS)
         return last[cid]
 
     def gt(cid):

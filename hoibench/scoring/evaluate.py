@@ -41,7 +41,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
     with the result's per-clip arrays (:mod:`hoibench.scoring.clip_data`; single-body tracks);
     the result then carries per-slice tables (``slices``, :mod:`hoibench.scoring.slices`).
     """
-    from ..core.parallel import map_units, warm_executor
+    from ..core.parallel import map_units, run_early, warm_executor
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
     from ..tracks.registry import protocol_misfit, track_for
@@ -69,9 +69,14 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
     # a process pool starts now: its workers build their caches while this process loads the
     # evaluator, embeds the ground truth and validates the submission
     with warm_executor(executor, scorer_cls.warm_up(store, proto)) as pool:
+        slices = clip_data is not None and scorer_cls.fills_clip_data
+        if slices:                       # the slice labels read only the store: an idle worker reads them
+            from .slices import test_clip_labels
+            labels = run_early(pool, test_clip_labels, str(store.root))
         ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options) \
             if needs_evaluator else None
         scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
+        scorer.pool = pool
         scorer.timings["load_s"] = time.perf_counter() - started      # store, protocol, evaluator
         scorer.prepare()
         with scorer.open_submission() as sub:
@@ -84,10 +89,11 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
             units = scorer.stream(sub, ids)          # sets up the unit's settings before the map
             for out in map_units(scorer.unit, units, pool, **scorer.map_options):
                 scorer.update(out)
+        labels = labels() if slices and clip_data else None
     result = scorer.summary(scorer.replications())
     if clip_data:
         from .slices import result_slices
-        result["slices"] = result_slices(store, clip_data, proto)
+        result["slices"] = result_slices(store, clip_data, proto, labels)
     return result
 
 

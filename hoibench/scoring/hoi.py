@@ -38,7 +38,7 @@ import time
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -79,6 +79,7 @@ class HOIState:
     ks_embed: list = field(default_factory=list)
     mm_ok: bool = False
     ids: list = field(default_factory=list)
+    ahead: dict = field(default_factory=dict)         # (id, k) -> physical unit started during validation
     # stream
     windowed: bool = False
     physical: dict = field(default_factory=dict)      # PhysicalMetrics per sample index or replication
@@ -128,7 +129,7 @@ def _check_fit(proto, store: Store, ev, allow_protocol_mismatch: bool, allow_eva
 
 def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Sequence[int], ev, store: Store,
             groups, proto, mode: str, fps: float, gen: np.ndarray, windows=None, cache=None, crop=None,
-            ground_truth: bool = False) -> Iterator:
+            ground_truth: bool = False, ahead: dict | None = None) -> Iterator:
     """Yield the physical-metric inputs of every (id, sample) in ``ks_physical``, loading one
     file at a time; as a side effect fill ``gen[k, i]`` with the embeddings of ``ks_embed``.
     ``windows(id, k)``: the legacy length windows of the replications using sample k;
@@ -136,7 +137,8 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
     used instead of reading and encoding again; ``crop(id, rows)``: the rows the evaluator
     embeds (None: all); ``ground_truth``: the inputs carry their test clip's ground truth. Under
     a protocol's ``clip_window`` every sample is cut to its first frames before it is encoded
-    and measured."""
+    and measured. ``ahead``: ``{(id, k): future}`` of units already started on the pool,
+    yielded as they are (:func:`hoibench.core.parallel.map_units` waits for them)."""
     from ..metrics.physical import clip_input_factory
     from .submission import encode_sample
 
@@ -168,6 +170,9 @@ def _stream(sub, ids: Sequence[str], ks_physical: Sequence[int], ks_embed: Seque
             if len(pending) >= EMBED_BATCH:
                 flush()
         for k in ks_physical:
+            if ahead and (cid, k) in ahead:
+                yield ahead.pop((cid, k))
+                continue
             inp = make_input(cid, {key: v[k] for key, v in arrays.items() if key != "hml263"}, k)
             if windows is not None:
                 inp.windows = windows(cid, k)
@@ -280,6 +285,7 @@ class HOIScorer(Scorer):
 
     name = "hoi"
     evaluator_options = {"allow_failed_gate": True}     # the gate is measured in prepare, on this store
+    fills_clip_data = True
     map_options = {"window": EMBED_BATCH, "progress": "evaluate"}
 
     def __init__(self, *args, **kwargs):
@@ -373,7 +379,7 @@ class HOIScorer(Scorer):
         proto = self.proto
         t2 = time.perf_counter()
         from .read_cache import ReadCache
-        self.st.cache = ReadCache()
+        self.st.cache = ReadCache(on_keep=self._start_ahead())
         self.st.report = report = validation_report(sub, self.store, protocol=proto, keep=self.st.cache)
         kept = set(self.st.test_ids)
         ids = sorted(i for i in report.valid_ids if i in kept)
@@ -394,21 +400,16 @@ class HOIScorer(Scorer):
         mm = set(range(proto.mm_samples)) if self.st.mm_ok else set()
         self.st.ks_embed = sorted(set(self.st.ks_physical) | mm)
         self.st.ids = ids
+        self._keep_ahead(ids)
         return ids
 
-    def stream(self, sub, ids: list[str]) -> Iterator:
-        """One streaming pass: embeddings in this process, physical metrics on the executor."""
-        from ..metrics.legacy_rules import replication_windows
-        from ..metrics.physical import PhysicalMetrics, _unit, load_groups
-        self.st.t3 = time.perf_counter()
-        proto, K = self.proto, self.st.K
-        cfg = proto.physical_config()
-        # physical metrics per sample index, or per replication when lengths are cropped
-        self.st.windowed = cfg.length_crop != "none"
-        slots = range(proto.replications) if self.st.windowed else self.st.ks_physical
-        self.st.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
-        self.st.gen = np.zeros((self.st.K, len(ids), self.ev.embed_dim), np.float32)
+    def _physical_unit(self) -> tuple[Callable, bool]:
+        """The per-clip physical function (the protocol's catalogue metrics with a per-clip
+        function included) and whether its inputs carry the ground truth; notes in
+        ``st.not_computed`` the metrics that cannot run here."""
         from ..metrics.catalog import METRICS, unavailable
+        from ..metrics.physical import _unit
+        proto, cfg = self.proto, self.proto.physical_config()
         extra, self.st.not_computed = [], {}
         for n in proto.metrics:
             if n in METRICS and METRICS[n].clip_fn:
@@ -417,7 +418,64 @@ class HOIScorer(Scorer):
                     self.st.not_computed[n] = why
                 else:
                     extra.append((n, proto.settings_for(METRICS[n].settings_key)))
-        self.unit = partial(_unit, config=cfg, extra=tuple(extra)) if extra else partial(_unit, config=cfg)
+        unit = partial(_unit, config=cfg, extra=tuple(extra)) if extra else partial(_unit, config=cfg)
+        return unit, any(METRICS[n].needs_ground_truth for n, _ in extra)
+
+    def _start_ahead(self) -> Callable | None:
+        """A hook that starts each validated file's physical units on the pool at once, while
+        this process validates the rest (the pool would idle otherwise), assuming every test id
+        is scored with the file's own sample count; :meth:`_keep_ahead` keeps them only if that
+        holds. None (nothing started) without a process pool, or when the protocol cuts windows
+        or clips (their units depend on more than the file)."""
+        import concurrent.futures as cf
+        from ..core.parallel import submit_ahead
+        from ..metrics.physical import clip_input_factory, load_groups
+        proto, st = self.proto, self.st
+        cfg = proto.physical_config()
+        if not isinstance(self.pool, cf.ProcessPoolExecutor) or cfg.length_crop != "none" \
+                or clip_window_frames(proto) is not None:
+            return None
+        unit, ground_truth = self._physical_unit()
+        make = clip_input_factory(self.store, st.test_ids, load_groups(self.store.root),
+                                  proto.physical["contact_thresholds"], st.fps, cfg.contact_gt_rule,
+                                  cfg.contact_gt_threshold_m, ground_truth)
+        test = set(st.test_ids)
+
+        def start(sid: str, arrays: dict) -> None:
+            if sid not in test or "joints" not in arrays:
+                return
+            K = int(arrays["joints"].shape[0])
+            for k in sorted({proto.sample_index(r, K) for r in range(proto.replications)}):
+                inp = make(sid, {key: v[k] for key, v in arrays.items() if key != "hml263"}, k)
+                st.ahead[(sid, k)] = (K, submit_ahead(self.pool, unit, inp))
+        return start
+
+    def _keep_ahead(self, ids: list[str]) -> None:
+        """Keep the units started during validation when what they assumed holds (every test id
+        scored, each with the submission's sample count); else drop them all (cancelled, or
+        their results ignored) and score every unit in the stream."""
+        ahead, self.st.ahead = self.st.ahead, {}
+        if not ahead:
+            return
+        if ids == sorted(self.st.test_ids) and all(K == self.st.K for K, _ in ahead.values()):
+            self.st.ahead = {key: future for key, (_, future) in ahead.items()}
+            return
+        for _, future in ahead.values():
+            future.cancel()
+
+    def stream(self, sub, ids: list[str]) -> Iterator:
+        """One streaming pass: embeddings in this process, physical metrics on the executor."""
+        from ..metrics.legacy_rules import replication_windows
+        from ..metrics.physical import PhysicalMetrics, load_groups
+        self.st.t3 = time.perf_counter()
+        proto, K = self.proto, self.st.K
+        cfg = proto.physical_config()
+        # physical metrics per sample index, or per replication when lengths are cropped
+        self.st.windowed = cfg.length_crop != "none"
+        slots = range(proto.replications) if self.st.windowed else self.st.ks_physical
+        self.st.physical = {s: PhysicalMetrics(cfg.mode, cfg.body_label) for s in slots}
+        self.st.gen = np.zeros((self.st.K, len(ids), self.ev.embed_dim), np.float32)
+        self.unit, ground_truth = self._physical_unit()
         windows = None
         if self.st.windowed:
             reps = {k: [r for r in range(proto.replications) if proto.sample_index(r, K) == k]
@@ -426,9 +484,8 @@ class HOIScorer(Scorer):
                 cid, int(self.st.rows[cid]["frames"]), cfg.length_crop, reps[k], proto.seed_for)
         st = self.st
         crop = self._embedded if proto.crop_embeddings else None
-        ground_truth = any(METRICS[n].needs_ground_truth for n, _ in extra)
         return _stream(sub, ids, st.ks_physical, st.ks_embed, self.ev, self.store, load_groups(self.store.root),
-                       proto, st.mode, st.fps, st.gen, windows, st.cache, crop, ground_truth)
+                       proto, st.mode, st.fps, st.gen, windows, st.cache, crop, ground_truth, st.ahead)
 
     def update(self, out) -> None:
         key, stats = out

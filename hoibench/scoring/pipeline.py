@@ -34,7 +34,9 @@ class EvaluationRefused(ValueError):
 class Scorer(ABC):
     """The stages of one evaluation (see the module docstring): the written contract of a
     scorer. Subclasses set ``name``, ``evaluator_options`` (passed to the evaluator's loader)
-    and ``map_options`` (passed to :func:`hoibench.core.parallel.map_units`), set ``unit``
+    and ``map_options`` (passed to :func:`hoibench.core.parallel.map_units`), and
+    ``fills_clip_data`` when it fills the per-clip arrays an evaluation asks for
+    (:mod:`hoibench.scoring.clip_data`: the result then gets slices), set ``unit``
     (the picklable per-unit function) by :meth:`stream` at the latest, and implement every
     abstract stage; the result they write is ``hoibench-result-2``
     (:mod:`hoibench.scoring.results`) and :func:`hoibench.scoring.report.format_result`
@@ -43,12 +45,16 @@ class Scorer(ABC):
     name: str = ""
     evaluator_options: dict = {}
     map_options: dict = {}
+    fills_clip_data: bool = False
 
     def __init__(self, store, protocol, evaluator, track, submission, options: dict, started: float | None = None):
         self.store, self.proto, self.ev, self.track = store, protocol, evaluator, track
         self.submission, self.options = submission, dict(options)
         self.started = time.perf_counter() if started is None else started
         self.timings: dict[str, float] = {}
+        #: the open executor the units will run on (set by the evaluation before ``validate``;
+        #: a scorer may start units on it early), or None
+        self.pool = None
 
     @classmethod
     def check_fit(cls, store, protocol, card: dict, options: dict) -> None:

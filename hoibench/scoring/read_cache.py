@@ -6,7 +6,7 @@ their samples encoded to, within a byte budget (:data:`DEFAULT_BUDGET_BYTES`); w
 not fit is read and encoded again when scored, with the same result."""
 from __future__ import annotations
 
-from typing import Iterable, Mapping
+from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -16,10 +16,13 @@ DEFAULT_BUDGET_BYTES = 1 << 30
 
 class ReadCache:
     """Arrays by id and encoded features by (id, sample), each taken once (:meth:`take_arrays`,
-    :meth:`take_features`): an entry is dropped when scoring uses it."""
+    :meth:`take_features`): an entry is dropped when scoring uses it. ``on_keep(sid, arrays)``
+    is called with each file's arrays as they are kept (the scorer starts work on them)."""
 
-    def __init__(self, budget_bytes: int = DEFAULT_BUDGET_BYTES):
+    def __init__(self, budget_bytes: int = DEFAULT_BUDGET_BYTES,
+                 on_keep: Callable[[str, dict[str, np.ndarray]], None] | None = None):
         self.budget = int(budget_bytes)
+        self.on_keep = on_keep
         self.used = 0
         self.arrays: dict[str, dict[str, np.ndarray]] = {}
         self.encoded: dict[tuple[str, int], np.ndarray] = {}
@@ -32,8 +35,11 @@ class ReadCache:
         return True
 
     def keep_arrays(self, sid: str, arrays: Mapping[str, np.ndarray]) -> None:
+        """Keep the arrays of ``sid`` (within the budget); ``on_keep(sid, arrays)`` then sees them."""
         if self._fits(sum(int(a.nbytes) for a in arrays.values())):
             self.arrays[sid] = dict(arrays)
+            if self.on_keep is not None:
+                self.on_keep(sid, self.arrays[sid])
 
     def keep_features(self, key: tuple[str, int], feats: np.ndarray) -> None:
         if self._fits(int(feats.nbytes)):

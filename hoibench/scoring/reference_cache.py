@@ -17,47 +17,25 @@ losslessly, the gate as the same JSON), so results are byte-identical with or wi
 (tested). A file that cannot be read is ignored and recomputed; a cache that cannot be
 written is skipped.
 
-``HOIBENCH_CACHE``: the cache folder (default ``~/.cache/hoibench``); ``off`` (or ``0``, or
-empty) turns it off.
+``HOIBENCH_CACHE``: the cache folder (default ``~/.cache/hoibench``; :mod:`hoibench.core.disk_cache`);
+``off`` (or ``0``, or empty) turns it off.
 """
 from __future__ import annotations
 
 import hashlib
 import json
-import os
-from functools import lru_cache
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from .. import __version__
-from ..core.io import atomic_write_bytes, load_raw_npz, npz_bytes
+from ..core.disk_cache import code_digest, read_cached, write_cached
 
-CACHE_ENV = "HOIBENCH_CACHE"
+KIND = "reference"
 FORMAT = "hoibench-reference-1"
 #: a cached file is read within this size (1,000 clips x 512 floats x a few captions is ~10 MB)
 MAX_BYTES = 1 << 30
-
-
-def cache_dir() -> Path | None:
-    """The cache folder, or None when ``HOIBENCH_CACHE`` turns it off."""
-    value = os.environ.get(CACHE_ENV)
-    if value is not None and value.strip().lower() in ("", "0", "off", "none", "false"):
-        return None
-    return Path(value).expanduser() if value else Path.home() / ".cache" / "hoibench"
-
-
-@lru_cache(maxsize=1)
-def code_digest() -> str:
-    """sha256 of the toolkit's own source files (names and bytes): a changed line of code, not
-    only a new version, gives new keys."""
-    package = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for path in sorted(package.rglob("*.py")):
-        h.update(str(path.relative_to(package)).encode() + b"\0")
-        h.update(path.read_bytes())       # read-ok: the package's own source, hashed
-    return h.hexdigest()
 
 
 def reference_key(store, protocol, evaluator_id: str, test_ids: Sequence[str], lines: Mapping[str, Sequence],
@@ -78,21 +56,13 @@ def reference_key(store, protocol, evaluator_id: str, test_ids: Sequence[str], l
     return h.hexdigest()
 
 
-def _path(key: str) -> Path | None:
-    root = cache_dir()
-    return None if root is None else root / "reference" / f"{key}.npz"
-
-
 def load_reference(key: str, n_clips: int) -> tuple[np.ndarray, list[np.ndarray], dict] | None:
     """``(real embeddings (N, D), caption embeddings per clip, gate record)`` of ``key``, or
     None when the cache is off, has no such file, or the file is not one it wrote for N clips."""
-    path = _path(key)
-    if path is None or not path.is_file():
+    z = read_cached(KIND, key, FORMAT, MAX_BYTES)
+    if z is None:
         return None
     try:
-        z = load_raw_npz(path, MAX_BYTES, "reference statistics")
-        if str(z["format"]) != FORMAT or str(z["key"]) != key:
-            return None
         real, captions, counts = z["real"], z["captions"], z["caption_counts"]
         gate = json.loads(str(z["gate"]))   # read-ok: a member of the npz read through load_raw_npz
     except (KeyError, ValueError, TypeError):
@@ -105,21 +75,15 @@ def load_reference(key: str, n_clips: int) -> tuple[np.ndarray, list[np.ndarray]
 
 def save_reference(key: str, real: np.ndarray, sets: Sequence[np.ndarray], gate: dict) -> Path | None:
     """Write the statistics of ``key`` (atomically); None when the cache is off or cannot be written."""
-    path = _path(key)
-    if path is None:
-        return None
     try:
         record = json.dumps(gate, sort_keys=True, allow_nan=True)
     except (TypeError, ValueError):          # a record JSON cannot hold exactly: not cached
         return None
-    arrays = {"format": np.array(FORMAT), "key": np.array(key), "real": np.asarray(real),
+    arrays = {"real": np.asarray(real),
               "captions": np.concatenate([np.asarray(s) for s in sets]) if len(sets) else np.zeros((0, real.shape[1]),
                                                                                                    real.dtype),
               "caption_counts": np.array([len(s) for s in sets], np.int64), "gate": np.array(record)}
-    try:
-        return atomic_write_bytes(path, npz_bytes(arrays, compressed=False))
-    except OSError:
-        return None
+    return write_cached(KIND, key, FORMAT, arrays)
 
 
-__all__ = ["CACHE_ENV", "cache_dir", "reference_key", "load_reference", "save_reference"]
+__all__ = ["reference_key", "load_reference", "save_reference"]

@@ -127,13 +127,23 @@ def slice_tables(labels: Mapping[str, Mapping[str, str]], ids: Sequence[str],
     return out
 
 
-def result_slices(store, arrays: Mapping[str, np.ndarray], proto) -> dict:
+def test_clip_labels(root: str) -> dict[str, dict[str, str]]:
+    """:func:`clip_labels` of every test clip of the store at ``root``."""
+    from ..datasets.store import Store
+    store = Store(root)
+    return clip_labels(store, store.clip_ids("test"))
+
+
+def result_slices(store, arrays: Mapping[str, np.ndarray], proto,
+                  labels: Mapping[str, Mapping[str, str]] | None = None) -> dict:
     """The ``slices`` block of a result: ``{"labels": {slice: {id: label}}, "tables": {slice:
     {label: {"n", metric: mean}}}, "over", "metrics"}`` from its per-clip arrays
-    (:mod:`hoibench.scoring.clip_data`)."""
+    (:mod:`hoibench.scoring.clip_data`). ``labels``: :func:`clip_labels` of a superset of
+    the result's clips, when already read (e.g. :func:`test_clip_labels`)."""
     from .paired import clip_values
     ids = [str(x) for x in arrays["ids"]]
-    labels = clip_labels(store, ids)
+    labels = clip_labels(store, ids) if labels is None else \
+        {s: {cid: by_clip[cid] for cid in ids} for s, by_clip in labels.items()}
     values = clip_values(dict(arrays), proto)
     return {"labels": labels, "tables": slice_tables(labels, ids, values), "over": "test clips, sample 0",
             "metrics": sorted(values)}
