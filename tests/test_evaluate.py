@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -91,6 +92,29 @@ def test_executors_give_identical_results(setup):
     from hoibench.scoring.slices import clip_labels
     ids = sorted(next(iter(a["slices"]["labels"].values())))
     assert a["slices"]["labels"] == clip_labels(Store(data), ids)
+
+
+def test_a_protocol_listing_no_object_metric_computes_none(setup, tmp_path):
+    """The protocol's ``metrics:`` list decides what is computed: without an object metric the
+    physical units skip the object's distances (the costly part), and nothing reports them."""
+    import re
+    from hoibench.metrics.catalog import object_metrics
+    from hoibench.scoring.evaluate import evaluate
+    import hoibench.tracks
+    base, data = setup
+    listed = ["r_precision_top1", "fid", "mm_dist", "diversity", "fsr", "jitter_mps3"]
+    text = (Path(hoibench.tracks.__file__).parent / "protocols" / "synthetic-clean.yaml").read_text()
+    (tmp_path / "embed.yaml").write_text(re.sub(r"(?m)^metrics: .*$", f"metrics: [{', '.join(listed)}]", text))
+    a = evaluate(base / "gt", data, base / "ev", protocol=str(tmp_path / "embed.yaml"))
+    b = evaluate(base / "gt", data, base / "ev")
+    assert set(a["metrics"]) == set(listed) | {"clips", "clips_with_contact"}
+    for name in listed:                                  # what is listed is what the full protocol gives
+        assert a["metrics"][name]["mean"] == b["metrics"][name]["mean"], name
+    assert not set(a["undefined_metrics"]) & set(object_metrics())
+    assert not any(n.split(":")[0] in object_metrics() for n in a["notes"])
+    rows = a["per_clip"]["rows"]
+    assert all(r["cd"] is None and r["ps"] is None for r in rows) and any(r["fsr"] is not None for r in rows)
+    assert any(r["ps"] is not None for r in b["per_clip"]["rows"])
 
 
 # ---------------------------------------------------------------- labels that must not lie

@@ -206,11 +206,15 @@ def _body_fn(config: PhysicalConfig) -> Callable:
     return load_object(config.body_surface)
 
 
-def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(), extra: Sequence = ()) -> dict:
+def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(), extra: Sequence = (),
+                        objects: bool = True) -> dict:
     """Sufficient statistics of every physical metric for one clip (pure; see the module);
     ``extra``: ``((name, settings), ...)`` of catalogue metrics with a per-clip function
-    (``clip_fn``), each one value (:func:`extra_clip_values`)."""
-    st = _core_stats(inp, config)
+    (``clip_fn``), each one value (:func:`extra_clip_values`). ``objects=False``: the object
+    metrics (CD, OCD, PS, penetration, contact, floating) are not computed (a protocol that
+    lists none of them): the clip's statistics are those of a clip without an object, plus
+    ``objects_skipped``."""
+    st = _core_stats(inp, config, objects)
     if extra:
         st["extra"] = extra_clip_values(inp, extra)
     return st
@@ -236,7 +240,7 @@ def extra_clip_values(inp: ClipInput, extra: Sequence) -> dict[str, float]:
     return out
 
 
-def _core_stats(inp: ClipInput, config: PhysicalConfig) -> dict:
+def _core_stats(inp: ClipInput, config: PhysicalConfig, objects: bool = True) -> dict:
     J = np.asarray(inp.joints, dtype=np.float64)
     if J.ndim != 3 or J.shape[1:] != (sk.NUM_JOINTS, 3):
         raise ValueError(f"{inp.key}: joints: expected shape (T, 22, 3), got {J.shape}")
@@ -248,6 +252,9 @@ def _core_stats(inp: ClipInput, config: PhysicalConfig) -> dict:
     st["gmd_skating"], st["gmd_frames"] = mo.gmd_skating_counts(
         J, fps, config.gmd_height_m, config.gmd_speed_mps, config.gmd_window_frames)
     st["jerk_sum"], st["jerk_count"] = mo.jitter_sums(J, fps)
+    if not objects:
+        st["has_object"], st["objects_skipped"] = False, True
+        return st
     if inp.template_vertices is None or inp.obj_rot is None:
         st["has_object"] = False
         return st
@@ -340,14 +347,14 @@ def window_input(inp: ClipInput, start: int, length: int) -> ClipInput:
 
 
 def clip_window_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(),
-                      extra: Sequence = ()) -> dict[int, dict]:
+                      extra: Sequence = (), objects: bool = True) -> dict[int, dict]:
     """``{replication: stats}``: :func:`clip_physical_stats` of each window of
     ``inp.windows`` (:func:`window_input`); a window drawn twice is computed once."""
     done: dict[tuple[int, int], dict] = {}
     out = {}
     for r, start, length in inp.windows:
         if (start, length) not in done:
-            done[(start, length)] = clip_physical_stats(window_input(inp, start, length), config, extra)
+            done[(start, length)] = clip_physical_stats(window_input(inp, start, length), config, extra, objects)
         out[int(r)] = done[(start, length)]
     return out
 
@@ -370,11 +377,11 @@ def warm_fields(root: str, names: Sequence[str], config: PhysicalConfig = Physic
     return built
 
 
-def _unit(inp: ClipInput, config: PhysicalConfig, extra: Sequence = ()) -> tuple:
+def _unit(inp: ClipInput, config: PhysicalConfig, extra: Sequence = (), objects: bool = True) -> tuple:
     """``(key, stats)``; with windows ``(key, {"replications": {r: stats}})``."""
     if inp.windows:
-        return inp.key, {"replications": clip_window_stats(inp, config, extra)}
-    return inp.key, clip_physical_stats(inp, config, extra)
+        return inp.key, {"replications": clip_window_stats(inp, config, extra, objects)}
+    return inp.key, clip_physical_stats(inp, config, extra, objects)
 
 
 def _ratio(a, b) -> float:

@@ -80,6 +80,7 @@ class HOIState:
     mm_ok: bool = False
     ids: list = field(default_factory=list)
     ahead: dict = field(default_factory=dict)         # (id, k) -> physical unit started during validation
+    objects: bool = True                              # the protocol lists an object metric: computed
     # stream
     windowed: bool = False
     physical: dict = field(default_factory=dict)      # PhysicalMetrics per sample index or replication
@@ -405,11 +406,13 @@ class HOIScorer(Scorer):
 
     def _physical_unit(self) -> tuple[Callable, bool]:
         """The per-clip physical function (the protocol's catalogue metrics with a per-clip
-        function included) and whether its inputs carry the ground truth; notes in
-        ``st.not_computed`` the metrics that cannot run here."""
-        from ..metrics.catalog import METRICS, unavailable
+        function included; the object metrics only when the protocol lists one of them) and
+        whether its inputs carry the ground truth; notes in ``st.not_computed`` the metrics
+        that cannot run here."""
+        from ..metrics.catalog import METRICS, object_metrics, unavailable
         from ..metrics.physical import _unit
         proto, cfg = self.proto, self.proto.physical_config()
+        self.st.objects = bool(set(proto.metrics) & set(object_metrics()))
         extra, self.st.not_computed = [], {}
         for n in proto.metrics:
             if n in METRICS and METRICS[n].clip_fn:
@@ -418,7 +421,8 @@ class HOIScorer(Scorer):
                     self.st.not_computed[n] = why
                 else:
                     extra.append((n, proto.settings_for(METRICS[n].settings_key)))
-        unit = partial(_unit, config=cfg, extra=tuple(extra)) if extra else partial(_unit, config=cfg)
+        unit = partial(_unit, config=cfg, **({"extra": tuple(extra)} if extra else {}),
+                       **({} if self.st.objects else {"objects": False}))
         return unit, any(METRICS[n].needs_ground_truth for n, _ in extra)
 
     def _start_ahead(self) -> Callable | None:
@@ -642,6 +646,12 @@ class HOIScorer(Scorer):
         flags = meta.get("flags") if isinstance(meta.get("flags"), dict) else {}
         overrides = self.st.overrides
         listed = set(proto.metrics) | {"clips", "clips_with_contact"}
+        if not self.st.objects:           # not computed because not listed: no "undefined" line for them
+            from ..metrics.catalog import object_metrics
+            for name in object_metrics():
+                if name not in listed:
+                    undefined.pop(name, None)
+                    notes = [n for n in notes if not n.startswith(f"{name}: ")]
         summary = summarize_replications(per_rep, proto.replications)
         over_clips = {}
         if self.st.K == 1 and self.st.clip_arrays:       # K = 1: replications resample captions and pools only
