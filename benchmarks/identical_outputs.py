@@ -25,7 +25,7 @@ from pathlib import Path
 #: keys dropped from JSON files before hashing: wall-clock figures and the paths of this run
 VOLATILE_KEYS = {"timings", "path", "root", "created", "seconds", "wall_s", "elapsed_s", "train_seconds",
                  "wall_time_s", "started", "finished", "hostname", "platform", "python", "executor", "timings_s",
-                 "wall_s_this_call", "steps_per_second", "stage_seconds"}
+                 "wall_s_this_call", "steps_per_second", "stage_seconds", "wall_seconds", "segment_seconds"}
 
 STEPS = [
     # (name, argv) -- {o} is the output folder
