@@ -212,8 +212,7 @@ def clip_physical_stats(inp: ClipInput, config: PhysicalConfig = PhysicalConfig(
     ``extra``: ``((name, settings), ...)`` of catalogue metrics with a per-clip function
     (``clip_fn``), each one value (:func:`extra_clip_values`). ``objects=False``: the object
     metrics (CD, OCD, PS, penetration, contact, floating) are not computed (a protocol that
-    lists none of them): the clip's statistics are those of a clip without an object, plus
-    ``objects_skipped``."""
+    lists none of them): the clip's statistics are those of a clip without an object."""
     st = _core_stats(inp, config, objects)
     if extra:
         st["extra"] = extra_clip_values(inp, extra)
@@ -252,10 +251,7 @@ def _core_stats(inp: ClipInput, config: PhysicalConfig, objects: bool = True) ->
     st["gmd_skating"], st["gmd_frames"] = mo.gmd_skating_counts(
         J, fps, config.gmd_height_m, config.gmd_speed_mps, config.gmd_window_frames)
     st["jerk_sum"], st["jerk_count"] = mo.jitter_sums(J, fps)
-    if not objects:
-        st["has_object"], st["objects_skipped"] = False, True
-        return st
-    if inp.template_vertices is None or inp.obj_rot is None:
+    if not objects or inp.template_vertices is None or inp.obj_rot is None:
         st["has_object"] = False
         return st
     st["has_object"] = True

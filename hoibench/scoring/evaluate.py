@@ -72,7 +72,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
         slices = clip_data is not None and scorer_cls.fills_clip_data
         if slices:                       # the slice labels read only the store: an idle worker reads them
             from .slices import test_clip_labels
-            labels = run_early(pool, test_clip_labels, str(store.root))
+            read_labels = run_early(pool, test_clip_labels, str(store.root))
         ev = load_evaluator(evaluator, kind=track.evaluator_kind, **scorer_cls.evaluator_options) \
             if needs_evaluator else None
         scorer = scorer_cls(store, proto, ev, track, submission, options, started=started)
@@ -89,7 +89,7 @@ def evaluate(submission: str | Path, data: str | Path, evaluator: str | Path | N
             units = scorer.stream(sub, ids)          # sets up the unit's settings before the map
             for out in map_units(scorer.unit, units, pool, **scorer.map_options):
                 scorer.update(out)
-        labels = labels() if slices and clip_data else None
+        labels = read_labels() if slices and clip_data else None
     result = scorer.summary(scorer.replications())
     if clip_data:
         from .slices import result_slices

@@ -621,6 +621,10 @@ class HOIScorer(Scorer):
         proto, ids, report, ev, store, meta = self.proto, self.st.ids, self.st.report, self.ev, self.store, self.st.meta
         per_rep, undefined = _finite_rows(rows)
         undefined.update(self.st.not_computed)
+        if not self.st.objects:           # none listed, none computed: no "undefined" line for them
+            from ..metrics.catalog import object_metrics
+            for name in object_metrics():
+                undefined.pop(name, None)
         human_store = not any(self.st.rows[cid].get("object") for cid in ids)
         if human_store or self.st.human_only:      # no object to measure against, or none generated
             from ..metrics.catalog import object_metrics
@@ -646,12 +650,6 @@ class HOIScorer(Scorer):
         flags = meta.get("flags") if isinstance(meta.get("flags"), dict) else {}
         overrides = self.st.overrides
         listed = set(proto.metrics) | {"clips", "clips_with_contact"}
-        if not self.st.objects:           # not computed because not listed: no "undefined" line for them
-            from ..metrics.catalog import object_metrics
-            for name in object_metrics():
-                if name not in listed:
-                    undefined.pop(name, None)
-                    notes = [n for n in notes if not n.startswith(f"{name}: ")]
         summary = summarize_replications(per_rep, proto.replications)
         over_clips = {}
         if self.st.K == 1 and self.st.clip_arrays:       # K = 1: replications resample captions and pools only
