@@ -277,3 +277,96 @@ def test_evaluate_reads_a_deflate_bomb_sample_within_its_budget(track, tmp_path,
     assert main(["evaluate", str(bomb), "--data", str(base / "data"), "--evaluator", str(base / "rec")]) != 0
     err = [ln for ln in capsys.readouterr().err.strip().splitlines() if not ln.startswith("[")]
     assert len(err) == 1 and first.stem in err[0] and ("budget" in err[0] or "limit" in err[0]), err
+
+
+# ---------------------------------------------------------------------------- per-clip data, slices, paired
+@pytest.fixture(scope="module")
+def scored(track, tmp_path_factory):
+    """GT, desync and static results written with their per-clip data, as ``evaluate --out`` does."""
+    from hoibench.scoring.evaluate import main_evaluate
+    base, _, _, subs = track
+    out = tmp_path_factory.mktemp("mbscored")
+    paths = {}
+    for kind in ("gt", "desync", "static"):
+        paths[kind] = out / f"{kind}.json"
+        assert main_evaluate(subs[kind], base / "data", base / "rec", out=paths[kind]) == 0
+    return paths
+
+
+def test_multibody_per_clip_data_reproduce_the_result(scored):
+    """The per-clip means are the result's CSR, CSIoU, IV, ID and RA (K = 1: one sample per
+    clip), the recognizer features give its FID, and the ground truth's per-clip values are
+    the result's ``ground_truth`` block."""
+    from hoibench.core.io import read_json_file as read_json
+    from hoibench.metrics.resampling import weighted_fid
+    from hoibench.scoring.clip_data import read_clip_data
+    for kind, path in scored.items():
+        res = read_json(path)
+        arr = read_clip_data(res, path)
+        n = res["counts"]["test_ids"]
+        assert arr["motion"].shape[:2] == (1, n) and arr["real"].shape[0] == n and len(arr["text"]) == 0
+        names = [str(x) for x in arr["physical_names"]]
+        assert names == sorted(["csr", "crr", "csiou", "iv_cm3", "id_mm", "ra"])
+        for j, m in enumerate(names):
+            assert np.nanmean(arr["physical"][0, :, j]) == pytest.approx(res["metrics"][m]["mean"], rel=1e-9, abs=1e-12), (kind, m)
+            if m in res["ground_truth"]:
+                assert np.nanmean(arr["reference"][:, j]) == pytest.approx(res["ground_truth"][m], rel=1e-9, abs=1e-12)
+        fid = weighted_fid(arr["real"].astype(np.float64), arr["motion"][0].astype(np.float64), np.ones(n))
+        assert fid == pytest.approx(res["metrics"]["fid"]["mean"], rel=1e-4, abs=1e-2)   # GT: 0 up to numerics
+        lo, hi = res["metrics"]["fid"]["clips"]["ci95"]
+        assert lo <= hi and res["metrics"]["ra"]["clips"]["over"] == "test clips"
+
+
+def test_multibody_slices_label_each_clip_from_the_store(scored, track):
+    """Verb = the clip's action, object = its templates, contact = the skeleton kinds its
+    contact labels name: the carry family is two people, the hand families hands."""
+    from hoibench.core.io import read_json_file as read_json
+    from hoibench.datasets.store import Store
+    base = track[0]
+    res = read_json(scored["desync"])
+    labels = res["slices"]["labels"]
+    store = Store(base / "data")
+    for cid in store.clip_ids("test"):
+        z = store.load(cid)
+        assert labels["verb"][cid] == str(z["action"])
+        assert labels["object"][cid] == "+".join(sorted(str(t) for t in z["body_templates"] if str(t)))
+        assert labels["contact"][cid] == ("people" if "_carry_" in cid else "hands"), cid
+    table = res["slices"]["tables"]["contact"]
+    assert sum(row["n"] for row in table.values()) == res["counts"]["test_ids"]
+    assert "ra" in table["hands"] and "crr" in table["people"] and "csr" not in table["people"]
+
+
+def test_multibody_paired_compare_finds_the_defects_and_not_the_identity(scored, tmp_path, capsys):
+    from hoibench.cli import main
+    from hoibench.core.io import read_json_file as read_json
+    from hoibench.scoring.paired import paired_compare
+    cmp = paired_compare([scored["gt"], scored["desync"], scored["static"], scored["gt"]], seed=3)
+    desync, static, same = cmp["pairs"]
+    assert desync["metrics"]["fid"]["verdict"] == "A better" and desync["metrics"]["iv_cm3"]["diff"] > 0
+    assert static["metrics"]["ra"]["verdict"] == "A better"
+    assert static["metrics"]["csr"]["tested"] == "distance to the ground truth"
+    for m, row in same["metrics"].items():
+        assert row["diff"] == 0 and row["ci95"][0] <= 0 <= row["ci95"][1] and row["p_holm"] == 1.0, m
+    assert {"sd", "od"}.isdisjoint(desync["metrics"])            # set-level without per-clip data: not tested
+    # a single-body result (another evaluator) is refused in one line naming the field
+    res = read_json(scored["gt"])
+    other = dict(res, evaluator_id="0" * 64)
+    from hoibench.core.io import atomic_write_json
+    atomic_write_json(tmp_path / "other.json", other)
+    import shutil
+    shutil.copy(scored["gt"].with_name("gt.clips.npz"), tmp_path / "gt.clips.npz")
+    assert main(["compare", str(scored["gt"]), str(tmp_path / "other.json"), "--paired"]) != 0
+    err = [ln for ln in capsys.readouterr().err.strip().splitlines() if ln.strip()]
+    assert len(err) == 1 and "evaluator_id" in err[0] and "Traceback" not in err[0]
+
+
+def test_multibody_per_clip_data_are_identical_on_every_executor(track, tmp_path):
+    from hoibench.scoring.evaluate import evaluate
+    base, _, _, subs = track
+    a, b = {}, {}
+    ra = evaluate(subs["lost_contact"], base / "data", base / "rec", executor="serial", clip_data=a)
+    rb = evaluate(subs["lost_contact"], base / "data", base / "rec", executor="processes:2", clip_data=b)
+    assert sorted(a) == sorted(b)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+    assert json.dumps(ra["slices"], sort_keys=True) == json.dumps(rb["slices"], sort_keys=True)

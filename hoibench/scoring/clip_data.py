@@ -11,6 +11,11 @@ Arrays (one ``.npz``, no pickles):
 - ``physical`` (S, N, P), ``physical_samples`` (S,), ``physical_names`` (P,): the physical
   metrics' per-clip values of each scored sample (NaN where undefined).
 
+A multi-body result (:func:`hoibench.scoring.multibody.multibody_clip_arrays`) keeps the same
+arrays with the recognizer's features as ``motion`` and ``real``, no caption embeddings
+(``text`` (0, D)), every per-sample metric (CSR, CRR, CSIoU, IV, ID, RA's correctness) in
+``physical``, and ``reference`` (N, P): the ground truth's per-clip values of those metrics.
+
 The result records ``per_clip_data: {"file", "sha256", "bytes"}`` with the file's name only
 (not its folder), so moving the pair of files together changes nothing in the result."""
 from __future__ import annotations

@@ -158,6 +158,7 @@ class MultiBodyScorer(Scorer):
     name = "multibody"
     unit = staticmethod(_clip_unit)
     map_options = {"progress": "evaluate multibody"}
+    fills_clip_data = True
 
     def prepare(self) -> None:
         store, proto, rec = self.store, self.proto, self.ev
@@ -215,8 +216,11 @@ class MultiBodyScorer(Scorer):
 
     def replications(self) -> list[dict]:
         """One replication: the protocol fixes K samples per prompt, every one is scored."""
-        metrics, reference, self.counts = _multibody_metrics(self.units, self.jobs, self.proto, self.ev)
+        metrics, reference, self.counts, self.clip_arrays = _multibody_metrics(self.units, self.jobs, self.proto,
+                                                                               self.ev)
         self.reference = reference
+        if isinstance(self.options.get("clip_data"), dict):
+            self.options["clip_data"].update(self.clip_arrays)
         return [metrics]
 
     def summary(self, rows: list[dict]) -> dict:
@@ -228,6 +232,10 @@ class MultiBodyScorer(Scorer):
                          "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
                      for k, v in metrics.items() if v is None and k in listed}
         n = len(self.ids)
+        over_clips = {}
+        if self.counts == n:             # K = 1: a clip-bootstrap interval of every per-clip metric and FID
+            from .paired import clip_intervals
+            over_clips = clip_intervals(self.clip_arrays, proto, seed=int(proto.seed or 0))
         return {
             "format": RESULT_FORMAT, "kind": "multibody", "track": self.track.name,
             "toolkit": "hoibench", "toolkit_version": __version__,
@@ -236,11 +244,13 @@ class MultiBodyScorer(Scorer):
             "evaluator_id": rec.id, "evaluator_backend": self.options.get("evaluator_backend", "recognizer"),
             "evaluator_trained_on_split": rec.card.get("trained_on_split"),
             "store": str(store.manifest.get("dataset", "")), "store_manifest_sha256": store.manifest_sha256(),
+            "dataset": store.manifest.get("dataset"), "store_config_sha256": store.manifest.get("config_sha256"),
             "submission": {"path": str(self.submission), "method": meta.get("method"), "version": meta.get("version")},
             "counts": {"test_ids": n, "scored_ids": n, "samples_per_prompt": int(proto.samples_per_prompt),
                        "samples": self.counts, "missing_ids": []},
             "complete": True,
-            "metrics": {k: metric_entry(k, v, ci.get(k), self.counts, "samples")
+            "metrics": {k: metric_entry(k, v, ci.get(k), self.counts, "samples",
+                                        **({"clips": over_clips[k]} if k in over_clips else {}))
                         for k, v in metrics.items() if v is not None and k in listed},
             "ground_truth": {k: v for k, v in self.reference.items() if k in listed},
             "undefined_metrics": undefined, "notes": self.notes,
@@ -248,9 +258,10 @@ class MultiBodyScorer(Scorer):
 
 
 
-def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tuple[dict, dict, int]:
+def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tuple[dict, dict, int, dict]:
     """SyncDiff's metrics of the generated samples and of the ground truth, from the per-clip
-    units (reduced in id order) and the recognizer; returns (metrics, reference, samples)."""
+    units (reduced in id order) and the recognizer; returns (metrics, reference, samples,
+    per-clip arrays (:func:`multibody_clip_arrays`))."""
     from ..metrics import multibody as mbm
     from ..metrics.embedding import fid as fid_of
     csr, crr, csiou = mbm.CSR(threshold_m=proto.csr_threshold_m), mbm.CRR(threshold_m=proto.crr_threshold_m), \
@@ -324,7 +335,43 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
     per = {"csr": _values(csr), "crr": _values(crr), "csiou": _values(csiou), "iv_cm3": iv, "id_mm": idm,
            "ra": correct}
     metrics["ci95"] = {k: half_width_95(v) for k, v in per.items() if half_width_95(v) is not None}
-    return metrics, reference, len(gens)
+    ids = [u["id"] for u in sorted(units, key=lambda x: x["id"])]
+    ks = [len(u["samples"]) for u in sorted(units, key=lambda x: x["id"])]
+    keys = [f"{cid}#{k}" for cid, K in zip(ids, ks) for k in range(K)]
+    values = {"csr": csr.per_clip(), "crr": crr.per_clip(), "csiou": csiou.per_clip(),
+              "iv_cm3": dict(zip(keys, iv)), "id_mm": dict(zip(keys, idm)), "ra": dict(zip(keys, correct))}
+    gt_values = {"csr": gt_csr.per_clip(), "crr": gt_crr.per_clip(), "csiou": dict.fromkeys(ids, 1.0),
+                 "iv_cm3": dict(zip(ids, gt_iv)), "id_mm": dict(zip(ids, gt_id)),
+                 "ra": {cid: float(p == g.action) for cid, p, g in zip(ids, gt_pred, gts)}}
+    arrays = multibody_clip_arrays(ids, ks, gen_feats, gt_feats, values, gt_values)
+    return metrics, reference, len(gens), arrays
+
+
+def multibody_clip_arrays(ids: list[str], ks: list[int], gen_feats: np.ndarray, gt_feats: np.ndarray,
+                          values: dict[str, dict[str, float]], gt_values: dict[str, dict[str, float]],
+                          ) -> dict[str, np.ndarray]:
+    """A multi-body result's per-clip data (:mod:`hoibench.scoring.clip_data`'s layout, no
+    caption embeddings): ``motion`` (K, N, D) the recognizer's features of the first K samples
+    of every clip (K the fewest any clip has; ``gen_feats`` holds clip after clip, sample after
+    sample), ``real`` (N, D) the ground truth's; ``physical`` (K, N, P) each per-sample metric's
+    value (``values[metric]["<id>#<k>"]``; NaN where undefined, e.g. CSR on a clip without
+    hands; RA's is the sample's correctness, 0 or 1); ``reference`` (N, P) the ground truth's
+    per-clip values of the same metrics (``gt_values[metric][<id>]``: what a metric best
+    closest to the ground truth is tested against)."""
+    K = min(ks)
+    starts = np.cumsum([0] + list(ks))[:-1]
+    gen = np.asarray(gen_feats, np.float32)
+    motion = np.stack([gen[starts + k] for k in range(K)])
+    names = sorted(values)
+    phys = np.full((K, len(ids), len(names)), np.nan, np.float64)
+    for k in range(K):
+        for i, cid in enumerate(ids):
+            phys[k, i] = [float(values[n].get(f"{cid}#{k}", np.nan)) for n in names]
+    d = motion.shape[-1]
+    return {"ids": np.array(ids), "motion": motion, "real": np.asarray(gt_feats, np.float32),
+            "text": np.zeros((0, d), np.float32), "text_offsets": np.zeros(len(ids) + 1, np.int64),
+            "physical": phys, "physical_samples": np.arange(K, dtype=np.int64), "physical_names": np.array(names),
+            "reference": np.array([[float(gt_values[n].get(cid, np.nan)) for n in names] for cid in ids], np.float64)}
 
 
 def _values(metric) -> list[float]:

@@ -8,10 +8,13 @@ per-clip data (:mod:`hoibench.scoring.clip_data`, :mod:`hoibench.metrics.resampl
 - FID, Diversity: on the drawn clips' embeddings (sample 0); R-precision top-k and MM-Dist:
   per-clip values under the protocol's replication-0 pools of the shared clips, each clip's
   first caption (so they differ from the result's mean over replications; the difference is
-  what is tested); the physical metrics: the mean of their per-clip values (a pooled metric
-  such as PS or FSR weighs frames, the per-clip mean weighs clips);
+  what is tested); the physical metrics (and a multi-body result's per-clip metrics): the mean
+  of their per-clip values (a pooled metric such as PS or FSR weighs frames, the per-clip mean
+  weighs clips);
 - ``diff = B - A`` on all shared clips, its 95% percentile interval, a two-sided bootstrap
-  p-value (for a metric best closest to the ground truth: of ``|B - GT| - |A - GT|``), Holm's
+  p-value (for a metric best closest to the ground truth: of ``|B - GT| - |A - GT|``, the
+  ground truth's value drawn with the same clips: Diversity, and the per-clip metrics whose
+  data carry the ground truth's values, ``reference``), Holm's
   adjustment across the metrics of one pair, and a verdict: ``A better``, ``B better`` or
   ``not distinguishable on N clips`` (adjusted p >= 0.05).
 
@@ -60,19 +63,32 @@ class _Side:
     """One result's per-clip statistics on the shared clips."""
 
     def __init__(self, arrays: dict, order: np.ndarray, pools: list, top_k: int):
-        offsets = arrays["text_offsets"]
         self.motion = arrays["motion"][0][order].astype(np.float64)
         self.real = arrays["real"][order].astype(np.float64)
-        text = arrays["text"][offsets[:-1][order]].astype(np.float64)    # each clip's first caption
-        self.hits, self.mmd = retrieval_per_clip(text, self.motion, pools, top_k)
+        self.hits = self.mmd = None
+        if has_text(arrays):               # a multi-body result's recognizer has no text branch
+            offsets = arrays["text_offsets"]
+            text = arrays["text"][offsets[:-1][order]].astype(np.float64)    # each clip's first caption
+            self.hits, self.mmd = retrieval_per_clip(text, self.motion, pools, top_k)
         names = [str(n) for n in arrays["physical_names"]]
         self.physical = {n: arrays["physical"][0][order, j] for j, n in enumerate(names)}
+        #: the ground truth's per-clip values of the same metrics, where the data carry them
+        self.reference = {n: arrays["reference"][order, j] for j, n in enumerate(names)} \
+            if "reference" in arrays else {}
 
     def per_clip(self) -> dict[str, np.ndarray]:
-        out = {f"r_precision_top{k + 1}": self.hits[:, k] for k in range(self.hits.shape[1])}
-        out["mm_dist"] = self.mmd
+        out = {}
+        if self.hits is not None:
+            out = {f"r_precision_top{k + 1}": self.hits[:, k] for k in range(self.hits.shape[1])}
+            out["mm_dist"] = self.mmd
         out.update(self.physical)
         return out
+
+
+def has_text(arrays: dict) -> bool:
+    """Whether per-clip data carry caption embeddings (single-body results; a multi-body
+    result's recognizer embeds no text)."""
+    return "text" in arrays and len(arrays["text"]) > 0
 
 
 def _means(values: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -148,8 +164,7 @@ def _shared(a_arrays: dict, b_arrays: dict) -> tuple[str, ...]:
 
 def _sides(arrays: list[dict], shared: tuple[str, ...], proto) -> list[_Side]:
     """Each result's :class:`_Side` on the ``shared`` clips (replication-0 pools of them)."""
-    where = {c: i for i, c in enumerate(shared)}
-    pools = [[where[c] for c in p] for p in proto.pools(list(shared), 0)] or [list(range(len(shared)))]
+    pools = _pools(proto, list(shared)) if all(has_text(a) for a in arrays) else []
     top_k = int(proto.r_precision_top_k or 3)
     out = []
     for arr in arrays:
@@ -214,7 +229,8 @@ def _pair_rows(a: dict, b: dict, A: _Side, B: _Side, W: np.ndarray, boot: dict, 
     for m in names:
         info = METRICS[m]
         if m in pa and m in pb:
-            va, vb, vg = _means(pa[m], W), _means(pb[m], W), None
+            va, vb = _means(pa[m], W), _means(pb[m], W)
+            vg = _means(A.reference[m], W) if m in A.reference else None
             fa, fb = float(_means(pa[m], ones)[0]), float(_means(pb[m], ones)[0])
         elif m == "fid":
             va, vb, vg, fa, fb = boot["fid_a"], boot["fid_b"], None, float(full["fid_a"]), float(full["fid_b"])
@@ -375,9 +391,15 @@ def _draw_side(arrays: dict, proto, W: np.ndarray) -> tuple[_Side, np.ndarray]:
     n = len(ids)
     if n < 2 or np.shape(W)[1:] != (n,):
         raise ValueError(f"W: expected draw counts of shape (B, {n}) over at least 2 clips, got {np.shape(W)}")
-    where = {c: i for i, c in enumerate(ids)}
-    pools = [[where[c] for c in p] for p in proto.pools(ids, 0)] or [list(range(n))]
+    pools = _pools(proto, ids) if has_text(arrays) else []
     return _Side(arrays, np.arange(n), pools, int(proto.r_precision_top_k or 3)), np.asarray(W, np.float64)
+
+
+def _pools(proto, ids: list[str]) -> list[list[int]]:
+    """The protocol's replication-0 R-precision pools of ``ids``, as indices into ``ids``
+    (one pool of all of them when the protocol makes none)."""
+    where = {c: i for i, c in enumerate(ids)}
+    return [[where[c] for c in p] for p in proto.pools(ids, 0)] or [list(range(len(ids)))]
 
 
 def clip_values(arrays: dict, proto) -> dict[str, np.ndarray]:

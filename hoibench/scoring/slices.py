@@ -16,6 +16,11 @@ submission):
 - ``text_length``: words of the first caption, in :data:`TEXT_BINS`;
 - ``motion_length``: seconds, in :data:`MOTION_BINS`.
 
+A multi-body clip (``layout`` ``multibody-*``) is labelled from its own arrays: ``object``
+its object templates joined by ``+``; ``verb`` its action label; ``contact`` the kinds of
+skeleton in contact in its contact labels (``hands``, ``people``, ``hands+people``, ``none``);
+``source``, ``text_length`` and ``motion_length`` as above (its first ``texts`` line).
+
 A slice table holds, for each label, the number of clips and the mean of every per-clip
 metric over them (R-precision top-k and MM-Dist in :func:`~hoibench.scoring.paired.
 per_clip_draws`'s per-clip form, the physical metrics' per-clip values; sample 0). Set-level
@@ -71,8 +76,28 @@ def _annotation_actions(path) -> list:
     return got if isinstance(got, list) else []
 
 
-#: the clip arrays the labels read
-_LABEL_KEYS = ("object_name", "contacts", "provenance", "dataset", "fps", "joints")
+#: the clip arrays the labels read (single-body, then multi-body clips)
+_LABEL_KEYS = ("object_name", "contacts", "provenance", "dataset", "fps", "joints",
+               "layout", "action", "body_kinds", "body_templates", "contact_pairs", "contact_frames", "texts")
+#: a multi-body skeleton kind's ``contact`` label
+_MULTIBODY_PARTS = (("hand", "hands"), ("human", "people"))
+
+
+def _multibody_labels(z) -> dict[str, str]:
+    """The slice labels of one multi-body clip's arrays ``z`` (module docstring)."""
+    import json
+    kinds = [str(k) for k in z["body_kinds"]]
+    templates = sorted(str(t) for t in z["body_templates"] if str(t))
+    touching = {kinds[int(a)] for (a, _), frames in zip(z["contact_pairs"], z["contact_frames"]) if np.any(frames)} \
+        if "contact_pairs" in z and len(z["contact_pairs"]) else set()
+    texts = [json.loads(str(t)).get("text", "") for t in z["texts"]] if "texts" in z else []  # read-ok: the clip the store read
+    prov = json.loads(str(z["provenance"])) if "provenance" in z else {}  # read-ok: the clip the store read
+    frames = int(np.shape(z["contact_frames"])[1]) if "contact_frames" in z and np.ndim(z["contact_frames"]) == 2 else 0
+    return {"object": "+".join(templates) or "none", "verb": str(z["action"]) if "action" in z else "?",
+            "contact": "+".join(label for kind, label in _MULTIBODY_PARTS if kind in touching) or "none",
+            "source": str(prov.get("source_dataset") or (z["dataset"] if "dataset" in z else "?")),
+            "text_length": _bin(len(texts[0].split()), TEXT_BINS) if texts else "no text",
+            "motion_length": _bin(frames / float(z["fps"]), MOTION_BINS) if frames else "?"}
 
 
 def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
@@ -82,6 +107,10 @@ def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
     out: dict[str, dict[str, str]] = {s: {} for s in SLICES}
     for cid in ids:
         z = store.load(cid, keys=_LABEL_KEYS)
+        if str(z["layout"] if "layout" in z else "").startswith("multibody"):
+            for name, label in _multibody_labels(z).items():
+                out[name][cid] = label
+            continue
         caps = read_captions(store.root, cid) or []
         prov = json.loads(str(z["provenance"])) if "provenance" in z else {}  # read-ok: the clip the store read
         actions = _annotation_actions(store.root / "annotations" / f"{cid}.json")
