@@ -34,7 +34,7 @@ import numpy as np
 
 from ..metrics.catalog import METRICS
 from ..metrics.resampling import bootstrap_p, bootstrap_weights, holm
-from .corruptions import FAMILIES
+from .corruptions import FAMILIES, FamilySpec
 
 #: the paired test's level
 ALPHA = 0.05
@@ -43,7 +43,7 @@ BLIND_RHO = 0.5
 #: z_{0.975} + z_{0.80}: a two-sided 5% test with 80% power
 POWER_Z = NormalDist().inv_cdf(0.975) + NormalDist().inv_cdf(0.80)
 #: the metric kinds the audit reports (counts and reported-only entries are left out)
-AUDITED_KINDS = ("embedding", "physical")
+AUDITED_KINDS = ("embedding", "physical", "multibody")
 
 
 def ranks(x: Sequence[float]) -> np.ndarray:
@@ -173,10 +173,11 @@ def _clean(x) -> float | None:
 
 
 def family_summary(metric: str, family: str, severities: Sequence[float], values: Sequence[float | None],
-                   tests: Sequence[dict | None]) -> dict:
+                   tests: Sequence[dict | None], spec: FamilySpec | None = None) -> dict:
     """The summary of one metric and family (module docstring); ``tests[i]`` is the metric's
-    paired test at severity ``i`` (None at severity 0 or without draws)."""
-    spec, direction = FAMILIES[family], METRICS[metric].direction
+    paired test at severity ``i`` (None at severity 0 or without draws); ``spec``: the
+    family's spec (default: the single-body registry's)."""
+    spec, direction = spec or FAMILIES[family], METRICS[metric].direction
     mags = [round(spec.magnitude(s), 9) for s in severities]      # |log2 0.625| and log2 1.6 tie
     ok = [i for i, v in enumerate(values) if v is not None and np.isfinite(v)]
     rho = rho_w = None

@@ -5,7 +5,8 @@ draws the paired tests (:mod:`hoibench.audit.analysis`) and writes the files
 
 ``audit.json``::
 
-    format, provenance {store, dataset, store_config_sha256, evaluator_id, evaluator_variant,
+    format, [layout: multibody (a multi-body store's families; absent: single-body)],
+    provenance {store, dataset, store_config_sha256, evaluator_id, evaluator_variant,
                         evaluator_gate_passed, allow_failed_gate, protocol, protocol_version,
                         protocol_sha256, seed, resamples, alpha, test_clips, toolkit, toolkit_version}
     families     [names, in the order audited]
@@ -29,7 +30,7 @@ import numpy as np
 
 from .. import __version__
 from .analysis import ALPHA, Draws, audited_metrics, family_summary, paired_tests
-from .corruptions import FAMILIES
+from .families import known_families, registry
 from .runner import DEFAULT_SEED, Condition, check_objects, conditions, load_setup, score_conditions
 
 #: the format tag of ``audit.json``
@@ -47,7 +48,9 @@ def audit_document(setup, scored: Mapping[Condition, tuple[dict, dict]], familie
                    seed: int, resamples: int, executor: str = "serial") -> dict:
     """The ``audit.json`` dict (module docstring) from :func:`score_conditions`' output."""
     from ..core.parallel import map_units
-    conds = conditions(families)
+    layout = getattr(setup, "layout", "single")
+    specs = registry(layout)
+    conds = conditions(families, layout)
     metrics = audited_metrics([scored[c][0] for c in conds])
     first = scored[conds[0]]
     n = len(first[1]["ids"])
@@ -56,7 +59,7 @@ def audit_document(setup, scored: Mapping[Condition, tuple[dict, dict]], familie
     corruptions, summary = {}, {m: {} for m in metrics}
 
     def one_family(family: str) -> tuple[str, dict, dict]:
-        spec = FAMILIES[family]
+        spec = specs[family]
         mine = [c for c in conds if c.family == family]
         base = draws.of(scored[mine[0]][1])
         tests = [None] + [paired_tests(base, draws.of(scored[c][1]), metrics, n) for c in mine[1:]]
@@ -64,7 +67,7 @@ def audit_document(setup, scored: Mapping[Condition, tuple[dict, dict]], familie
         sev = [float(s) for s in spec.severities]
         entry = {"severities": sev, "magnitudes": [spec.magnitude(s) for s in sev], "unit": spec.unit,
                  "corrupts": spec.corrupts, "scope": spec.scope, "description": spec.description, "values": values}
-        return family, entry, {m: family_summary(m, family, sev, values[m], [t and t.get(m) for t in tests])
+        return family, entry, {m: family_summary(m, family, sev, values[m], [t and t.get(m) for t in tests], spec)
                                for m in metrics}
 
     for family, entry, rows in map_units(one_family, list(families), "serial", progress="audit: paired tests"):
@@ -72,7 +75,8 @@ def audit_document(setup, scored: Mapping[Condition, tuple[dict, dict]], familie
         for m, row in rows.items():
             summary[m][family] = row
     result = first[0]
-    return {"format": AUDIT_FORMAT, "provenance": _provenance(setup, result, data, seed, resamples, n),
+    return {"format": AUDIT_FORMAT, **({"layout": layout} if layout != "single" else {}),
+            "provenance": _provenance(setup, result, data, seed, resamples, n),
             "families": list(families), "metrics": metrics, "corruptions": corruptions, "summary": summary}
 
 
@@ -90,20 +94,21 @@ def _provenance(setup, result: dict, data: str, seed: int, resamples: int, n: in
 
 
 def check_audit_args(data, evaluator, out, families: Sequence[str] | None, seed: int, resamples: int,
-                     overwrite: bool = False, executor: str = "serial") -> list[str]:
+                     overwrite: bool = False, executor: str = "serial") -> list[str] | None:
     """Refuse bad arguments before anything is read, in one line naming the option; returns
-    the families to audit (all, in :data:`FAMILIES` order, when None)."""
+    the families asked for (None: every family of the store's layout, chosen once it is read)."""
     from ..core.parallel import parse_executor
     from ..scoring.paired import MIN_RESAMPLES
     parse_executor(executor)
-    chosen = list(FAMILIES) if not families else list(families)
-    for f in chosen:
-        if f not in FAMILIES:
+    known = known_families()
+    chosen = list(families) if families else None
+    for f in chosen or ():
+        if f not in known:
             import difflib
-            close = difflib.get_close_matches(f, list(FAMILIES), n=1)
+            close = difflib.get_close_matches(f, known, n=1)
             raise ValueError(f"--families: unknown corruption family {f!r}"
-                             + (f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(FAMILIES)})"))
-    if len(set(chosen)) != len(chosen):
+                             + (f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"))
+    if chosen and len(set(chosen)) != len(chosen):
         raise ValueError("--families: a family is named twice")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"--seed {seed}: expected a non-negative integer")
@@ -135,7 +140,13 @@ def run_audit(data: str | Path, evaluator: str | Path, out: str | Path, protocol
     chosen = check_audit_args(data, evaluator, out, families, seed, resamples, overwrite, executor)
     t0 = time.perf_counter()
     setup = load_setup(data, evaluator, protocol, allow_failed_gate, allow_protocol_mismatch)
-    kept = check_objects(setup.store, chosen, explicit=bool(families))
+    specs = registry(setup.layout)
+    for f in chosen or ():
+        if f not in specs:
+            raise ValueError(f"--families {f}: not a family of a {setup.layout} store's audit (those are: "
+                             f"{', '.join(specs)})")
+    chosen = chosen or list(specs)
+    kept = check_objects(setup.store, chosen, explicit=bool(families)) if setup.layout == "single" else chosen
     if kept != chosen:
         log(f"audit: {data} has test clips without an object; left out: {', '.join(f for f in chosen if f not in kept)}")
         chosen = kept
@@ -144,7 +155,7 @@ def run_audit(data: str | Path, evaluator: str | Path, out: str | Path, protocol
     doc = audit_document(setup, scored, chosen, str(data), seed, resamples, executor)
     t2 = time.perf_counter()
     paths = write_report(doc, out)
-    log(f"audit: {len(conditions(chosen))} corrupted sets of {doc['provenance']['test_clips']} test clips scored in "
+    log(f"audit: {len(conditions(chosen, setup.layout))} corrupted sets of {doc['provenance']['test_clips']} test clips scored in "
         f"{t1 - t0:.1f} s, paired tests ({resamples} resamples) in {t2 - t1:.1f} s; wrote "
         + ", ".join(str(p) for p in paths))
     return doc

@@ -19,7 +19,7 @@ import numpy as np
 from ..core.io import atomic_write_bytes, atomic_write_json, atomic_write_text
 from ..metrics.catalog import METRICS
 from .analysis import BLIND_RHO
-from .corruptions import FAMILIES
+from .families import layout_of, registry
 
 HEATMAP = "heatmap.png"
 #: what a direction asks of a metric, in words
@@ -32,7 +32,7 @@ def _g(x) -> str:
 
 
 def _families(doc: dict) -> list[str]:
-    return [f for f in FAMILIES if f in doc["corruptions"]]
+    return [f for f in registry(layout_of(doc)) if f in doc["corruptions"]]
 
 
 def heatmap_png(doc: dict) -> bytes:
@@ -58,7 +58,8 @@ def heatmap_png(doc: dict) -> bytes:
                     color="white" if np.isfinite(v) and abs(v) > 0.6 else "black",
                     fontweight="normal" if row["blind"] else "bold")
     ax.set_xticks(range(len(families)))
-    ax.set_xticklabels([f"{f}\n({FAMILIES[f].unit.split(' (')[0]})" for f in families], rotation=60, ha="right",
+    specs = registry(layout_of(doc))
+    ax.set_xticklabels([f"{f}\n({specs[f].unit.split(' (')[0]})" for f in families], rotation=60, ha="right",
                        fontsize=7.5, rotation_mode="anchor")
     ax.set_yticks(range(len(metrics)))
     ax.set_yticklabels([f"{METRICS[m].title} {METRICS[m].arrow}" for m in metrics], fontsize=8)
@@ -105,7 +106,7 @@ def card(doc: dict, metric: str) -> str:
             why = ("does not change" if r["spearman_worse"] is None else
                    f"no clear trend (|rho| < {BLIND_RHO:g})" if abs(r["spearman_worse"]) < BLIND_RHO else
                    "moves the wrong way (better with the corruption)")
-            spec = FAMILIES[f]
+            spec = registry(layout_of(doc))[f]
             lines.append(f"| {f} | {spec.corrupts} | {_rho(r['spearman_worse'])} | {why} | "
                          f"{_sev(r['detectable_severity'], spec.unit)} |")
     else:
@@ -123,7 +124,7 @@ def _sev(s, unit: str) -> str:
 
 
 def _family_row(doc: dict, metric: str, family: str) -> str:
-    r, spec = doc["summary"][metric][family], FAMILIES[family]
+    r, spec = doc["summary"][metric][family], registry(layout_of(doc))[family]
     effect = "-" if r["effect_sd"] is None else f"{r['effect_sd']:+.2f} sd at {_sev(r['effect_severity'], spec.unit)}"
     need = r["clips_needed"][spec.severities.index(r["effect_severity"])] if r["effect_severity"] is not None else None
     return (f"| {family} | {spec.corrupts} | {_rho(r['spearman_worse'])} | {_sev(r['detectable_severity'], spec.unit)} | "
@@ -137,15 +138,16 @@ def _clips_text(doc: dict, metric: str, seen: list[str]) -> list[str]:
     out = [f"With the {n} test clips audited, a paired test (p_holm < {p['alpha']:g}) sees {len(detected)} of "
            f"{len(seen)} families it responds to."]
     needs = []
+    specs = registry(layout_of(doc))
     for f in seen:
-        spec = FAMILIES[f]
+        spec = specs[f]
         s = rows[f]["effect_severity"]
         need = rows[f]["clips_needed"][spec.severities.index(s)] if s is not None else None
         if need is not None:
             needs.append((need, f, s))
     if needs:
         needs.sort()
-        listed = ", ".join(f"{f} at {_sev(s, FAMILIES[f].unit)}: {need:,}" for need, f, s in needs)
+        listed = ", ".join(f"{f} at {_sev(s, specs[f].unit)}: {need:,}" for need, f, s in needs)
         out += ["", f"Clips a paired test needs to see the lowest severity of each family with 80% power at a "
                     f"two-sided 5% level (from the bootstrap sd of the difference on {n} clips, scaled as "
                     f"1/sqrt(n)): {listed}."]
@@ -155,11 +157,12 @@ def _clips_text(doc: dict, metric: str, seen: list[str]) -> list[str]:
 def readme(doc: dict) -> str:
     """``README.md``: provenance, the heatmap and the cards' index."""
     p, families = doc["provenance"], _families(doc)
+    variant = p.get("evaluator_variant") or ("the track's recognizer" if layout_of(doc) == "multibody" else None)
     lines = ["# Metric audit", "",
              f"What each metric of protocol {p['protocol']}@{p['protocol_version']} sees when the ground-truth test "
              f"clips of the `{p['dataset']}` store (`{p['store']}`, config {str(p['store_config_sha256'])[:12]}, "
              f"{p['test_clips']} test clips) are corrupted in controlled ways, scored with evaluator "
-             f"`{str(p['evaluator_id'])[:12]}` ({p['evaluator_variant']}); seed {p['seed']}, {p['resamples']} paired "
+             f"`{str(p['evaluator_id'])[:12]}` ({variant}); seed {p['seed']}, {p['resamples']} paired "
              f"bootstrap resamples, hoibench {p['toolkit_version']}. Made by `hoibench audit`; docs/audit.md "
              f"explains the families and the statistics.", "",
              f"![heatmap]({HEATMAP})", "",

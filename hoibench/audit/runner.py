@@ -230,30 +230,41 @@ def _unit_digest(inp) -> str:
 # ---------------------------------------------------------------------------- scoring
 @dataclass
 class Setup:
-    """What every condition's scorer shares: store, protocol, evaluator, track, options."""
+    """What every condition's scorer shares: store, protocol, evaluator, track, options, and
+    the layout whose families apply (``single`` | ``multibody``)."""
 
     store: Any
     proto: Any
     ev: Any
     track: Any
     options: dict
+    layout: str = "single"
 
 
 def load_setup(data: str | Path, evaluator: str | Path, protocol=None, allow_failed_gate: bool = False,
                allow_protocol_mismatch: bool = False) -> Setup:
-    """The store, its track (single-body only), the protocol (the store's default when None),
-    the evaluator: what ``hoibench evaluate`` loads, checked the same way (a protocol of
-    another mode or representation only with ``allow_protocol_mismatch``, recorded)."""
+    """The store, its track, the protocol (the store's default when None), the evaluator:
+    what ``hoibench evaluate`` loads, checked the same way (a protocol of another mode or
+    representation only with ``allow_protocol_mismatch``, recorded). A multi-body store gets
+    its recognizer and ``layout="multibody"``."""
     from ..datasets.store import Store
     from ..evaluator.backends import backend_of, load_evaluator, peek_card
     from ..tracks.protocol import default_protocol_id, get_protocol
     from ..tracks.registry import track_for_store
     store = Store(Path(data))
     track = track_for_store(store)
-    if track.scorer != "hoi":
+    if track.scorer not in ("hoi", "multibody"):
         raise EvaluationRefused(f"--data {data}: a store of the {track.name} track ({track.scorer} scorer); the audit "
-                                f"corrupts single-body clips (tracks scored by the hoi scorer)")
+                                f"corrupts single-body and multi-body clips (tracks scored by the hoi and multibody "
+                                f"scorers)")
     proto = get_protocol(protocol or default_protocol_id(store.manifest))
+    if track.scorer == "multibody":
+        if proto.kind != track.protocol_kind:
+            raise EvaluationRefused(f"--protocol {proto.ref}: a {proto.kind} protocol; {data} is scored under "
+                                    f"{track.protocol_kind} protocols ({', '.join(track.protocols)})")
+        from ..scoring.multibody import MultiBodyScorer
+        rec = load_evaluator(evaluator, kind=track.evaluator_kind, **MultiBodyScorer.evaluator_options)
+        return Setup(store, proto, rec, track, {"evaluator_backend": track.evaluator_kind}, "multibody")
     from ..scoring.validate import required_arrays
     extra = [a for a in required_arrays(proto) if a not in FOLLOWING_ARRAYS]
     if extra:
@@ -290,17 +301,24 @@ def check_objects(store, families: Sequence[str], explicit: bool) -> list[str]:
     return [f for f in families if f not in need]
 
 
-def conditions(families: Sequence[str]) -> list[Condition]:
-    """Every (family, severity) of ``families``, in the families' and severities' order."""
-    return [Condition(f, float(s), i) for f in families for i, s in enumerate(FAMILIES[f].severities)]
+def conditions(families: Sequence[str], layout: str = "single") -> list[Condition]:
+    """Every (family, severity) of ``families`` (of ``layout``'s registry), in the families'
+    and severities' order."""
+    from .families import registry
+    specs = registry(layout)
+    return [Condition(f, float(s), i) for f in families for i, s in enumerate(specs[f].severities)]
 
 
 def score_conditions(setup: Setup, families: Sequence[str], seed: int = DEFAULT_SEED, executor: str = "serial",
                      ) -> dict[Condition, tuple[dict, dict]]:
     """``{condition: (result, per-clip arrays)}`` for every severity of ``families`` (module
     docstring). The result is the ``hoibench-result-2`` dict ``evaluate`` would return for a
-    submission of the corrupted clips."""
+    submission of the corrupted clips (a multi-body store:
+    :func:`hoibench.audit.multibody_runner.score_multibody_conditions`)."""
     from ..core.parallel import map_units
+    if setup.layout == "multibody":
+        from .multibody_runner import score_multibody_conditions
+        return score_multibody_conditions(setup, conditions(families, "multibody"), seed, executor)
     store, proto, ev = setup.store, setup.proto, setup.ev
     base = AuditScorer(store, proto, ev, setup.track, Corrupted({}, {}), "ground truth", setup.options)
     base.prepare()

@@ -124,8 +124,9 @@ def _wrists(clip: MultiBodyClip) -> np.ndarray:
     return np.concatenate(parts, 1) if parts else np.zeros((clip.num_frames, 0, 3))
 
 
-def _clip_unit(job: tuple) -> dict:
-    """One test clip: GT and every sample's contact frames, penetration per frame, wrists."""
+def _clip_unit(job: tuple, measure_gt: bool = True) -> dict:
+    """One test clip: GT (unless ``measure_gt`` is False: ``gt`` None) and every sample's
+    contact frames, penetration per frame, wrists."""
     cid, gt_arrays, sample, proto_dict, templates, K = job
     from ..tracks.protocol import Protocol
     proto = Protocol.from_plain(proto_dict, "multibody")
@@ -144,10 +145,21 @@ def _clip_unit(job: tuple) -> dict:
                 "iv_cm3": float(red(pen_v, axis=1).mean() * 1e6), "id_mm": float(red(pen_d, axis=1).mean() * 1e3),
                 "wrists": _wrists(clip)}
 
-    out = {"id": cid, "gt": measure(gt), "samples": []}
+    out = {"id": cid, "gt": measure(gt) if measure_gt else None, "samples": []}
     for k in range(K):
         out["samples"].append(measure(clip_from_sample(gt, sample, k, cid)))
     return out
+
+
+def samples_unit(job: tuple) -> dict:
+    """:func:`_clip_unit` of the samples only (``gt`` None): for callers that score many
+    submissions of one ground truth and measure it once (:func:`ground_truth_unit`)."""
+    return _clip_unit(job, measure_gt=False)
+
+
+def ground_truth_unit(job: tuple) -> dict:
+    """The ground truth's part of :func:`_clip_unit` (its ``gt`` entry) of a clip's job."""
+    return _clip_unit(tuple(job[:5]) + (0,))["gt"]
 
 
 # --------------------------------------------------------------------------- the scorer
