@@ -2,7 +2,6 @@
 identity at severity 0) and the audit with the track's recognizer, end to end."""
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 import pytest
