@@ -169,7 +169,7 @@ def main() -> None:
         mbl.write_synthetic_layout(out / "raw", args.clips, seed=0)
         cfg = PrepareConfig("multibody-synthetic", fps=syn.FPS)
         prepare(mbl.prepare_jobs(out / "raw", None, data, cfg), data, cfg)
-    if not (out / "rec" / "card.json").exists():
+    if not (out / "rec" / "recognizer.json").exists():
         train_recognizer(data, out / "rec")
     times = {}
     for name, over in {**RUNS, "untrained": None}.items():

@@ -370,3 +370,24 @@ def test_multibody_per_clip_data_are_identical_on_every_executor(track, tmp_path
     for k in a:
         np.testing.assert_array_equal(a[k], b[k])
     assert json.dumps(ra["slices"], sort_keys=True) == json.dumps(rb["slices"], sort_keys=True)
+
+
+def test_a_multibody_track_ranks_rows_with_paired_tests_and_rank_intervals(scored, tmp_path):
+    """Entries keep the multi-body per-clip data; the page tells the desync row from the static
+    one by the paired test and gives each ranked row a rank interval."""
+    from hoibench.publish.leaderboard import add_result, load_track
+    from hoibench.publish.pages import render
+    track = tmp_path / "multibody-synthetic"
+    add_result(scored["gt"], track, method="GT", role="ground-truth")
+    add_result(scored["desync"], track, method="desync", role="baseline")
+    add_result(scored["static"], track, method="static", role="baseline")
+    entries, files = render(track)
+    ranked = [e for e in entries if e["role"] == "baseline"]
+    assert [e["method"] for e in ranked] == ["desync", "static"]             # ranked by FID
+    assert all((track / "entries" / e["per_clip_data"]["file"]).is_file() for e in load_track(track))
+    vs = ranked[1]["_sig"]["vs_above"]
+    assert vs["method"] == "desync" and vs["distinguishable"] and vs["metrics"]["fid"]["diff"] > 0
+    assert ranked[0]["_sig"]["rank_ci95"][0] == 1 and ranked[1]["_sig"]["rank_ci95"][1] == 2
+    header = files["leaderboard.csv"].splitlines()[0]
+    assert "rank_ci95" in header and "vs_above_distinguishable" in header
+    assert render(track)[1]["leaderboard.csv"] == files["leaderboard.csv"]       # a rebuild: the same bytes
