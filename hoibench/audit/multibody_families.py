@@ -22,7 +22,7 @@ import numpy as np
 
 from ..bodies.multibody import Body, MultiBodyClip
 from .checks import frame_from_fraction
-from .corruptions import FamilySpec, octaves
+from .corruptions import FAMILIES, FamilySpec
 from .motion import _sample_rotations
 from .streams import check_seed, selected
 
@@ -196,27 +196,25 @@ def action_swap(actions: Mapping[str, str], severity: float, seed: int, ctx=None
     return out
 
 
-_FRACTIONS = (0.0, 0.1, 0.25, 0.5, 0.75, 1.0)
+def _same_as_single(name: str, fn, description: str) -> tuple:
+    """A family with the single-body family ``name``'s severities, unit and scope."""
+    single = FAMILIES[name]
+    return (name, fn, single.severities, single.unit, single.corrupts, single.scope, description, single.distance)
+
+
 _SPECS = (
-    ("joint_noise", joint_noise, (0.0, 0.005, 0.01, 0.02, 0.05, 0.1), "m (sigma)", "motion", "clip",
-     "Gaussian noise on every skeleton joint coordinate"),
-    ("jitter", jitter, (0.0, 0.0025, 0.005, 0.01, 0.02, 0.04), "m (amplitude)", "motion", "clip",
-     "every skeleton joint oscillates +-a along a fixed random direction at fps/2"),
-    ("freeze", freeze, _FRACTIONS, "fraction of the clip", "motion", "clip",
-     "the last fraction of the clip holds one frame (every body)"),
-    ("reverse", reverse, _FRACTIONS, "fraction of the clip", "motion", "clip",
-     "the last fraction of the clip played backwards (every body)"),
-    ("speed", speed, (1.0, 0.8, 1.25, 0.625, 1.6, 0.5, 2.0, 0.4, 2.5), "factor (magnitude |log2 c|)", "motion", "clip",
-     "every body played c times as fast, resampled to the same length", octaves),
+    _same_as_single("joint_noise", joint_noise, "Gaussian noise on every skeleton joint coordinate"),
+    _same_as_single("jitter", jitter, "every skeleton joint oscillates +-a along a fixed random direction at fps/2"),
+    _same_as_single("freeze", freeze, "the last fraction of the clip holds one frame (every body)"),
+    _same_as_single("reverse", reverse, "the last fraction of the clip played backwards (every body)"),
+    _same_as_single("speed", speed, "every body played c times as fast, resampled to the same length"),
     ("desync", desync, (0.0, 0.05, 0.1, 0.2, 0.4, 0.8), "s", "motion", "clip",
      "the first skeleton lags the rest of the scene"),
-    ("object_float", object_float, (0.0, 0.02, 0.05, 0.1, 0.2, 0.5), "m", "motion", "clip",
-     "every object lifted by h on every frame"),
-    ("grasp_offset", grasp_offset, (0.0, 0.02, 0.05, 0.1, 0.2, 0.5), "m", "motion", "clip",
-     "every object moved d horizontally: the hands close on air"),
+    _same_as_single("object_float", object_float, "every object lifted by h on every frame"),
+    _same_as_single("grasp_offset", grasp_offset, "every object moved d horizontally: the hands close on air"),
     ("penetrate", penetrate, (0.0, 0.01, 0.02, 0.05, 0.1, 0.2), "m", "motion", "clip",
      "the first skeleton pushed d into the first object"),
-    ("action_swap", action_swap, _FRACTIONS, "fraction of clips", "text", "split",
+    ("action_swap", action_swap, FAMILIES["caption_swap"].severities, "fraction of clips", "text", "split",
      "the action labels (the prompts) passed round a cycle of clips"),
 )
 #: the multi-body families, in audit order
