@@ -142,7 +142,7 @@ def test_multibody_audit_refuses_a_family_of_the_other_layout_in_one_line(audite
             "--families", "noun_swap"]
     assert main(argv) != 0
     err = [ln for ln in capsys.readouterr().err.strip().splitlines() if ln.strip() and not ln.startswith("[")]
-    assert len(err) == 1 and "noun_swap" in err[0] and "multibody" in err[0] and "Traceback" not in err[0]
+    assert len(err) == 1 and "noun_swap" in err[0] and "multi-body" in err[0] and "Traceback" not in err[0]
     assert main(argv[:-1] + ["desync,nosuch"]) != 0
     assert "nosuch" in capsys.readouterr().err
 

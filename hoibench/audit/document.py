@@ -143,7 +143,8 @@ def run_audit(data: str | Path, evaluator: str | Path, out: str | Path, protocol
     specs = registry(setup.layout)
     for f in chosen or ():
         if f not in specs:
-            raise ValueError(f"--families {f}: not a family of a {setup.layout} store's audit (those are: "
+            kind = {"single": "single-body", "multibody": "multi-body"}[setup.layout]
+            raise ValueError(f"--families {f}: not a family of a {kind} store's audit (those are: "
                              f"{', '.join(specs)})")
     chosen = chosen or list(specs)
     kept = check_objects(setup.store, chosen, explicit=bool(families)) if setup.layout == "single" else chosen
