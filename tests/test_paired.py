@@ -231,3 +231,35 @@ def test_legacy_protocols_embed_the_windows_the_physical_metrics_see(annotated_s
         np.testing.assert_allclose(cropped["motion"][0, i], want, atol=1e-3)     # the GT sample, re-encoded
         if length < len(rows):                  # the whole clip embeds elsewhere (the crop mattered)
             assert not np.allclose(model.embed_motion([rows])[0], want, atol=1e-5), cid
+
+
+def test_set_level_draws_are_debiased_so_the_interval_is_centred_on_the_value():
+    """A bootstrap draw repeats clips, which inflates FID more for a set far from the real one:
+    on a constructed far set the raw draws run well above FID on all clips.
+    The draws the comparisons use are less their estimated bias: their mean is the point
+    value, the interval contains it, and their spread is the raw draws' spread."""
+    from hoibench.metrics.resampling import debiased
+    from hoibench.scoring.paired import _set_level_debiased, _set_level_draws, clip_intervals
+    from hoibench.tracks.protocol import get_protocol
+    rng = np.random.default_rng(3)
+    real = rng.standard_normal((30, 12))
+    far = real + 1.5 * rng.standard_normal((30, 12))
+    W = bootstrap_weights(30, 400, 0).astype(np.float64)
+    raw = _set_level_draws([far], real, W, 50, 0)["fid"][:, 0]
+    point = weighted_fid(real, far, np.ones(30))
+    assert raw.mean() > 1.15 * point and np.mean(raw > point) > 0.85    # the raw draws run high
+    got, full = _set_level_debiased([far], real, W, 50, 0)
+    assert full["fid"][0] == pytest.approx(point, rel=1e-12)
+    assert got["fid"][:, 0].mean() == pytest.approx(point, rel=1e-12)
+    np.testing.assert_allclose(got["fid"][:, 0] - raw, point - raw.mean(), rtol=1e-12)
+    lo, hi = np.percentile(got["fid"][:, 0], [2.5, 97.5])
+    assert lo < point < hi
+    np.testing.assert_array_equal(debiased(np.array([[1.0, np.nan], [3.0, 5.0]]), [1.0, 2.0]),
+                                  np.array([[0.0, np.nan], [2.0, 2.0]]))
+    arrays = {"ids": np.array([f"c{i:02d}" for i in range(30)]), "motion": far[None].astype(np.float32),
+              "real": real.astype(np.float32), "text": np.zeros((0, 12), np.float32),
+              "text_offsets": np.zeros(31, np.int64), "physical": np.zeros((1, 30, 0)),
+              "physical_samples": np.array([0]), "physical_names": np.array([], dtype=str)}
+    iv = clip_intervals(arrays, get_protocol("multibody-synthetic"))["fid"]["ci95"]
+    assert iv[0] < weighted_fid(real.astype(np.float32).astype(np.float64),
+                                far.astype(np.float32).astype(np.float64), np.ones(30)) < iv[1]

@@ -14,6 +14,16 @@ same draw applies to every result of a comparison (paired). Per resample:
   its pool's motions), averaged with the weights;
 - Diversity: the mean distance between ``pairs`` seeded pairs of drawn clips;
 - per-clip physical values: the weighted mean over the clips where they are defined.
+
+A mean of per-clip values has no bootstrap bias (the draws' mean is the all-clip mean). A
+set-level statistic has: a draw repeats about a third of its clips, which shrinks the
+generated and real covariances unevenly, so FID on draws runs above FID on all clips, the
+more so the farther the set is from the real one (1,000 clips at 512-D: +0.03 on a set 0.6
+from its FID on all clips, +2.7 on a set 4.1 away; the synthetic track's EJIM tiny, 34
+clips: 0.426 on average against 0.321). Its draws are used through :func:`debiased`, which
+removes the estimated bias ``mean(draws) - point`` (Efron and Tibshirani's bias estimate),
+so its percentile interval is centred on the point value and a paired test of two such sets
+does not read their unequal biases as a difference.
 """
 from __future__ import annotations
 
@@ -141,6 +151,17 @@ def holm(pvalues: Sequence[float]) -> list[float]:
     return [float(x) for x in adjusted]
 
 
+def debiased(draws: np.ndarray, point) -> np.ndarray:
+    """Bootstrap draws of a set-level statistic less their estimated bias:
+    ``draws - (mean(draws) - point)`` along the first axis (``point`` broadcast over the
+    rest; non-finite draws left out of the mean and kept as they are)."""
+    d = np.asarray(draws, np.float64)
+    finite = np.isfinite(d)
+    with np.errstate(invalid="ignore"):
+        mean = np.where(finite, d, 0.0).sum(0) / np.maximum(finite.sum(0), 1)
+    return d - (mean - np.asarray(point, np.float64))
+
+
 def bootstrap_p(differences: np.ndarray) -> float:
     """Two-sided bootstrap p-value of ``difference = 0``: ``min(1, 2 min(P(d <= 0), P(d >= 0)))``
     with the add-one rule (``(1 + count) / (1 + B)``)."""
@@ -154,4 +175,4 @@ def bootstrap_p(differences: np.ndarray) -> float:
 
 
 __all__ = ["bootstrap_weights", "weighted_fid", "draw_fids", "retrieval_per_clip", "resampled_diversity",
-           "holm", "bootstrap_p"]
+           "holm", "bootstrap_p", "debiased"]

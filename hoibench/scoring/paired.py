@@ -5,7 +5,9 @@ by a paired bootstrap: each of ``resamples`` (at least 2,000) draws the shared c
 replacement once, and every metric of both results is recomputed on that draw from their
 per-clip data (:mod:`hoibench.scoring.clip_data`, :mod:`hoibench.metrics.resampling`):
 
-- FID, Diversity: on the drawn clips' embeddings (sample 0); R-precision top-k and MM-Dist:
+- FID, Diversity: on the drawn clips' embeddings (sample 0), less each set's bootstrap bias
+  (:func:`~hoibench.metrics.resampling.debiased`: a draw repeats clips, which inflates FID
+  more for a set farther from the real one); R-precision top-k and MM-Dist:
   per-clip values under the protocol's replication-0 pools of the shared clips, each clip's
   first caption (so they differ from the result's mean over replications; the difference is
   what is tested); the physical metrics (and a multi-body result's per-clip metrics): the mean
@@ -35,7 +37,7 @@ import hashlib
 import numpy as np
 
 from ..metrics.catalog import METRICS
-from ..metrics.resampling import (bootstrap_p, bootstrap_weights, draw_fids, holm, resampled_diversity,
+from ..metrics.resampling import (bootstrap_p, bootstrap_weights, debiased, draw_fids, holm, resampled_diversity,
                                   retrieval_per_clip, weighted_fid)
 
 #: fewest resamples a paired comparison runs
@@ -130,6 +132,16 @@ def _set_level_draws(motions: list[np.ndarray], real: np.ndarray, W: np.ndarray,
     return {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
 
 
+def _set_level_debiased(motions: list[np.ndarray], real: np.ndarray, W: np.ndarray, pairs: int, seed: int,
+                        executor: str = "serial") -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """``(draws, points)``: :func:`_set_level_draws` less each set's bootstrap bias
+    (:func:`~hoibench.metrics.resampling.debiased` against :func:`_set_level_full`'s points),
+    and those points."""
+    boot = _set_level_draws(motions, real, W, pairs, seed, executor)
+    full = _set_level_full(motions, real, pairs, seed)
+    return {k: debiased(v, full[k]) for k, v in boot.items()}, full
+
+
 def _set_level_full(motions: list[np.ndarray], real: np.ndarray, pairs: int, seed: int) -> dict[str, np.ndarray]:
     """The point values on all clips: :func:`weighted_fid` with unit weights and the Diversity of
     draw 0's seed, per generated set (``fid``, ``div``), and the ground truth's ``div_gt``."""
@@ -197,15 +209,13 @@ def compare_many(a: dict, a_arrays: dict, others: list[tuple[dict, dict]], proto
         pairs = int(min(proto.diversity_pairs or 300, 300))
         motions = [side.motion for side in sides]
         t1 = time.perf_counter()
-        boot = _set_level_draws(motions, sides[0].real, W, pairs, seed, executor)
-        t2 = time.perf_counter()
-        full = _set_level_full(motions, sides[0].real, pairs, seed)
-        t3 = time.perf_counter()
+        boot, full = _set_level_debiased(motions, sides[0].real, W, pairs, seed, executor)
+        t2 = t3 = time.perf_counter()
         for k, j in enumerate(group, 1):
             out[j] = _pair_rows(a, others[j][0], sides[0], sides[k], W, _column(boot, 0, k), _column(full, 0, k))
         if stages is not None:
             for name, sec in (("per-clip data of the shared clips", t1 - t0),
-                              ("set-level draws (FID, Diversity)", t2 - t1), ("set-level points", t3 - t2),
+                              ("set-level draws and points (FID, Diversity)", t2 - t1),
                               ("per-clip draws and tests", time.perf_counter() - t3)):
                 stages[name] = stages.get(name, 0.0) + sec
     return out
@@ -329,7 +339,7 @@ def clip_intervals(arrays: dict, proto, resamples: int = CLIP_RESAMPLES, seed: i
     boot = {m: _means(v, W) for m, v in side.per_clip().items()}
     if n <= SET_LEVEL_MAX_CLIPS:
         pairs = int(min(proto.diversity_pairs or 300, 300))
-        got = _set_level_draws([side.motion], side.real, W, pairs, seed)
+        got, _ = _set_level_debiased([side.motion], side.real, W, pairs, seed)
         boot.update(fid=got["fid"][:, 0], diversity=got["div"][:, 0])
     return _percentile_intervals(boot, resamples)
 
@@ -375,13 +385,13 @@ def per_clip_draws(arrays: dict, proto, W: np.ndarray) -> tuple[dict[str, np.nda
 def set_level_draws(arrays: dict, proto, W: np.ndarray, seed: int = 0,
                     executor: str = "serial") -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """FID and Diversity of one result (sample 0's embeddings) on every row of ``W`` and on
-    all its clips, as :func:`per_clip_draws` returns them; the Diversity pairs of draw ``i``
+    all its clips, as :func:`per_clip_draws` returns them (the draws less their bootstrap
+    bias, :func:`~hoibench.metrics.resampling.debiased`); the Diversity pairs of draw ``i``
     are seeded by ``(seed, i)`` as in :func:`compare_pair`. Draws run in fixed chunks on
     ``executor`` (the same numbers on every executor)."""
     side, W = _draw_side(arrays, proto, W)
     pairs = int(min(proto.diversity_pairs or 300, 300))
-    got = _set_level_draws([side.motion], side.real, W, pairs, seed, executor)
-    whole = _set_level_full([side.motion], side.real, pairs, seed)
+    got, whole = _set_level_debiased([side.motion], side.real, W, pairs, seed, executor)
     return ({"fid": got["fid"][:, 0], "diversity": got["div"][:, 0]},
             {"fid": float(whole["fid"][0]), "diversity": float(whole["div"][0])})
 
