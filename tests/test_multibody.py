@@ -342,8 +342,9 @@ def test_multibody_paired_compare_finds_the_defects_and_not_the_identity(scored,
     from hoibench.scoring.paired import paired_compare
     cmp = paired_compare([scored["gt"], scored["desync"], scored["static"], scored["gt"]], seed=3)
     desync, static, same = cmp["pairs"]
-    assert desync["metrics"]["fid"]["verdict"] == "A better" and desync["metrics"]["iv_cm3"]["diff"] > 0
-    assert static["metrics"]["ra"]["verdict"] == "A better"
+    assert desync["metrics"]["fid"]["diff"] > 0 and desync["metrics"]["iv_cm3"]["diff"] > 0
+    assert desync["metrics"]["csiou"]["diff"] < 0
+    assert static["metrics"]["ra"]["verdict"] == "A better" and static["metrics"]["fid"]["verdict"] == "A better"
     assert static["metrics"]["csr"]["tested"] == "distance to the ground truth"
     for m, row in same["metrics"].items():
         assert row["diff"] == 0 and row["ci95"][0] <= 0 <= row["ci95"][1] and row["p_holm"] == 1.0, m
