@@ -21,21 +21,9 @@ import numpy as np
 
 from ..scoring.multibody import MultiBodyScorer, ground_truth_unit, samples_unit
 from ..scoring.multibody_samples import sample_arrays
+from ..scoring.submission_read import MemorySubmission
 from .multibody_families import MULTIBODY_FAMILIES
 from .streams import clip_stream
-
-
-class _MemorySamples:
-    """A multi-body submission held in memory (the scorer's reader API)."""
-
-    problems: list = []
-
-    def __init__(self, samples: dict, method: str):
-        self.samples, self.ids = samples, sorted(samples)
-        self.meta = {"method": method, "flags": {"samples_per_prompt": 1, "uses_gt_length": True}}
-
-    def load(self, sid: str, keys=None) -> dict[str, np.ndarray]:
-        return dict(self.samples[sid])
 
 
 class MultiBodyAuditScorer(MultiBodyScorer):
@@ -47,7 +35,7 @@ class MultiBodyAuditScorer(MultiBodyScorer):
         self.samples, self.actions, self.label = samples, actions, label
 
     def open_submission(self):
-        return nullcontext(_MemorySamples(self.samples, self.label))
+        return nullcontext(MemorySubmission(self.samples, self.label))
 
     def stream(self, sub, ids: list[str]):
         jobs = []

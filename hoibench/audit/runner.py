@@ -75,18 +75,6 @@ class Corrupted:
         return h.hexdigest()
 
 
-class _MemorySubmission:
-    """A submission held in memory: ``ids``, ``meta`` and ``load(id)`` (the scorer's reader API)."""
-
-    def __init__(self, samples: Mapping[str, Mapping[str, np.ndarray]], method: str):
-        self.samples = samples
-        self.ids = sorted(samples)
-        self.meta = {"method": method, "flags": {"samples_per_prompt": 1, "uses_gt_length": True}}
-
-    def load(self, sid: str) -> dict[str, np.ndarray]:
-        return dict(self.samples[sid])
-
-
 class AuditScorer(HOIScorer):
     """The ``hoi`` scorer over an in-memory submission. With ``base`` (a prepared scorer's
     state) it takes the ground truth's statistics from it instead of recomputing them, and
@@ -109,7 +97,8 @@ class AuditScorer(HOIScorer):
             self.st.sets_all = self.text_sets
 
     def open_submission(self):
-        return nullcontext(_MemorySubmission(self.corrupted.samples, self.label))
+        from ..scoring.submission_read import MemorySubmission
+        return nullcontext(MemorySubmission(self.corrupted.samples, self.label))
 
     def validate(self, sub) -> list[str]:
         """Every test id (the corrupted ground truth is scored whatever a submission check

@@ -35,7 +35,7 @@ import numpy as np
 from ..core.ids import check_id
 
 __all__ = ["KINDS", "HAND_JOINTS", "HUMAN_JOINTS", "LAYOUT", "Body", "MultiBodyClip", "check_clip",
-           "from_hoi_arrays", "is_multibody_arrays", "HAND_TIP_ORDER"]
+           "from_hoi_arrays", "is_multibody_arrays", "clip_json_fields", "HAND_TIP_ORDER"]
 
 KINDS = ("human", "hand", "object")
 HUMAN_JOINTS = 22
@@ -166,12 +166,12 @@ class MultiBodyClip:
             for b in bodies:
                 if b.template and b.template not in templates:
                     templates[b.template] = template_loader(b.template)
-        texts, prov = _json_fields(z)
+        texts, prov = clip_json_fields(z)
         return cls(str(z["name"]), str(z["dataset"]), str(z["subject"]), float(z["fps"]), bodies, templates,
                    contacts, str(z["action"]) or None, texts, None, prov)
 
 
-def _json_fields(z) -> tuple[list, dict]:
+def clip_json_fields(z) -> tuple[list, dict]:
     """The clip's ``texts`` and ``provenance`` JSON strings, parsed strictly (a deep or
     malformed string is a one-line error naming the clip and field)."""
     from ..core.io import load_json_bytes
@@ -206,7 +206,7 @@ def from_hoi_arrays(z: dict, template_loader: Callable[[str], tuple[np.ndarray, 
                 templates[name] = template_loader(name)
         if "contacts" in z:
             contacts[("human", parts[0][0])] = np.asarray(z["contacts"], bool).any(-1)
-    texts, prov = _json_fields(z)
+    texts, prov = clip_json_fields(z)
     return MultiBodyClip(str(z.get("name", "")), str(z.get("dataset", "")), str(z.get("subject", "")),
                          float(z.get("fps", 20.0)), bodies, templates, contacts, None, texts, None, prov)
 

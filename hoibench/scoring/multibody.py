@@ -285,7 +285,8 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
     gt_od: dict[str, mbm.OverallDiversity] = {}
     gens, gts = [], []
     jobs_by_id = {j[0]: j for j in jobs}
-    for u in sorted(units, key=lambda x: x["id"]):
+    ordered = sorted(units, key=lambda x: x["id"])
+    for u in ordered:
         cid = u["id"]
         _, arrays, sample, _, templates, K = jobs_by_id[cid]
         gt = MultiBodyClip.from_arrays(arrays)
@@ -347,8 +348,8 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
     per = {"csr": _values(csr), "crr": _values(crr), "csiou": _values(csiou), "iv_cm3": iv, "id_mm": idm,
            "ra": correct}
     metrics["ci95"] = {k: half_width_95(v) for k, v in per.items() if half_width_95(v) is not None}
-    ids = [u["id"] for u in sorted(units, key=lambda x: x["id"])]
-    ks = [len(u["samples"]) for u in sorted(units, key=lambda x: x["id"])]
+    ids = [u["id"] for u in ordered]
+    ks = [len(u["samples"]) for u in ordered]
     keys = [f"{cid}#{k}" for cid, K in zip(ids, ks) for k in range(K)]
     values = {"csr": csr.per_clip(), "crr": crr.per_clip(), "csiou": csiou.per_clip(),
               "iv_cm3": dict(zip(keys, iv)), "id_mm": dict(zip(keys, idm)), "ra": dict(zip(keys, correct))}

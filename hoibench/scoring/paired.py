@@ -210,13 +210,13 @@ def compare_many(a: dict, a_arrays: dict, others: list[tuple[dict, dict]], proto
         motions = [side.motion for side in sides]
         t1 = time.perf_counter()
         boot, full = _set_level_debiased(motions, sides[0].real, W, pairs, seed, executor)
-        t2 = t3 = time.perf_counter()
+        t2 = time.perf_counter()
         for k, j in enumerate(group, 1):
             out[j] = _pair_rows(a, others[j][0], sides[0], sides[k], W, _column(boot, 0, k), _column(full, 0, k))
         if stages is not None:
             for name, sec in (("per-clip data of the shared clips", t1 - t0),
                               ("set-level draws and points (FID, Diversity)", t2 - t1),
-                              ("per-clip draws and tests", time.perf_counter() - t3)):
+                              ("per-clip draws and tests", time.perf_counter() - t2)):
                 stages[name] = stages.get(name, 0.0) + sec
     return out
 

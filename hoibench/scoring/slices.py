@@ -78,20 +78,20 @@ def _annotation_actions(path) -> list:
 
 #: the clip arrays the labels read (single-body, then multi-body clips)
 _LABEL_KEYS = ("object_name", "contacts", "provenance", "dataset", "fps", "joints",
-               "layout", "action", "body_kinds", "body_templates", "contact_pairs", "contact_frames", "texts")
+               "layout", "name", "action", "body_kinds", "body_templates", "contact_pairs", "contact_frames", "texts")
 #: a multi-body skeleton kind's ``contact`` label
 _MULTIBODY_PARTS = (("hand", "hands"), ("human", "people"))
 
 
 def _multibody_labels(z) -> dict[str, str]:
     """The slice labels of one multi-body clip's arrays ``z`` (module docstring)."""
-    import json
+    from ..bodies.multibody import clip_json_fields
     kinds = [str(k) for k in z["body_kinds"]]
     templates = sorted(str(t) for t in z["body_templates"] if str(t))
     touching = {kinds[int(a)] for (a, _), frames in zip(z["contact_pairs"], z["contact_frames"]) if np.any(frames)} \
         if "contact_pairs" in z and len(z["contact_pairs"]) else set()
-    texts = [json.loads(str(t)).get("text", "") for t in z["texts"]] if "texts" in z else []  # read-ok: the clip the store read
-    prov = json.loads(str(z["provenance"])) if "provenance" in z else {}  # read-ok: the clip the store read
+    lines, prov = clip_json_fields(z)
+    texts = [str(t.get("text", "")) for t in lines if isinstance(t, dict)]
     frames = int(np.shape(z["contact_frames"])[1]) if "contact_frames" in z and np.ndim(z["contact_frames"]) == 2 else 0
     return {"object": "+".join(templates) or "none", "verb": str(z["action"]) if "action" in z else "?",
             "contact": "+".join(label for kind, label in _MULTIBODY_PARTS if kind in touching) or "none",
@@ -103,11 +103,12 @@ def _multibody_labels(z) -> dict[str, str]:
 def clip_labels(store, ids: Sequence[str]) -> dict[str, dict[str, str]]:
     """``{slice: {clip id: label}}`` for the test ids ``ids`` of ``store`` (module docstring)."""
     import json
+    from ..bodies.multibody import is_multibody_arrays
     from ..evaluator.text import read_captions
     out: dict[str, dict[str, str]] = {s: {} for s in SLICES}
     for cid in ids:
         z = store.load(cid, keys=_LABEL_KEYS)
-        if str(z["layout"] if "layout" in z else "").startswith("multibody"):
+        if is_multibody_arrays(z):
             for name, label in _multibody_labels(z).items():
                 out[name][cid] = label
             continue

@@ -496,3 +496,19 @@ def _reason(e: BaseException) -> str:
     if isinstance(e, KeyError):
         return f"missing member {e.args[0] if e.args else ''}"
     return str(e) if isinstance(e, (ValueError, zipfile.BadZipFile)) else f"{type(e).__name__}: {e}"
+
+
+class MemorySubmission:
+    """A K = 1 submission held in memory, read through :class:`Submission`'s API: ``ids``,
+    ``meta``, ``problems`` (none) and ``load(id, keys=None)`` (a copy of the id's arrays). What
+    the metric audit scores its corrupted ground truth as."""
+
+    problems: tuple = ()
+
+    def __init__(self, samples: Mapping[str, Mapping[str, np.ndarray]], method: str):
+        self.samples = samples
+        self.ids = sorted(samples)
+        self.meta = {"method": method, "flags": {"samples_per_prompt": 1, "uses_gt_length": True}}
+
+    def load(self, sid: str, keys=None) -> dict[str, np.ndarray]:
+        return dict(self.samples[sid])
