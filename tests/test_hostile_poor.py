@@ -132,14 +132,14 @@ def test_dollar_signs_in_method_names_are_plotted_as_text():
 
 def test_deep_json_in_split_text_and_provenance_names_the_file(tmp_path):
     from hoibench.datasets.splits import SplitFileError, read_split_file
-    from hoibench.bodies.multibody import _json_fields
+    from hoibench.bodies.multibody import clip_json_fields
     deep = "[" * 100_000 + "]" * 100_000
     p = tmp_path / "split.json"
     p.write_text(deep)
     with pytest.raises(SplitFileError, match="split.json: JSON nested too deeply"):
         read_split_file(p)
     with pytest.raises(ValueError, match="clip7: provenance: JSON nested too deeply"):
-        _json_fields({"name": np.array("clip7"), "provenance": np.array(deep)})
+        clip_json_fields({"name": np.array("clip7"), "provenance": np.array(deep)})
 
 
 def test_contact_pairs_out_of_range_name_the_field():
