@@ -8,7 +8,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 TORCH_SPEC ?= torch==2.13.0
-EXTRAS ?= dev,smplx,dask,physics
+EXTRAS ?= dev,smplx,dask,physics,fast
 DEMO_OUT ?= demo-out
 
 .PHONY: install demo test bench clean check-system

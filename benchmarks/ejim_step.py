@@ -8,7 +8,10 @@ to 96 frames):
 
 - ``EJIM tiny, before``: the frozen reference implementation (``tests/_ejim_reference.py``:
   the Blelloch scan over materialised (sequences, frames, width, state) tensors);
-- ``EJIM tiny, after``: ``hoibench.baselines.ejim`` (the fused time-major scan);
+- ``EJIM tiny, after (torch loop)``: ``hoibench.baselines.ejim`` with the fused time-major scan
+  as a PyTorch loop (``HOIBENCH_SCAN=torch``);
+- ``EJIM tiny, after (compiled scan)``: the same model with the scan's compiled loops
+  (``hoibench.baselines.kernels``; needs ``pip install hoibench[fast]``, else the row is left out);
 - ``ChainHOI tiny``.
 
 The models take turns step by step (the same step indices, so the same batches), so a change
@@ -33,13 +36,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from _ejim_reference import EJIM as ReferenceEJIM  # noqa: E402
 
+from hoibench.baselines import kernels  # noqa: E402
 from hoibench.baselines.diffusion import EMA, GaussianDiffusion  # noqa: E402
 from hoibench.baselines.registry import get_spec  # noqa: E402
 from hoibench.baselines.text import TextConditioner  # noqa: E402
 from hoibench.baselines.trainer import build_model, make_batch, training_set  # noqa: E402
 
 
-def stepper(name: str, data: str, reference: bool = False):
+def stepper(name: str, data: str, reference: bool = False, scan: str = ""):
     """(parameter count, step(i) -> seconds) for ``name``'s tiny config on ``data``."""
     spec = get_spec(name)
     cfg = spec.preset("tiny")
@@ -57,6 +61,7 @@ def stepper(name: str, data: str, reference: bool = False):
     mean, std = torch.from_numpy(ts.stats.mean), torch.from_numpy(ts.stats.std)
 
     def step(i: int) -> tuple[float, float]:
+        os.environ[kernels.ENV] = scan
         t0, c0 = time.perf_counter(), time.thread_time()
         torch.manual_seed(i)
         batch = make_batch(ts, cfg, i, text, "cpu")
@@ -79,9 +84,11 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
-    models = {"EJIM tiny, before": stepper("ejim", args.data, reference=True),
-              "EJIM tiny, after": stepper("ejim", args.data),
-              "ChainHOI tiny": stepper("chainhoi", args.data)}
+    models = {"EJIM tiny, before": stepper("ejim", args.data, reference=True, scan="torch"),
+              "EJIM tiny, after (torch loop)": stepper("ejim", args.data, scan="torch")}
+    if kernels.numba is not None:
+        models["EJIM tiny, after (compiled scan)"] = stepper("ejim", args.data, scan="numba")
+    models["ChainHOI tiny"] = stepper("chainhoi", args.data)
     print(f"# {args.threads} thread(s), torch {torch.__version__}, {os.cpu_count()} CPUs; "
           f"load average at start {os.getloadavg()[0]:.2f}")
     times: dict[str, list[float]] = {k: [] for k in models}
@@ -103,10 +110,11 @@ def main() -> None:
         print(f"| {name} | {n / 1e6:.2f} | {med:.2f} | {min(times[name]):.2f} | {statistics.median(cpu[name]):.2f} | "
               f"{1 / med:.2f} |")
     for label, t in (("wall", times), ("CPU", cpu)):
-        before, after = statistics.median(t["EJIM tiny, before"]), statistics.median(t["EJIM tiny, after"])
-        chain = statistics.median(t["ChainHOI tiny"])
-        print(f"{label}: EJIM tiny before / after {before / after:.2f}x; EJIM tiny / ChainHOI tiny step "
-              f"{before / chain:.1f} before, {after / chain:.1f} after")
+        before, chain = statistics.median(t["EJIM tiny, before"]), statistics.median(t["ChainHOI tiny"])
+        for name in [k for k in models if k.startswith("EJIM tiny, after")]:
+            after = statistics.median(t[name])
+            print(f"{label}: {name}: before / after {before / after:.2f}x; EJIM tiny / ChainHOI tiny step "
+                  f"{before / chain:.2f} before, {after / chain:.2f} after")
     print(f"load average at end {os.getloadavg()[0]:.2f}")
 
 

@@ -1,14 +1,18 @@
 """EJIM's fused selective scan and time-major blocks against independent references: a plain
-time loop of the S6 recurrence (written here), and the frozen pre-fusion implementation
-(``tests/_ejim_reference.py``) for whole models: same weights and inputs, same outputs and
-parameter gradients; padding invariance; unchanged parameter names and shapes."""
+time loop of the S6 recurrence (written here), ``F.conv1d`` for the causal convolution, and
+the frozen pre-fusion implementation (``tests/_ejim_reference.py``) for whole models: same
+weights and inputs, same outputs and parameter gradients; padding invariance; unchanged
+parameter names and shapes. Each float32 check runs with the PyTorch loops and with the
+compiled loops (``hoibench.baselines.kernels``, numba; skipped where it is not installed)."""
 from __future__ import annotations
 
 import pytest
 import torch
 
 import _ejim_reference as R
-from hoibench.baselines import scan
+import torch.nn.functional as F
+
+from hoibench.baselines import kernels, scan
 from hoibench.baselines.ejim.config import preset
 from hoibench.baselines.ejim.mamba import BiMamba
 from hoibench.baselines.ejim.model import EJIM
@@ -57,10 +61,60 @@ def test_selective_scan_equals_the_time_loop_forward_and_gradients(L, n, chunk_s
         torch.testing.assert_close(scan.selective_scan(*args), ref.detach(), rtol=1e-10, atol=1e-10)
 
 
-def test_selective_scan_float32_matches_the_loop_to_1e_5():
-    args, w = s6_inputs(4, 96, 16, 4, torch.float32, seed=3, lengths=[96, 90, 50, 7])
-    y, ref = scan.selective_scan(*args), s6_loop(*args)
-    assert ((y - ref).abs().max() / ref.abs().max()).item() < 1e-5
+@pytest.fixture(params=["torch", "compiled"])
+def backend(request, monkeypatch):
+    """The PyTorch loops (``HOIBENCH_KERNELS=torch``) or the compiled ones (numba)."""
+    if request.param == "compiled" and kernels.numba is None:
+        pytest.skip("numba is not installed (pip install hoibench[fast])")
+    monkeypatch.setenv(kernels.ENV, "torch" if request.param == "torch" else "")
+    return request.param
+
+
+def _spy(monkeypatch):
+    """Count the calls reaching the compiled loops."""
+    calls = []
+    for name in ("s6_forward", "s6_backward", "conv_forward", "conv_backward"):
+        real = getattr(kernels, name)
+        monkeypatch.setattr(kernels, name, lambda *a, _r=real, _n=name, **k: calls.append(_n) or _r(*a, **k))
+    return calls
+
+
+@pytest.mark.parametrize("L,n", [(1, 4), (7, 16), (64, 8), (196, 4), (400, 6)])
+def test_selective_scan_float32_matches_the_float64_loop_to_1e_5(L, n, backend, monkeypatch):
+    calls = _spy(monkeypatch)
+    b, d = 4, 16
+    lengths = [L, max(1, L - 6), max(1, L // 2), 1]
+    args, w = s6_inputs(b, L, d, n, torch.float64, seed=3 + L + n, lengths=lengths)
+    rs = [x.clone().requires_grad_() for x in args]
+    xs = [x.float().requires_grad_() for x in args]
+    y, ref = scan.selective_scan(*xs), s6_loop(*rs)
+    assert _max_rel(y.double(), ref) < 1e-5
+    for name, got, want in zip("u delta A B C D".split(), torch.autograd.grad((y * w.float()).sum(), xs),
+                               torch.autograd.grad((ref * w).sum(), rs)):
+        assert _max_rel(got.double(), want) < 1e-5, name
+    with torch.no_grad():                                   # sampling's path (no states kept)
+        assert _max_rel(scan.selective_scan(*[x.float() for x in args]).double(), ref.detach()) < 1e-5
+    assert (set(calls) == {"s6_forward", "s6_backward"}) == (backend == "compiled")
+
+
+@pytest.mark.parametrize("L,K", [(1, 4), (3, 4), (50, 4), (9, 2)])
+def test_causal_convolution_equals_conv1d_forward_and_gradients(L, K, backend, monkeypatch):
+    from hoibench.baselines.ejim.mamba import _CausalConv
+    calls = _spy(monkeypatch)
+    g = torch.Generator().manual_seed(L + K)
+    b, c = 5, 12
+    x, wt, bias = torch.randn(L, b, c, generator=g), torch.randn(c, K, generator=g), torch.randn(c, generator=g)
+    dy = torch.randn(L, b, c, generator=g)
+    xs = [t.clone().requires_grad_() for t in (x, wt, bias)]
+    rs = [t.double().requires_grad_() for t in (x, wt, bias)]
+    out = _CausalConv.apply(*xs)
+    # F.conv1d over (b, c, L) with K - 1 zeros on the left is the causal convolution
+    ref = F.conv1d(F.pad(rs[0].permute(1, 2, 0), (K - 1, 0)), rs[1][:, None], rs[2], groups=c).permute(2, 0, 1)
+    assert _max_rel(out.double(), ref) < 1e-6
+    for name, got, want in zip(("x", "weight", "bias"), torch.autograd.grad((out * dy).sum(), xs),
+                               torch.autograd.grad((ref * dy.double()).sum(), rs)):
+        assert _max_rel(got.double(), want) < 1e-6, name
+    assert (set(calls) == {"conv_forward", "conv_backward"}) == (backend == "compiled")
 
 
 @pytest.fixture
@@ -87,7 +141,7 @@ def _twin_models(over: dict):
 
 @pytest.mark.parametrize("over", [{"model.d_model": 32},
                                   {"model.d_model": 16, "model.d_state": 16, "model.expand": 2, "model.modules": 3}])
-def test_model_equals_the_frozen_reference_outputs_and_parameter_gradients(over, one_thread):
+def test_model_equals_the_frozen_reference_outputs_and_parameter_gradients(over, one_thread, backend):
     cfg, new, old = _twin_models(over)
     g = torch.Generator().manual_seed(1)
     B, L = 3, 21
@@ -118,7 +172,7 @@ def test_parameter_names_and_shapes_are_unchanged(name):
     assert {k: tuple(v.shape) for k, v in new.items()} == {k: tuple(v.shape) for k, v in old.items()}
 
 
-def test_bimamba_padding_changes_neither_valid_outputs_nor_parameter_gradients():
+def test_bimamba_padding_changes_neither_valid_outputs_nor_parameter_gradients(backend):
     torch.manual_seed(0)
     m = BiMamba(8, 4, 2, 4, 0.0)
     g = torch.Generator().manual_seed(2)

@@ -17,6 +17,10 @@ g_t``, ``dL/du_t = delta_t sum_n B_t g_t + D dy_t``, ``dL/dB_t = sum_d delta_t u
 and ``exp(delta A)`` for it (chunks of a few hundred KB: reused memory, where one tensor of
 the whole scan would be a fresh memory mapping at every call); sampling keeps nothing.
 
+With numba installed (``pip install hoibench[fast]``) float32 scans on the CPU run the same
+recurrence and backward as compiled loops instead (:mod:`.kernels`, one pass per sequence;
+``HOIBENCH_KERNELS=torch`` keeps this module's loop).
+
 :func:`linear_scan` is the general ``h_t = a_t h_{t-1} + b_t`` over given tensors by
 Blelloch's work-efficient parallel scan (``2 log2 L`` vectorised steps over strided views,
 up-sweep and down-sweep, an adjoint reverse scan as its backward); :func:`linear_scan_reference`
@@ -26,6 +30,8 @@ them; EJIM used ``linear_scan`` under S6 before :func:`selective_scan` fused it.
 from __future__ import annotations
 
 import torch
+
+from . import kernels
 
 #: state entries (frames x sequences x state x width) per time chunk: 128 Ki floats, 512 KiB
 CHUNK_ELEMENTS = 1 << 17
@@ -104,10 +110,15 @@ def _s6_backward(u, delta, At, B, C, saved, dy):
 class _S6(torch.autograd.Function):
     @staticmethod
     def forward(ctx, u, delta, At, B, C, D):
-        y, saved = _s6_forward(u, delta, At, B, C, keep=True)
+        ctx.compiled = kernels.usable(u, delta, At, B, C, D)
+        if ctx.compiled:
+            y, saved = kernels.s6_forward(u, delta, At, B, C, D, keep=True)
+        else:
+            y, saved = _s6_forward(u, delta, At, B, C, keep=True)
+            y.addcmul_(u, D)
         ctx.save_for_backward(u, delta, At, B, C, D)
         ctx.states = saved
-        return y.addcmul_(u, D)
+        return y
 
     @staticmethod
     def backward(ctx, dy):
@@ -115,6 +126,8 @@ class _S6(torch.autograd.Function):
         saved = ctx.states
         del ctx.states
         dy = dy.contiguous()
+        if ctx.compiled:
+            return kernels.s6_backward(u, delta, At, B, C, D, saved, dy)
         gu, gdelta, gAt, gB, gC = _s6_backward(u, delta, At, B, C, saved, dy)
         return gu.addcmul_(dy, D), gdelta, gAt, gB, gC, (dy * u).reshape(-1, u.shape[-1]).sum(0)
 
@@ -126,6 +139,8 @@ def selective_scan_tm(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: 
             u.new_zeros(u.shape[-1]) if D is None else D)
     if torch.is_grad_enabled() and any(x.requires_grad for x in args):
         return _S6.apply(*args)
+    if kernels.usable(*args):
+        return kernels.s6_forward(*args, keep=False)[0]
     return _s6_forward(*args[:5], keep=False)[0].addcmul_(args[0], args[5])
 
 

@@ -117,7 +117,9 @@ class DIB(nn.Module):
         a = self.attn
         N, T, d = x.shape
         H = a.num_heads
-        q, k, v = F.linear(x, a.in_proj_weight, a.in_proj_bias).view(N, T, 3, H, d // H).permute(2, 0, 3, 1, 4)
+        W, b = a.in_proj_weight, a.in_proj_bias                  # the packed projection's thirds, contiguous
+        q, k, v = (F.linear(x, W[i * d:(i + 1) * d], b[i * d:(i + 1) * d]).view(N, T, H, d // H).transpose(1, 2)
+                   for i in range(3))
         bias = torch.zeros(N, 1, 1, T, dtype=x.dtype, device=x.device).masked_fill_(keymask[:, None, None],
                                                                                    float("-inf"))
         out = F.scaled_dot_product_attention(q, k, v, bias, dropout_p=a.dropout if a.training else 0.0)
