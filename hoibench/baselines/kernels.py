@@ -60,9 +60,10 @@ _P = (1.5252733804059838e-05, 0.00015403530393381606, 0.0013333558146428441, 0.0
 
 def _exp_row(x, a, out, bits):
     """``out[j] = exp(x[j] a[j])`` for float32 rows (the product in float32, as PyTorch forms it);
-    ``bits`` is ``out`` viewed as int32. Exponents below -125 (factors under 2e-38) are clamped there."""
+    ``bits`` is ``out`` viewed as int32. Exponents are clamped to [-125, 127] (factors under 2e-38 read
+    as 2e-38; the scan's decays exp(delta A), A < 0, never reach the upper end)."""
     for j in range(out.shape[0]):
-        v = max(np.float64(x[j] * a[j]) * _LOG2E, -125.0)
+        v = min(max(np.float64(x[j] * a[j]) * _LOG2E, -125.0), 127.0)
         i = np.floor(v + 0.5)
         f = v - i
         p = _P[0]
