@@ -191,3 +191,12 @@ def test_bimamba_padding_changes_neither_valid_outputs_nor_parameter_gradients(b
     torch.testing.assert_close(o1, o0, rtol=1e-6, atol=1e-6)
     for k in g0:
         torch.testing.assert_close(g1[k], g0[k], rtol=1e-5, atol=1e-6)
+
+
+def test_the_kernels_variable_is_read_strictly(monkeypatch):
+    for value, want in (("", "auto"), ("numba", "auto"), (" Torch ", "torch"), ("pytorch", "torch")):
+        monkeypatch.setenv(kernels.ENV, value)
+        assert kernels.choice() == want
+    monkeypatch.setenv(kernels.ENV, "cuda")
+    with pytest.raises(ValueError, match="HOIBENCH_KERNELS='cuda': expected 'torch'"):
+        scan.selective_scan(*s6_inputs(1, 3, 2, 2, torch.float32, seed=0)[0])

@@ -40,9 +40,23 @@ except ImportError:                                    # pragma: no cover - exer
 ENV = "HOIBENCH_KERNELS"
 
 
+_CHOICES = {"": "auto", "auto": "auto", "numba": "auto", "compiled": "auto", "torch": "torch", "pytorch": "torch"}
+
+
+def choice() -> str:
+    """``HOIBENCH_KERNELS``: ``auto`` (unset, ``numba``, ``compiled``: the compiled loops where numba
+    is installed) or ``torch`` (``pytorch``: the PyTorch loops); ValueError naming the variable otherwise."""
+    raw = os.environ.get(ENV, "")
+    try:
+        return _CHOICES[raw.strip().lower()]
+    except KeyError:
+        raise ValueError(f"environment variable {ENV}={raw!r}: expected 'torch' (the PyTorch loops) or "
+                         f"'numba' (compiled loops; the default where numba is installed)") from None
+
+
 def available() -> bool:
     """numba is importable and not switched off by ``HOIBENCH_KERNELS=torch``."""
-    return numba is not None and os.environ.get(ENV, "").strip().lower() != "torch"
+    return choice() == "auto" and numba is not None
 
 
 def usable(*tensors: torch.Tensor) -> bool:
