@@ -200,3 +200,26 @@ def test_the_kernels_variable_is_read_strictly(monkeypatch):
     monkeypatch.setenv(kernels.ENV, "cuda")
     with pytest.raises(ValueError, match="HOIBENCH_KERNELS='cuda': expected 'torch'"):
         scan.selective_scan(*s6_inputs(1, 3, 2, 2, torch.float32, seed=0)[0])
+
+
+def test_compiled_loops_give_the_same_bits_on_one_and_two_threads():
+    if kernels.numba is None:
+        pytest.skip("numba is not installed (pip install hoibench[fast])")
+    from hoibench.baselines.ejim.mamba import _CausalConv
+    b = 2 * kernels.BLOCK + 7                                # three sequence blocks, the last partial
+    args, w = s6_inputs(b, 9, 8, 4, torch.float32, seed=5, lengths=[9, 4] * (b // 2) + [1])
+    g = torch.Generator().manual_seed(6)
+    conv = [torch.randn(9, b, 8, generator=g), torch.randn(8, 4, generator=g), torch.randn(8, generator=g)]
+    n = torch.get_num_threads()
+    runs = []
+    try:
+        for threads in (1, 2):
+            torch.set_num_threads(threads)
+            xs = [x.clone().requires_grad_() for x in args]
+            y = scan.selective_scan(*xs)
+            cs = [x.clone().requires_grad_() for x in conv]
+            c = _CausalConv.apply(*cs)
+            runs.append([y, c, *torch.autograd.grad((y * w).sum() + (c * c).sum(), xs + cs)])
+    finally:
+        torch.set_num_threads(n)
+    assert all(torch.equal(a, b) for a, b in zip(*runs))

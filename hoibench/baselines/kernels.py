@@ -15,10 +15,12 @@ loop walks each sequence once with its state in cache:
 
 ``exp`` is computed as ``2^i 2^f`` (``i`` the rounded exponent, ``2^f`` a degree-7 polynomial,
 the reduction in float64, rounded to float32) so that the loops vectorise; float32 only
-(training's dtype; float64 runs the PyTorch versions). The loops are serial, hold no GIL and
-start no thread pool; every sum over sequences (``dL/dA``, ``dL/dD``) is taken afterwards in
-PyTorch and the convolution's weight gradient is accumulated in float64, so results do not
-depend on threads. They are compiled at the first call and cached on disk (``cache=True``).
+(training's dtype; float64 runs the PyTorch versions). Work is split into fixed blocks of
+:data:`BLOCK` sequences, run on ``torch.get_num_threads()`` threads (the loops release the GIL;
+the threads live for one call, so nothing survives a fork); every sum over sequences
+(``dL/dA``, ``dL/dD``) is taken afterwards in PyTorch, and the convolution's weight gradient
+is summed in float64 per block and then over the blocks in order, so results do not depend on
+the thread count. The loops are compiled at the first call and cached on disk (``cache=True``).
 ``HOIBENCH_KERNELS=torch`` keeps the PyTorch versions.
 
 Layouts (time-major, contiguous): u, delta, x (L, b, d); ``At`` (n, d) = A transposed; B, C
@@ -27,6 +29,7 @@ Layouts (time-major, contiguous): u, delta, x (L, b, d); ``At`` (n, d) = A trans
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import torch
 
@@ -92,7 +95,7 @@ def _exp_row(x, a, out, bits):
         bits[j] += np.int32(i) << 23
 
 
-def _forward(u, delta, At, B, C, D, y, H, keep):
+def _forward(u, delta, At, B, C, D, y, H, keep, s0, s1):
     L, b, d = u.shape
     n = At.shape[0]
     h = np.zeros((n, d), np.float32)
@@ -100,7 +103,7 @@ def _forward(u, delta, At, B, C, D, y, H, keep):
     e = np.empty(d, np.float32)
     ebits = e.view(np.int32)
     spare = np.empty(d, np.float32)                    # where the states go when none are kept
-    for s in range(b):
+    for s in range(s0, s1):
         h[:] = 0.0
         for t in range(L):
             ut, dt, acc = u[t, s], delta[t, s], y[t, s]
@@ -120,7 +123,7 @@ def _forward(u, delta, At, B, C, D, y, H, keep):
                     acc[j] += ck * hv
 
 
-def _backward(u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC):
+def _backward(u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC, s0, s1):
     L, b, d = u.shape
     n = At.shape[0]
     g = np.empty((n, d), np.float32)                   # the adjoint g_{t+1}
@@ -128,7 +131,7 @@ def _backward(u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC):
     e = np.empty(d, np.float32)
     ebits = e.view(np.int32)
     zeros = np.zeros(d, np.float32)
-    for s in range(b):
+    for s in range(s0, s1):
         g[:] = 0.0
         e_next[:] = 0.0
         ga = gA[s]
@@ -164,11 +167,11 @@ def _backward(u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC):
                 gdec[j] += ut[j] * gv                          # gdelta
 
 
-def _conv_forward(x, wT, bias, out):
+def _conv_forward(x, wT, bias, out, s0, s1):
     L, b, d = x.shape
     K = wT.shape[0]
     for t in range(L):
-        for s in range(b):
+        for s in range(s0, s1):
             o = out[t, s]
             o[:] = bias
             for k in range(K):
@@ -179,12 +182,12 @@ def _conv_forward(x, wT, bias, out):
                         o[j] += wk[j] * xs[j]
 
 
-def _conv_backward(x, wT, grad, gx, gw):
-    """gx (L, b, d) and gw (K, d) float64 (zeroed by the caller)."""
+def _conv_backward(x, wT, grad, gx, gw, s0, s1):
+    """gx (L, b, d) and the block's gw (K, d) float64 (zeroed by the caller) for sequences s0..s1-1."""
     L, b, d = x.shape
     K = wT.shape[0]
     for t in range(L):
-        for s in range(b):
+        for s in range(s0, s1):
             o = gx[t, s]
             o[:] = 0.0
             xt = x[t, s]
@@ -210,13 +213,35 @@ def _np(x: torch.Tensor):
     return x.detach().numpy()
 
 
+#: sequences per block: the unit of work of a thread, and of the convolution's weight-gradient sums
+BLOCK = 32
+
+
+def _blocks(b: int) -> list[tuple[int, int]]:
+    return [(s, min(b, s + BLOCK)) for s in range(0, b, BLOCK)]
+
+
+def _run(kernel, args: tuple, b: int) -> None:
+    """``kernel(*args, s0, s1)`` over the fixed sequence blocks, on ``torch.get_num_threads()``
+    threads (the loops release the GIL). Blocks are independent and fixed by ``b`` alone, so the
+    result does not depend on the thread count."""
+    blocks = _blocks(b)
+    threads = min(torch.get_num_threads(), len(blocks))
+    if threads <= 1:
+        for s0, s1 in blocks:
+            kernel(*args, s0, s1)
+        return
+    with ThreadPoolExecutor(threads) as pool:          # per call: nothing survives a fork
+        list(pool.map(lambda blk: kernel(*args, *blk), blocks))
+
+
 def s6_forward(u, delta, At, B, C, D, keep: bool):
     """y (L, b, d) with ``D u`` included, and the states H (L, b, n, d) when ``keep``."""
     L, b, d = u.shape
     n = At.shape[0]
     y = u.new_empty(L, b, d)
     H = u.new_empty(L, b, n, d) if keep else u.new_empty(1, 1, 1, 1)
-    _forward(*map(_np, (u, delta, At, B, C, D, y, H)), keep)
+    _run(_forward, (*map(_np, (u, delta, At, B, C, D, y, H)), keep), b)
     return y, (H if keep else None)
 
 
@@ -227,20 +252,28 @@ def s6_backward(u, delta, At, B, C, D, H, dy):
     gu, gdelta = u.new_empty(L, b, d), u.new_empty(L, b, d)
     gA = u.new_zeros(b, n, d)
     gB, gC = u.new_empty(L, b, n), u.new_empty(L, b, n)
-    _backward(*map(_np, (u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC)))
+    _run(_backward, tuple(map(_np, (u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC))), b)
     return gu, gdelta, gA.sum(0), gB, gC, (dy * u).reshape(-1, d).sum(0)
 
 
 def conv_forward(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
     """x (L, b, d), weight (d, K), bias (d,) -> the causal convolution (L, b, d)."""
     out = torch.empty_like(x)
-    _conv_forward(_np(x), _np(weight.t().contiguous()), _np(bias), _np(out))
+    _run(_conv_forward, (_np(x), _np(weight.t().contiguous()), _np(bias), _np(out)), x.shape[1])
     return out
 
 
 def conv_backward(x: torch.Tensor, weight: torch.Tensor, grad: torch.Tensor):
-    """Gradients of :func:`conv_forward` for x, weight (d, K) and bias."""
+    """Gradients of :func:`conv_forward` for x, weight (d, K) and bias; the weight gradient is
+    summed in float64 per sequence block, then over the blocks in order."""
+    b = x.shape[1]
+    blocks = _blocks(b)
     gx = torch.empty_like(x)
-    gw = torch.zeros(weight.shape[1], weight.shape[0], dtype=torch.float64)
-    _conv_backward(_np(x), _np(weight.t().contiguous()), _np(grad), _np(gx), _np(gw))
-    return gx, gw.t().to(weight.dtype), grad.reshape(-1, grad.shape[-1]).sum(0)
+    gw = torch.zeros(len(blocks), weight.shape[1], weight.shape[0], dtype=torch.float64)
+    xs, wT, gs, gxs, gws = _np(x), _np(weight.t().contiguous()), _np(grad), _np(gx), _np(gw)
+
+    def one(s0, s1):
+        _conv_backward(xs, wT, gs, gxs, gws[s0 // BLOCK], s0, s1)
+
+    _run(one, (), b)
+    return gx, gw.sum(0).t().to(weight.dtype), grad.reshape(-1, grad.shape[-1]).sum(0)
