@@ -223,3 +223,15 @@ def test_compiled_loops_give_the_same_bits_on_one_and_two_threads():
     finally:
         torch.set_num_threads(n)
     assert all(torch.equal(a, b) for a, b in zip(*runs))
+
+
+def test_a_bad_kernels_variable_stops_train_and_sample_before_anything_is_written(tmp_path, monkeypatch, capsys):
+    from hoibench.cli import main
+    monkeypatch.setenv(kernels.ENV, "gpu")
+    for argv in (["baseline", "train", "ejim", str(tmp_path / "data"), "--out", str(tmp_path / "run"), "--steps", "0"],
+                 ["baseline", "sample", "ejim", str(tmp_path / "run"), "--data", str(tmp_path / "data"),
+                  "--out", str(tmp_path / "sub")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "HOIBENCH_KERNELS='gpu'" in err[0]
+    assert list(tmp_path.iterdir()) == []

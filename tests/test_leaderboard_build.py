@@ -144,3 +144,12 @@ def test_a_human_only_row_is_marked_on_every_page(track, tmp_path):
     assert "human-only (object metrics n/a)" in paths["index.html"].read_text()
     other = next(line for line in paths["README.md"].read_text().splitlines() if "Model A" in line)
     assert "human-only" not in other
+
+
+def test_a_result_of_another_split_size_is_refused_even_when_incomplete_results_are_allowed(track, tmp_path):
+    r = result(0.1, 0.6, complete=False)
+    r["counts"]["test_ids"] = 7
+    p = tmp_path / "other-store.json"
+    p.write_text(json.dumps(r))
+    with pytest.raises(lb.LeaderboardError, match=r"other-store.json: field counts.test_ids: 7 test clips, not the 34"):
+        lb.add_result(p, track, method="Other store", allow_incomplete=True)

@@ -263,3 +263,20 @@ def test_set_level_draws_are_debiased_so_the_interval_is_centred_on_the_value():
     iv = clip_intervals(arrays, get_protocol("multibody-synthetic"))["fid"]["ci95"]
     assert iv[0] < weighted_fid(real.astype(np.float32).astype(np.float64),
                                 far.astype(np.float32).astype(np.float64), np.ones(30)) < iv[1]
+
+
+def test_the_same_file_twice_and_another_split_size_are_refused_in_one_line(world, tmp_path, capsys):
+    from hoibench.cli import main
+    rng, real = world
+    cd = np.ones(N) * 0.01
+    a = _result(tmp_path, "a", real, real, cd)
+    assert main(["compare", str(a), str(tmp_path / "." / "a.json"), "--paired"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "given twice" in err[0]
+    b = _result(tmp_path, "b", real, real, cd)
+    other = json.loads(b.read_text())
+    other["counts"]["test_ids"] = N + 5                     # a store prepared alike, with other clips
+    b.write_text(json.dumps(other))
+    assert main(["compare", str(a), str(b), "--paired"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"b.json: field counts.test_ids: {N + 5} test clips, not" in err[0]

@@ -62,6 +62,11 @@ def available() -> bool:
     return choice() == "auto" and numba is not None
 
 
+def describe() -> str:
+    """Which inner loops run: ``compiled (numba X)`` or ``torch`` (run logs record it)."""
+    return f"compiled (numba {numba.__version__})" if available() else "torch"
+
+
 def usable(*tensors: torch.Tensor) -> bool:
     """The compiled loops take CPU float32 tensors (training's dtype; float64 runs the PyTorch loop)."""
     return available() and all(t.device.type == "cpu" and t.dtype == torch.float32 for t in tensors)

@@ -32,6 +32,7 @@ from ..core.io import (MAX_SMALL_JSON_BYTES, atomic_save_figure, atomic_torch_sa
 from ..datasets.store import Store, legacy_manifest_sha256
 from . import checkpoint as ckpt
 from . import joint_data as D
+from .kernels import describe as describe_kernels
 from .config import RunConfig
 from .diffusion import EMA, GaussianDiffusion
 from .registry import Spec, get_spec
@@ -495,6 +496,7 @@ def finish_run(spec, cfg, state: dict, dataset: dict, text: TextConditioner, cur
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(total, 1), "seconds_from_step": first,
                                             "segment_seconds": round(seconds, 1), "device": str(dev),
                                             "hardware": ckpt.hardware(dev), "resumed_from": start,
+                                            "kernels": describe_kernels() if torch.device(dev).type == "cpu" else "torch",
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)

@@ -39,6 +39,12 @@ def _check_device(device: str) -> None:
                          f"use --device cpu")
 
 
+def _check_kernels() -> None:
+    """``HOIBENCH_KERNELS`` read before anything is written (ValueError naming the variable)."""
+    from ..baselines.kernels import choice
+    choice()
+
+
 def train_baseline(name: str, data: str | Path, out: str | Path, config: str = "tiny", device: str = "cpu",
                    steps: int | None = None, seed: int | None = None, mask: str | None = None,
                    threads: int | None = None, overrides: list[str] | None = None) -> int:
@@ -76,6 +82,7 @@ def train_baseline(name: str, data: str | Path, out: str | Path, config: str = "
     if over:
         cfg = cfg.replace(**over)
     _check_device(device)
+    _check_kernels()
     train(name, data, out, cfg, device=device, threads=threads)
     return 0
 
@@ -105,6 +112,7 @@ def sample_baseline(name: str, run: str | Path | None, data: str | Path, out: st
     if run is None:
         raise ValueError(f"baseline sample {name}: the RUN folder (from `hoibench baseline train {name}`) is required")
     _check_device(device)
+    _check_kernels()
     from ..baselines.sampler import sample
     over = parse_overrides(overrides)
     if over and name != "syncdiff":

@@ -10,6 +10,8 @@ def _cmd_compare(args) -> int:
     names = [n.strip() for n in args.names.split(",")] if args.names else None
     if names is not None and len(names) != len(args.results):
         raise ValueError(f"--names: {len(names)} names for {len(args.results)} results")
+    if args.plot is not None and args.plot.is_dir():
+        raise ValueError(f"--plot {args.plot}: is a folder; give the PNG file to write")
     if args.paired:
         return _paired(args)
     if args.out is not None:

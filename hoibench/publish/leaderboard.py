@@ -311,12 +311,22 @@ def _existing_method(path: Path, entries: list[dict]) -> str:
     return next((str(e["method"]) for e in entries if e.get("_file") == path.name), path.stem)
 
 
+def _split_size(value) -> int | None:
+    """A result's or entry's test-split size (``counts.test_ids``: a count, or the ids)."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value
+    return len(value) if isinstance(value, list) else None
+
+
 def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, role: str = "method",
                allow_incomplete: bool = False, replace: bool = False, notes: str = "",
                submission_meta: dict | None = None) -> Path:
     """Add a ``hoibench evaluate`` result to a track as a reproduced entry. Refused: another
     evaluator id or protocol than the track's reproduced rows, an existing entry of the same
-    name (unless ``replace``), an incomplete result (unless ``allow_incomplete``: marked)."""
+    name (unless ``replace``), a result with another test-split size (``counts.test_ids``: another store),
+    an incomplete result (unless ``allow_incomplete``: marked)."""
     if role not in ROLES:
         raise LeaderboardError(f"--role: expected one of {ROLES}, got {role!r}")
     for flag, text in (("--method", method), ("--notes", notes)):
@@ -343,6 +353,12 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
     if protos and mine not in protos:
         raise LeaderboardError(f"{result_path}: field protocol: {mine} is not the protocol of track {track!r} "
                                f"({', '.join(protos)})")
+    sizes = sorted({_split_size(e.get("test_ids")) for e in ours} - {None})
+    theirs = _split_size((result.get("counts") or {}).get("test_ids"))
+    if sizes and theirs is not None and theirs not in sizes:
+        raise LeaderboardError(f"{result_path}: field counts.test_ids: {theirs} test clips, not the "
+                               f"{' or '.join(map(str, sizes))} of track {track!r}: a result of another store or "
+                               f"split; score the track's store")
     if not result.get("complete") and not allow_incomplete:
         why = "; ".join(str(o.get("override")) for o in result.get("overrides", [])) or \
             f"{len(result.get('counts', {}).get('missing_ids', []))} missing id(s)"

@@ -81,7 +81,10 @@ def track_significance(track_dir: str | Path, entries: list[dict], headline: tup
         if pa is None or a is None:
             continue
         proto = get_protocol(f"{e['protocol']}@{e['protocol_version']}")
-        pair = compare_pair(prev, pa, e, a, proto, resamples, seed)
+        try:
+            pair = compare_pair(prev, pa, e, a, proto, resamples, seed)
+        except ValueError as exc:
+            raise LeaderboardError(f"{folder / e['_file']}: against the row above ({prev['_file']}): {exc}") from None
         names = [m for m in headline if m in pair["metrics"]]
         adjusted = holm([pair["metrics"][m]["p"] if np.isfinite(pair["metrics"][m]["p"]) else 1.0 for m in names])
         rows = {}

@@ -54,11 +54,18 @@ def _seed(*parts) -> int:
 
 
 def check_same_scale(a: dict, b: dict, a_path, b_path) -> None:
-    """ValueError naming the first field on which ``b`` was scored differently from ``a``."""
+    """ValueError naming the first field on which ``b`` was scored differently from ``a``, or
+    its test-split size (``counts.test_ids``) when it is not ``a``'s: two stores prepared with
+    the same settings share ``store_config_sha256`` but not their clips."""
     for field, what in SCALE_FIELDS:
         if a.get(field) != b.get(field):
             raise ValueError(f"{b_path}: field {field}: {str(b.get(field))[:16]} is not {a_path}'s "
                              f"{str(a.get(field))[:16]}: a paired comparison needs one {what}")
+    ta, tb = ((r.get("counts") or {}).get("test_ids") for r in (a, b))
+    na, nb = (len(t) if isinstance(t, list) else t for t in (ta, tb))
+    if isinstance(na, int) and isinstance(nb, int) and na != nb:
+        raise ValueError(f"{b_path}: field counts.test_ids: {nb} test clips, not {a_path}'s {na}: results of "
+                         f"different stores or splits")
 
 
 class _Side:
@@ -285,6 +292,13 @@ def paired_compare(paths: list, resamples: int = MIN_RESAMPLES, seed: int = 0, e
         raise ValueError("compare --paired: give at least two result files")
     if resamples < MIN_RESAMPLES:
         raise ValueError(f"--resamples {resamples}: a paired comparison runs at least {MIN_RESAMPLES}")
+    from pathlib import Path
+    seen: dict = {}
+    for p in paths:
+        key = Path(p).resolve()
+        if key in seen:
+            raise ValueError(f"{p}: given twice (as {seen[key]}): a paired comparison needs two results")
+        seen[key] = p
     results = [read_result(p) for p in paths]
     for r, p in zip(results[1:], paths[1:]):
         check_same_scale(results[0], r, paths[0], p)
