@@ -417,3 +417,16 @@ def test_batched_encoding_keeps_each_samples_features_and_its_own_message(gt_sub
         for k in range(2):
             kept = cache.take_features(sid, k)
             assert kept is not None and np.array_equal(kept, encode_sample(arrays, k, "clean", fps))
+
+
+def test_a_file_that_is_not_a_zip_is_one_error_and_a_misfit_protocol_is_noted(gt_sub, tmp_path, capsys):
+    from hoibench.cli import main
+    data, gt, ids = gt_sub
+    bad = tmp_path / "notzip.zip"
+    bad.write_text("not a zip")
+    assert main(["validate", str(bad), "--data", str(data)]) == 1
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 2 and "neither a folder nor a valid .zip" in out[0] and f"0 of {len(ids)} test ids" in out[1]
+    assert main(["validate", str(gt), "--data", str(data), "--protocol", "behave-clean"]) == 0
+    out = capsys.readouterr().out
+    assert "note: --protocol behave-clean does not fit the store" in out and "dataset 'behave'" in out

@@ -210,6 +210,10 @@ def validate_card(card, path: str | Path) -> dict:
 def read_card(folder: str | Path) -> dict:
     """The validated card of ``folder`` (:func:`validate_card`); one-line errors naming the file."""
     path = Path(folder) / CARD
+    if not Path(folder).exists():
+        raise EvaluatorIntegrityError(f"{folder}: does not exist (expected an evaluator folder)")
+    if Path(folder).is_file():
+        raise EvaluatorIntegrityError(f"{folder}: is a file, not an evaluator folder (a folder with {CARD})")
     if not path.exists():
         raise EvaluatorIntegrityError(f"{folder}: not an evaluator folder (no {CARD}); "
                                       f"train one with `hoibench train-evaluator`")

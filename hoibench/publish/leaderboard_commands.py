@@ -15,7 +15,10 @@ def resolve_root(root: str | Path | None) -> Path:
     """``root`` when given; else the nearest ``leaderboards/`` with track folders at or above
     the current folder, announced on one line."""
     if root is not None:
-        return Path(root)
+        root = Path(root)
+        if root.exists() and not root.is_dir():
+            raise NotADirectoryError(f"--root {root}: is a file, not a leaderboards folder")
+        return root
     found = lb.find_root()
     if found is None:
         raise FileNotFoundError(f"no leaderboards/ folder with track folders in {Path.cwd()} or above: pass --root "
@@ -30,6 +33,9 @@ def main_leaderboard(action: str, root: str | Path | None = None, track: str | N
     """``hoibench leaderboard ACTION``: add a result to a track, build tracks' pages, or list
     the tracks. Returns the exit status."""
     folder = resolve_root(root)
+    if not folder.exists() and not (action == "add" and new_track):
+        hint = f", so it has no track {track!r} (pass --new-track to start it there)" if action == "add" else ""
+        raise FileNotFoundError(f"--root {folder}: does not exist{hint}")
     if action == "add":
         path = lb.add_result(result, lb.track_folder(folder, track, new_track), method=method, role=role,
                              allow_incomplete=allow_incomplete, replace=replace, notes=notes)

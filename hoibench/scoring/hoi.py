@@ -385,7 +385,9 @@ class HOIScorer(Scorer):
         kept = set(self.st.test_ids)
         ids = sorted(i for i in report.valid_ids if i in kept)
         if not ids:
-            raise EvaluationRefused(f"{self.submission}: no valid test id to score ({len(report.errors)} error(s)); "
+            first = report.errors[0] if report.errors else None
+            raise EvaluationRefused(f"{self.submission}: no valid test id to score ({len(report.errors)} error(s)"
+                                    f"{f', the first: {first.id}: {first.field}: {first.message}' if first else ''}); "
                                     f"run hoibench validate for the list")
         self.st.meta = dict(sub.meta or {})
         flags = self.st.meta.get("flags") if isinstance(self.st.meta.get("flags"), dict) else {}

@@ -286,8 +286,9 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         flags = (s.meta or {}).get("flags", {}) if isinstance((s.meta or {}).get("flags", {}), dict) else {}
         test_ids = sorted(rows)
         found = set(s.ids)
+        unreadable = any(p.id == "*" and p.field == "path" for p in problems)   # said once, not per id
         for sid in test_ids:
-            if sid not in found and not any(p.id == sid for p in problems):
+            if sid not in found and not unreadable and not any(p.id == sid for p in problems):
                 problems.append(Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz"))
         for sid in sorted(found - set(rows)):
             why = f"not a valid id ({ID_RULE})" if not is_valid_id(sid) else \
@@ -377,8 +378,9 @@ def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationR
         accepted = accepted_representations(st.manifest) | {"multibody-joints"}
         problems = list(s.problems) + _check_meta(s.meta, fps, None, accepted)
         found, valid, ks = set(s.ids), [], set()
+        unreadable = any(p.id == "*" and p.field == "path" for p in problems)   # said once, not per id
         problems += [Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz") for sid in test_ids
-                     if sid not in found]
+                     if sid not in found and not unreadable]
         problems += [Problem(sid, SAMPLES_DIR, f"extra file: not in the {split!r} split (not read)")
                      for sid in sorted(found - set(rows))]
         for sid in (i for i in test_ids if i in found):
@@ -458,4 +460,20 @@ def main_validate(sub: str | Path, data: str | Path, protocol: str | None = None
                      f"({whole[0].field}) keep it from being scored as complete")
         print(f"{sub}: {len(rep.errors)} error(s), {len(rep.warnings)} warning(s); "
               f"{len(rep.valid_ids)} of {len(rep.test_ids)} test ids valid; {state}")
+        misfit = _protocol_misfit(protocol, data)
+        if misfit:
+            print(f"note: --protocol {protocol} does not fit the store ({misfit}): hoibench evaluate refuses it "
+                  f"without --allow-protocol-mismatch")
     return 0 if rep.complete else 1
+
+
+def _protocol_misfit(protocol: str | None, data: str | Path) -> str:
+    """Why a named protocol does not fit the store (``protocol_mismatches``), or ''."""
+    if protocol is None:
+        return ""
+    from ..datasets.store import Store
+    from ..tracks.protocol import get_protocol, protocol_mismatches
+    try:
+        return "; ".join(protocol_mismatches(get_protocol(protocol), Store(data).manifest))
+    except (AttributeError, KeyError, TypeError, ValueError):
+        return ""
