@@ -142,3 +142,24 @@ def test_an_entry_keeps_sample_0_when_all_samples_exceed_the_limit(tmp_path):
     assert big["per_clip_data"]["samples"] == "all"
     assert read_clip_data(big, entries / "m.json")["motion"].shape == (30, N, D)
     assert attach_clip_data({"method": "x"}, {}, tmp_path / "r.json", entries) is None   # nothing kept: no file
+
+
+def test_a_result_already_on_the_track_under_another_name_is_refused(track, tmp_path):
+    from hoibench.publish import leaderboard as lb
+    from hoibench.scoring.clip_data import write_clip_data
+    from hoibench.scoring.results import metric_entry
+    rng = np.random.default_rng(0)
+    real = rng.normal(size=(N, D))
+    near = real + 0.05 * rng.normal(size=(N, D))              # the 'near' row's embeddings, rebuilt
+    result = {"format": "hoibench-result-2", "protocol": "synthetic-clean", "protocol_version": "1.1",
+              "evaluator_id": "e" * 64, "complete": True, "submission": {"method": "again"},
+              "counts": {"test_ids": N, "scored_ids": N, "samples_per_prompt": 1},
+              "metrics": {m: metric_entry(m, 0.0, 0.0, 20) for m in ("fid", "r_precision_top1", "cd")}}
+    path = tmp_path / "again.json"
+    write_clip_data(result, _arrays(near, real), path)
+    path.write_text(json.dumps(result))
+    with pytest.raises(lb.LeaderboardError, match=r"again.json: field per_clip_data.sha256: the same per-clip data "
+                                                  r"as the entry '(near|twin)' \((near|twin).json\)"):
+        lb.add_result(path, track, method="Near again")
+    (track / "entries" / "twin.json").unlink()               # the fixture's twin shares the data too
+    lb.add_result(path, track, method="near", replace=True)   # replacing that very entry is allowed

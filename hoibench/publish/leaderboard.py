@@ -369,6 +369,14 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         raise LeaderboardError(f"{path}: field method: an entry named {_existing_method(path, existing)!r} exists "
                                f"already (--method {method!r} has the same file name); choose another --method or "
                                f"pass --replace")
+    digest = (result.get("per_clip_data") or {}).get("sha256") if isinstance(result.get("per_clip_data"), dict) \
+        else None
+    twin = next((e for e in existing if digest and e.get("_file") != path.name
+                 and (e.get("per_clip_data") or {}).get("samples") == "all"
+                 and (e.get("per_clip_data") or {}).get("sha256") == digest), None)
+    if twin is not None:
+        raise LeaderboardError(f"{result_path}: field per_clip_data.sha256: the same per-clip data as the entry "
+                               f"{twin['method']!r} ({twin['_file']}): this result is on the track already")
     if submission_meta is None:
         submission_meta = submission_meta_of(result, result_path)
     entry = entry_from_result(result, method=method, track=track, submission_meta=submission_meta, notes=notes)
