@@ -190,6 +190,9 @@ def test_evaluate_keeps_per_clip_data_and_clip_intervals_and_compare_paired_read
     assert pair["metrics"]["jitter_mps3"]["verdict"] == "A better"            # 5 cm noise jitters every frame
     out = capsys.readouterr().out
     assert "A better" in out
+    assert main(["compare", str(tmp_path / "gt.json"), str(tmp_path / "gt-noise.json"), "--paired",
+                 "--out", str(tmp_path / "cmp.json")]) == 2                   # kept unless --overwrite
+    assert "exists already" in capsys.readouterr().err
     # slices: every scored clip has a label per slice, the tables count every clip once
     sl = res["slices"]
     ids = set(np.load(tmp_path / "gt.clips.npz")["ids"].tolist())

@@ -29,7 +29,7 @@ def _paired(args) -> int:
     from ..scoring.paired import format_paired, paired_compare
     from ..scoring.slices import slice_gaps
     if args.out is not None:
-        check_result_free(args.out, overwrite=True)
+        check_result_free(args.out, overwrite=args.overwrite)
     cmp = paired_compare(args.results, resamples=args.resamples, seed=args.seed, executor=args.executor,
                          extra=slice_gaps)
     print(format_paired(cmp))
@@ -58,4 +58,5 @@ def register(sub) -> None:
     s.add_argument("--seed", type=int, default=0, help="seed of the resamples with --paired")
     s.add_argument("--executor", type=executor_arg, default="serial", help="where --paired's resamples run")
     s.add_argument("--out", type=Path, default=None, help="with --paired: write the comparison JSON here")
+    s.add_argument("--overwrite", action="store_true", help="with --out: replace an existing file")
     s.set_defaults(func=_cmd_compare)
