@@ -62,9 +62,11 @@ def available() -> bool:
     return choice() == "auto" and numba is not None
 
 
-def describe() -> str:
-    """Which inner loops run: ``compiled (numba X)`` or ``torch`` (run logs record it)."""
-    return f"compiled (numba {numba.__version__})" if available() else "torch"
+def describe(device="cpu") -> str:
+    """Which inner loops run on ``device``: ``compiled (numba X)`` (CPU only) or ``torch`` (run logs
+    record it)."""
+    return f"compiled (numba {numba.__version__})" if available() and torch.device(device).type == "cpu" \
+        else "torch"
 
 
 def usable(*tensors: torch.Tensor) -> bool:
@@ -251,14 +253,14 @@ def s6_forward(u, delta, At, B, C, D, keep: bool):
 
 
 def s6_backward(u, delta, At, B, C, D, H, dy):
-    """Gradients of :func:`s6_forward`'s y for u, delta, At, B, C and D."""
+    """Gradients of :func:`s6_forward`'s y for u, delta, At, B and C (D's is the caller's)."""
     L, b, d = u.shape
     n = At.shape[0]
     gu, gdelta = u.new_empty(L, b, d), u.new_empty(L, b, d)
     gA = u.new_zeros(b, n, d)
     gB, gC = u.new_empty(L, b, n), u.new_empty(L, b, n)
     _run(_backward, tuple(map(_np, (u, delta, At, B, C, D, H, dy, gu, gdelta, gA, gB, gC))), b)
-    return gu, gdelta, gA.sum(0), gB, gC, (dy * u).reshape(-1, d).sum(0)
+    return gu, gdelta, gA.sum(0), gB, gC
 
 
 def conv_forward(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
@@ -269,8 +271,8 @@ def conv_forward(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> t
 
 
 def conv_backward(x: torch.Tensor, weight: torch.Tensor, grad: torch.Tensor):
-    """Gradients of :func:`conv_forward` for x, weight (d, K) and bias; the weight gradient is
-    summed in float64 per sequence block, then over the blocks in order."""
+    """Gradients of :func:`conv_forward` for x and weight (d, K) (the bias's is the caller's); the
+    weight gradient is summed in float64 per sequence block, then over the blocks in order."""
     b = x.shape[1]
     blocks = _blocks(b)
     gx = torch.empty_like(x)
@@ -281,4 +283,4 @@ def conv_backward(x: torch.Tensor, weight: torch.Tensor, grad: torch.Tensor):
         _conv_backward(xs, wT, gs, gxs, gws[s0 // BLOCK], s0, s1)
 
     _run(one, (), b)
-    return gx, gw.sum(0).t().to(weight.dtype), grad.reshape(-1, grad.shape[-1]).sum(0)
+    return gx, gw.sum(0).t().to(weight.dtype)

@@ -126,10 +126,12 @@ class _S6(torch.autograd.Function):
         saved = ctx.states
         del ctx.states
         dy = dy.contiguous()
-        if ctx.compiled:
-            return kernels.s6_backward(u, delta, At, B, C, D, saved, dy)
-        gu, gdelta, gAt, gB, gC = _s6_backward(u, delta, At, B, C, saved, dy)
-        return gu.addcmul_(dy, D), gdelta, gAt, gB, gC, (dy * u).reshape(-1, u.shape[-1]).sum(0)
+        if ctx.compiled:                                   # D dy is inside the compiled gu
+            gu, gdelta, gAt, gB, gC = kernels.s6_backward(u, delta, At, B, C, D, saved, dy)
+        else:
+            gu, gdelta, gAt, gB, gC = _s6_backward(u, delta, At, B, C, saved, dy)
+            gu.addcmul_(dy, D)
+        return gu, gdelta, gAt, gB, gC, (dy * u).reshape(-1, u.shape[-1]).sum(0)
 
 
 def selective_scan_tm(u: torch.Tensor, delta: torch.Tensor, A: torch.Tensor, B: torch.Tensor, C: torch.Tensor,

@@ -496,7 +496,7 @@ def finish_run(spec, cfg, state: dict, dataset: dict, text: TextConditioner, cur
     atomic_write_json(out / ckpt.TRAIN_LOG, {"seconds": round(total, 1), "seconds_from_step": first,
                                             "segment_seconds": round(seconds, 1), "device": str(dev),
                                             "hardware": ckpt.hardware(dev), "resumed_from": start,
-                                            "kernels": describe_kernels() if torch.device(dev).type == "cpu" else "torch",
+                                            "kernels": describe_kernels(dev),
                                             "steps_per_second": round((cfg.train.steps - start) /
                                                                       max(time.perf_counter() - tl, 1e-9), 3)})
     drop_checkpoint(cpath)

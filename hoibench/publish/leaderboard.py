@@ -311,15 +311,6 @@ def _existing_method(path: Path, entries: list[dict]) -> str:
     return next((str(e["method"]) for e in entries if e.get("_file") == path.name), path.stem)
 
 
-def _split_size(value) -> int | None:
-    """A result's or entry's test-split size (``counts.test_ids``: a count, or the ids)."""
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, int):
-        return value
-    return len(value) if isinstance(value, list) else None
-
-
 def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, role: str = "method",
                allow_incomplete: bool = False, replace: bool = False, notes: str = "",
                submission_meta: dict | None = None) -> Path:
@@ -353,8 +344,8 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
     if protos and mine not in protos:
         raise LeaderboardError(f"{result_path}: field protocol: {mine} is not the protocol of track {track!r} "
                                f"({', '.join(protos)})")
-    sizes = sorted({_split_size(e.get("test_ids")) for e in ours} - {None})
-    theirs = _split_size((result.get("counts") or {}).get("test_ids"))
+    sizes = sorted({e.get("test_ids") for e in ours} - {None})       # whole numbers (counts_problem)
+    theirs = (result.get("counts") or {}).get("test_ids")
     if sizes and theirs is not None and theirs not in sizes:
         raise LeaderboardError(f"{result_path}: field counts.test_ids: {theirs} test clips, not the "
                                f"{' or '.join(map(str, sizes))} of track {track!r}: a result of another store or "
@@ -369,8 +360,8 @@ def add_result(result_path: str | Path, track_dir: str | Path, *, method: str, r
         raise LeaderboardError(f"{path}: field method: an entry named {_existing_method(path, existing)!r} exists "
                                f"already (--method {method!r} has the same file name); choose another --method or "
                                f"pass --replace")
-    digest = (result.get("per_clip_data") or {}).get("sha256") if isinstance(result.get("per_clip_data"), dict) \
-        else None
+    pcd = result.get("per_clip_data")
+    digest = pcd.get("sha256") if isinstance(pcd, dict) else None
     twin = next((e for e in existing if digest and e.get("_file") != path.name
                  and (e.get("per_clip_data") or {}).get("samples") == "all"
                  and (e.get("per_clip_data") or {}).get("sha256") == digest), None)

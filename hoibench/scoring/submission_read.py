@@ -296,6 +296,12 @@ class Submission:
         self._read_meta()
 
     @property
+    def unreadable(self) -> bool:
+        """The submission itself could not be opened (no such path, a special file, not a zip):
+        said once by its ``path`` problem, not once per test id."""
+        return any(p.id == "*" and p.field == "path" for p in self.problems)
+
+    @property
     def _max_files(self) -> int:
         return self.limits.max_files if self.limits is not None else 1_000_000
 

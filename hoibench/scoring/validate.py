@@ -286,9 +286,8 @@ def validation_report(sub, store, split: str = "test", protocol=None,
         flags = (s.meta or {}).get("flags", {}) if isinstance((s.meta or {}).get("flags", {}), dict) else {}
         test_ids = sorted(rows)
         found = set(s.ids)
-        unreadable = any(p.id == "*" and p.field == "path" for p in problems)   # said once, not per id
         for sid in test_ids:
-            if sid not in found and not unreadable and not any(p.id == sid for p in problems):
+            if sid not in found and not s.unreadable and not any(p.id == sid for p in problems):
                 problems.append(Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz"))
         for sid in sorted(found - set(rows)):
             why = f"not a valid id ({ID_RULE})" if not is_valid_id(sid) else \
@@ -378,9 +377,8 @@ def multibody_report(sub, st, split: str = "test", protocol=None) -> ValidationR
         accepted = accepted_representations(st.manifest) | {"multibody-joints"}
         problems = list(s.problems) + _check_meta(s.meta, fps, None, accepted)
         found, valid, ks = set(s.ids), [], set()
-        unreadable = any(p.id == "*" and p.field == "path" for p in problems)   # said once, not per id
         problems += [Problem(sid, SAMPLES_DIR, f"missing: no {SAMPLES_DIR}/{sid}.npz") for sid in test_ids
-                     if sid not in found and not unreadable]
+                     if sid not in found and not s.unreadable]
         problems += [Problem(sid, SAMPLES_DIR, f"extra file: not in the {split!r} split (not read)")
                      for sid in sorted(found - set(rows))]
         for sid in (i for i in test_ids if i in found):

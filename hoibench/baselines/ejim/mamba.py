@@ -97,15 +97,16 @@ class _CausalConv(torch.autograd.Function):
         x, weight = ctx.saved_tensors
         grad = grad.contiguous()
         if ctx.compiled:
-            return kernels.conv_backward(x, weight, grad)
-        L, K = x.shape[0], weight.shape[1]
-        gx = torch.zeros_like(x)
-        gw = weight.new_zeros(weight.shape)
-        for k in range(K):
-            s = K - 1 - k
-            if s < L:
-                gx[:L - s].addcmul_(grad[s:], weight[:, k])
-                gw[:, k] = (grad[s:] * x[:L - s]).reshape(-1, x.shape[-1]).sum(0)
+            gx, gw = kernels.conv_backward(x, weight, grad)
+        else:
+            L, K = x.shape[0], weight.shape[1]
+            gx = torch.zeros_like(x)
+            gw = weight.new_zeros(weight.shape)
+            for k in range(K):
+                s = K - 1 - k
+                if s < L:
+                    gx[:L - s].addcmul_(grad[s:], weight[:, k])
+                    gw[:, k] = (grad[s:] * x[:L - s]).reshape(-1, x.shape[-1]).sum(0)
         return gx, gw, grad.reshape(-1, grad.shape[-1]).sum(0)
 
 
