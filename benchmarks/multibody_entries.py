@@ -12,6 +12,13 @@ manifests), so each result keeps its per-clip data, and is added to the track wi
 method name, role and note (``leaderboard add --replace``); entries of the track scored with
 another recognizer are removed first (a track has one evaluator). Then ``leaderboard build``.
 Prints each row's FID, RA and CSIoU.
+
+    python benchmarks/multibody_entries.py --bench B --bench-index B1 --bench-rate B2 --physics W
+
+scores the same submissions under the physics preview (``--protocol multibody-synthetic@1.1``)
+into ``W/<entry slug>.json`` and touches no entry; ``python benchmarks/physics_rows.py
+--results W --entries leaderboards/multibody-synthetic/entries`` then gives the physics table
+(leaderboards/multibody-synthetic/about.md).
 """
 from __future__ import annotations
 
@@ -50,6 +57,10 @@ ROWS = (
 )
 
 
+#: the preview protocol version that lists the physics tier
+PHYSICS_PROTOCOL = "multibody-synthetic@1.1"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bench", type=Path, required=True)
@@ -58,6 +69,8 @@ def main() -> None:
     ap.add_argument("--track", type=Path, default=Path("leaderboards/multibody-synthetic"))
     ap.add_argument("--work", type=Path, default=None, help="where the results go (default: BENCH/results)")
     ap.add_argument("--executor", default="processes:2")
+    ap.add_argument("--physics", type=Path, default=None, metavar="W",
+                    help="score every row under multibody-synthetic@1.1 into W/<slug>.json; no entry is changed")
     args = ap.parse_args()
     from hoibench.core.io import read_json_object
     from hoibench.publish.leaderboard import add_result, load_track
@@ -72,6 +85,15 @@ def main() -> None:
             raise SystemExit(f"--bench-{k} {benches[k]}: its store differs from --bench's")
     if not (args.bench / "sub_gt").exists():
         write_multibody_submission(data, args.bench / "sub_gt", kind="gt")
+    if args.physics is not None:
+        from hoibench.publish.leaderboard import slug
+        args.physics.mkdir(parents=True, exist_ok=True)
+        for method, _, _, bench, folder in ROWS:
+            out = args.physics / f"{slug(method)}.json"
+            if not out.exists():
+                main_evaluate(benches[bench] / folder, data, rec, out=out, protocol=PHYSICS_PROTOCOL,
+                              executor=args.executor)
+        return
     work = args.work or args.bench / "results"
     work.mkdir(parents=True, exist_ok=True)
     rec_id = read_json_object(rec / "recognizer.json")["recognizer_id"]

@@ -51,7 +51,9 @@ class MetricInfo:
     once per clip). ``requires``: a module the function needs (an optional extra); when it
     cannot be imported the metric is "not computed: <install_hint>", never zero.
     ``needs_ground_truth``: the function compares the clip with its test clip's ground truth
-    (the scorer then fills ClipInput's ``gt_*`` fields)."""
+    (the scorer then fills ClipInput's ``gt_*`` fields). ``multibody_fn``: the same for the
+    ``multibody`` scorer, ``(MultiBodyClip, settings) -> number | {name: number}``, called on
+    every generated sample and on the ground truth of every test clip."""
 
     name: str
     kind: str
@@ -75,6 +77,7 @@ class MetricInfo:
     requires: str = ""
     install_hint: str = ""
     needs_ground_truth: bool = False
+    multibody_fn: str = ""
 
     def __post_init__(self):
         if not self.scorers and self.kind in _SCORERS_OF_KIND:
@@ -274,8 +277,9 @@ register(MetricInfo("ra", "multibody", "higher", "fraction", "semantic",
                     "RA (SyncDiff)", f"{_MB}:recognition_accuracy", short="RA"))
 # physics tier (MuJoCo; hoibench.metrics.physics, docs/metrics.md "Physics")
 _PH_FN = "hoibench.metrics.physics:physics_clip_values"
-_PH = dict(impl=_PH_FN, clip_fn=_PH_FN, per_clip=True, needs_object=True,
-           settings_key="physics", settings_check="hoibench.metrics.physics:check_settings", requires="mujoco",
+_PH = dict(impl=_PH_FN, clip_fn=_PH_FN, per_clip=True, needs_object=True, scorers=("hoi", "multibody"),
+           multibody_fn="hoibench.metrics.physics_multibody:multibody_physics_values", settings_key="physics",
+           settings_check="hoibench.metrics.physics:check_settings", requires="mujoco",
            install_hint="install hoibench[physics]")
 register(MetricInfo("phys_support_err_m", "physical", "lower", "m", "extras",
                     "object simulated from its generated pose and velocity with body and floor as colliders: "

@@ -28,12 +28,12 @@ Everything is single-threaded MuJoCo with fixed settings: reruns give identical 
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from .physics_scene import (BodyTrack, body_states, body_track, object_geometry, object_qpos, object_qvel,
-                            scene_xml)
+                            rigid_states, scene_xml)
 
 from .catalog import METRICS
 
@@ -88,20 +88,25 @@ def check_settings(mapping: Mapping, where: str) -> None:
 
 # ----------------------------------------------------------------- scenes
 class ClipScene:
-    """The MuJoCo models of one clip (object + floor + the capsules of ``track``), built once: ``free``
-    (moving body, support windows) and ``mocap`` (frozen body, releases)."""
+    """The MuJoCo models of one clip (object + floor + the capsules of ``track`` + the kinematic
+    ``others``: ``(vertices, faces, R (T, 3, 3), t (T, 3))`` of a multi-body clip's other
+    objects), built once: ``free`` (moving body, support windows) and ``mocap`` (frozen body,
+    releases)."""
 
-    def __init__(self, vertices, faces, track: BodyTrack, s: Mapping):
+    def __init__(self, vertices, faces, track: BodyTrack, s: Mapping, others: Sequence[tuple] = ()):
         import mujoco
         self.mj = mujoco
         self.geom = object_geometry(vertices, faces)
         self.track = track
+        self.others = [(np.asarray(R, np.float64), np.asarray(t, np.float64)) for _, _, R, t in others]
+        self.kinematic = len(track.radii) + len(self.others)
         self.s = s
         self.models = {}
         for kind in ("free", "mocap"):
             xml = scene_xml(self.geom, self.track.radii, self.track.lengths, density=float(s["density_kg_m3"]),
                             friction=float(s["friction"]), timestep=float(s["timestep_s"]),
-                            solref=(float(s["contact_timeconst_s"]), float(s["contact_dampratio"])), kinematic=kind)
+                            solref=(float(s["contact_timeconst_s"]), float(s["contact_dampratio"])), kinematic=kind,
+                            others=[object_geometry(v, f) for v, f, _, _ in others])
             m = mujoco.MjModel.from_xml_string(xml)
             self.models[kind] = (m, mujoco.MjData(m))
         m = self.models["free"][0]
@@ -113,16 +118,26 @@ class ClipScene:
         """Object centres of mass (T, 3) of poses ``v = R v_template + t``."""
         return np.einsum("tij,j->ti", np.asarray(R, np.float64), self.com_local) + np.asarray(t, np.float64)
 
+    def states(self, frames: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+        """``qpos`` (N, P, 7) and ``qvel`` (N, P, 6) of the P kinematic bodies (capsules, then the
+        other objects) at fractional ``frames`` (:func:`body_states`, :func:`rigid_states`)."""
+        q, v = body_states(self.track, frames, fps)
+        if not self.others:
+            return q, v
+        rigid = [rigid_states(R, t, frames, fps) for R, t in self.others]
+        return (np.concatenate([q] + [r[0][:, None] for r in rigid], 1),
+                np.concatenate([v] + [r[1][:, None] for r in rigid], 1))
+
     def simulate(self, q0: np.ndarray, v0: np.ndarray, steps: int, body_q: np.ndarray | None = None,
                  body_v: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Free-body run: object from ``(q0, v0)``, body parts set to ``body_q[i], body_v[i]``
-        (N, S, 7), (N, S, 6) before step i (parked below the floor when None). Returns the
-        object's final centre (3,) and quaternion (4,)."""
+        """Free-body run: object from ``(q0, v0)``, the kinematic bodies set to ``body_q[i],
+        body_v[i]`` (N, P, 7), (N, P, 6) (:meth:`states`) before step i (parked below the floor
+        when None). Returns the object's final centre (3,) and quaternion (4,)."""
         m, d = self.models["free"]
         self.mj.mj_resetData(m, d)
         d.qpos[:7], d.qvel[:6] = q0, v0
         if body_q is None:
-            d.qpos[7:] = np.tile([0.0, -100.0, 0.0, 1.0, 0.0, 0.0, 0.0], len(self.track.radii))
+            d.qpos[7:] = np.tile([0.0, -100.0, 0.0, 1.0, 0.0, 0.0, 0.0], self.kinematic)
             self.mj.mj_step(m, d, nstep=steps)
         else:
             for i in range(steps):
@@ -132,10 +147,10 @@ class ClipScene:
         return np.array(d.xipos[self.obj]), np.array(d.xquat[self.obj])
 
     def release(self, q0: np.ndarray, frame: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """Mocap run: object from rest at ``q0``, the body frozen in ``frame``'s pose."""
+        """Mocap run: object from rest at ``q0``, the kinematic bodies frozen in ``frame``'s pose."""
         m, d = self.models["mocap"]
         self.mj.mj_resetData(m, d)
-        q, _ = body_states(self.track, np.array([float(frame)]), 1.0)
+        q, _ = self.states(np.array([float(frame)]), 1.0)
         d.mocap_pos[:], d.mocap_quat[:] = q[0, :, :3], q[0, :, 3:]
         d.qpos[:7] = q0
         self.mj.mj_step(m, d, nstep=steps)
@@ -161,7 +176,7 @@ def support_errors(scene: ClipScene, R: np.ndarray, t: np.ndarray, fps: float) -
     out = []
     for k0 in window_starts(len(t), fps, s):
         frames = k0 + np.arange(steps) * scene.dt * fps
-        bq, bv = body_states(scene.track, frames, fps)
+        bq, bv = scene.states(frames, fps)
         end, _ = scene.simulate(qpos[k0], object_qvel(R, t, k0, fps), steps, bq, bv)
         fe = k0 + h * fps
         k = min(int(math.floor(fe)), len(t) - 1)
@@ -173,10 +188,22 @@ def support_errors(scene: ClipScene, R: np.ndarray, t: np.ndarray, fps: float) -
 
 def contact_frames(inp, contact_m: float = DEFAULTS["contact_m"]) -> np.ndarray:
     """(T,) bool: some body capsule's surface within ``contact_m`` of the object mesh
-    (signed distance of axis points every <= 2 cm minus the radius;
-    :class:`hoibench.bodies.capsules.ObjectField`)."""
+    (:func:`capsule_contact_frames` of the clip's human)."""
+    return capsule_contact_frames([(inp.joints, "human")], inp.template_vertices, inp.template_faces,
+                                  inp.obj_rot, inp.obj_trans, contact_m)
+
+
+def capsule_contact_frames(skeletons: Sequence[tuple[np.ndarray, str]], vertices, faces, R, t,
+                           contact_m: float = DEFAULTS["contact_m"]) -> np.ndarray:
+    """(T,) bool: some capsule of the ``(joints (T, J, 3), kind)`` skeletons has its surface
+    within ``contact_m`` of the object mesh posed by ``R, t`` (signed distance of axis points
+    every <= 2 cm minus the radius; :class:`hoibench.bodies.capsules.ObjectField`)."""
     from ..bodies.capsules import ObjectField, segments
-    a, b, r = segments(np.asarray(inp.joints, np.float64), "human")
+    if not skeletons:
+        return np.zeros(len(t), bool)
+    parts = [segments(np.asarray(j, np.float64), kind) for j, kind in skeletons]
+    a, b = (np.concatenate([x[i] for x in parts], 1) for i in (0, 1))
+    r = np.concatenate([x[2] for x in parts])
     longest = np.linalg.norm(b - a, axis=-1).max(0)
     seg, frac = [], []
     for i, length in enumerate(longest):
@@ -185,16 +212,17 @@ def contact_frames(inp, contact_m: float = DEFAULTS["contact_m"]) -> np.ndarray:
         frac += list(np.linspace(0.0, 1.0, n))
     seg, frac = np.asarray(seg), np.asarray(frac)[None, :, None]
     pts = a[:, seg] + frac * (b[:, seg] - a[:, seg])
-    field = ObjectField(inp.template_vertices, inp.template_faces)
-    d = field.signed(pts, inp.obj_rot, inp.obj_trans) - r[seg][None]
+    field = ObjectField(vertices, faces)
+    d = field.signed(pts, R, t) - r[seg][None]
     return d.min(1) < contact_m
 
 
-def settle_values(scene: ClipScene, inp, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per release (frames in order): displacement (m) and turn (deg) after settling."""
+def settle_values(scene: ClipScene, touching: np.ndarray, R: np.ndarray, t: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Per release (the last frame and the frames where ``touching`` (T,) is False, in order):
+    displacement (m) and turn (deg) after settling."""
     s = scene.s
     steps = max(1, int(round(int(s["settle_frames"]) / float(s["settle_fps"]) / scene.dt)))
-    touching = contact_frames(inp, float(s["contact_m"]))
     frames = sorted(set(np.flatnonzero(~touching).tolist()) | {len(t) - 1})
     gen = scene.centres(R, t)
     qpos = object_qpos(R, t)
@@ -217,17 +245,24 @@ def physics_clip_values(inp, settings: Mapping | None = None) -> dict[str, float
     R = np.asarray(inp.obj_rot, np.float64)
     t = np.asarray(inp.obj_trans, np.float64)
     scene = ClipScene(inp.template_vertices, inp.template_faces, body_track(inp.joints), s)
-    out = dict(nan)
     err = support_errors(scene, R, t, float(inp.fps))
+    disp, turn = settle_values(scene, contact_frames(inp, float(s["contact_m"])), R, t)
+    return clip_values(err, disp, turn, s)
+
+
+def clip_values(err: np.ndarray, disp: np.ndarray, turn: np.ndarray, s: Mapping) -> dict[str, float]:
+    """The four metrics of a clip from its windows' support errors and its releases'
+    displacements and turns (NaN where a clip has none)."""
+    out = {n: float("nan") for n in NAMES}
     if len(err):
-        out["phys_support_err_m"] = float(err.mean())
-        out["phys_unsupported_ratio"] = float((err > float(s["unsupported_m"])).mean())
-    disp, turn = settle_values(scene, inp, R, t)
-    out["phys_settle_m"] = float(disp.mean())
-    out["phys_balance_ratio"] = float(((disp < float(s["unsupported_m"]))
-                                       & (turn < float(s["balance_turn_deg"]))).mean())
+        out["phys_support_err_m"] = float(np.mean(err))
+        out["phys_unsupported_ratio"] = float((np.asarray(err) > float(s["unsupported_m"])).mean())
+    if len(disp):
+        out["phys_settle_m"] = float(np.mean(disp))
+        out["phys_balance_ratio"] = float(((np.asarray(disp) < float(s["unsupported_m"]))
+                                           & (np.asarray(turn) < float(s["balance_turn_deg"]))).mean())
     return out
 
 
 __all__ = ["NAMES", "DEFAULTS", "resolve_settings", "check_settings", "ClipScene", "window_starts", "support_errors",
-           "contact_frames", "settle_values", "physics_clip_values"]
+           "contact_frames", "capsule_contact_frames", "settle_values", "clip_values", "physics_clip_values"]

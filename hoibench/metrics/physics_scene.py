@@ -15,10 +15,13 @@ A scene (MJCF built as a string, y-up: gravity ``(0, -g, 0)``) holds
   lengths are the clip's median bone lengths. ``kinematic="free"``: heavy free bodies
   (1000 x the object's mass, gravity compensated) whose position *and velocity* are set
   before every step, so friction sees the true hand-object relative velocity (a mocap body
-  has zero velocity for the solver); ``"mocap"``: a frozen body (settling).
+  has zero velocity for the solver); ``"mocap"``: a frozen body (settling). A multi-body
+  clip's hands (``hand``: palm and finger bones, radii 9-12 mm) join the same list;
+* other objects (multi-body clips): each a kinematic body (``other<j>``, its template's hull)
+  that follows its generated pose like the capsules and collides with the free object only.
 
-Contacts: object-floor and object-body only (body parts do not touch each other or the
-floor); one sliding friction coefficient on every geom (MuJoCo takes the pair's maximum),
+Contacts: object-floor, object-body and object-other only (body parts and other objects do
+not touch each other or the floor); one sliding friction coefficient on every geom (MuJoCo takes the pair's maximum),
 ``condim`` 3, MuJoCo's soft contact ``solref = (timeconst, dampratio)`` and default
 ``solimp``.
 """
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Sequence
 
 import numpy as np
 
@@ -85,25 +89,30 @@ def _floats(a) -> str:
     return " ".join(f"{x:.9g}" for x in np.asarray(a, np.float64).ravel())
 
 
+def _mesh_asset(name: str, geom: ObjectGeometry) -> str:
+    return f'<mesh name="{name}" vertex="{_floats(geom.hull_vertices)}" face="{" ".join(map(str, geom.hull_faces.ravel()))}"/>'
+
+
 def scene_xml(geom: ObjectGeometry, radii: np.ndarray, lengths: np.ndarray, *, density: float, friction: float,
-              timestep: float, solref: tuple[float, float], kinematic: str = "free") -> str:
+              timestep: float, solref: tuple[float, float], kinematic: str = "free",
+              others: Sequence[ObjectGeometry] = ()) -> str:
     """The MJCF of a scene (see the module): object body ``object`` first, then one body per
-    capsule ``part<i>`` (``kinematic``: ``free`` or ``mocap``)."""
+    capsule ``part<i>``, then one per other object ``other<j>`` (``kinematic``: ``free`` or
+    ``mocap``); every kinematic body weighs :data:`BODY_MASS_RATIO` x the object."""
     mass = density * geom.volume_m3
     common = f'friction="{friction:.9g} 0.005 0.0001" condim="3" solref="{solref[0]:.9g} {solref[1]:.9g}"'
-    faces = " ".join(map(str, geom.hull_faces.ravel()))
-    parts = []
-    for i, (r, length) in enumerate(zip(radii, lengths)):
-        half = max(float(length) / 2.0, 1e-4)
-        geom_xml = (f'<geom type="capsule" size="{float(r):.9g} {half:.9g}" contype="2" conaffinity="0" '
-                    f'mass="{BODY_MASS_RATIO * mass:.9g}" {common}/>')
-        if kinematic == "mocap":
-            parts.append(f'<body name="part{i}" mocap="true">{geom_xml}</body>')
-        else:
-            parts.append(f'<body name="part{i}" gravcomp="1"><freejoint/>{geom_xml}</body>')
+    heavy = f'contype="2" conaffinity="0" mass="{BODY_MASS_RATIO * mass:.9g}" {common}'
+    shapes = [(f"part{i}", f'<geom type="capsule" size="{float(r):.9g} {max(float(length) / 2.0, 1e-4):.9g}" {heavy}/>')
+              for i, (r, length) in enumerate(zip(radii, lengths))]
+    shapes += [(f"other{j}", f'<geom type="mesh" mesh="other{j}" {heavy}/>') for j in range(len(others))]
+    if kinematic == "mocap":
+        parts = [f'<body name="{name}" mocap="true">{g}</body>' for name, g in shapes]
+    else:
+        parts = [f'<body name="{name}" gravcomp="1"><freejoint/>{g}</body>' for name, g in shapes]
+    assets = [_mesh_asset("object", geom)] + [_mesh_asset(f"other{j}", g) for j, g in enumerate(others)]
     return f"""<mujoco model="hoibench-physics">
   <option timestep="{timestep:.9g}" gravity="0 -9.81 0"/>
-  <asset><mesh name="object" vertex="{_floats(geom.hull_vertices)}" face="{faces}"/></asset>
+  <asset>{' '.join(assets)}</asset>
   <worldbody>
     <geom name="floor" type="plane" size="0 0 1" quat="{_floats(FLOOR_QUAT)}" contype="1" conaffinity="1" {common}/>
     <body name="object"><freejoint/>
@@ -126,13 +135,22 @@ class BodyTrack:
     lengths: np.ndarray
 
 
-def body_track(joints: np.ndarray) -> BodyTrack:
-    """Capsules of :func:`hoibench.bodies.capsules.segments` (``human``) per frame."""
-    a, b, r = segments(np.asarray(joints, np.float64), "human")
+def body_track(joints: np.ndarray, kind: str = "human") -> BodyTrack:
+    """Capsules of :func:`hoibench.bodies.capsules.segments` (``human`` or ``hand``) per frame."""
+    a, b, r = segments(np.asarray(joints, np.float64), kind)
     d = b - a
     n = np.linalg.norm(d, axis=-1, keepdims=True)
     axes = np.where(n > 1e-9, d / np.maximum(n, 1e-12), _Z)
     return BodyTrack(0.5 * (a + b), axes, np.asarray(r, np.float64), np.median(n[..., 0], axis=0))
+
+
+def joined_tracks(tracks: Sequence[BodyTrack], frames: int) -> BodyTrack:
+    """The capsules of several skeletons of one clip as one track (``frames`` frames; no
+    skeleton: zero capsules)."""
+    if not tracks:
+        return BodyTrack(np.zeros((frames, 0, 3)), np.zeros((frames, 0, 3)), np.zeros(0), np.zeros(0))
+    return BodyTrack(*(np.concatenate([getattr(t, f) for t in tracks], axis)
+                       for f, axis in (("centres", 1), ("axes", 1), ("radii", 0), ("lengths", 0))))
 
 
 def body_states(track: BodyTrack, frames: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -158,6 +176,27 @@ def body_states(track: BodyTrack, frames: np.ndarray, fps: float) -> tuple[np.nd
     return np.concatenate([pos, quat], -1), np.concatenate([vel, local], -1)
 
 
+def rigid_states(R: np.ndarray, t: np.ndarray, frames: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Free-joint ``qpos`` (N, 7) and ``qvel`` (N, 6) of a rigid trajectory (poses ``v = R v + t``)
+    at fractional ``frames`` (N,): origin linearly interpolated, rotation along the geodesic
+    ``R_k exp(w log(R_k^T R_k+1))``; velocities those of that interpolation (linear: world;
+    angular: ``log(R_k^T R_k+1) fps``, body frame)."""
+    from ..core.geometry import axis_angle_to_matrix, matrix_to_axis_angle
+    R = np.asarray(R, np.float64)
+    t = np.asarray(t, np.float64)
+    T = len(t)
+    f = np.clip(np.asarray(frames, np.float64), 0.0, T - 1)
+    k = np.minimum(np.floor(f).astype(int), max(T - 2, 0))
+    k1 = np.minimum(k + 1, T - 1)
+    w = (f - k)[:, None]
+    step = matrix_to_axis_angle(np.einsum("nji,njk->nik", R[k], R[k1]))       # log(R_k^T R_k1), body frame
+    rot = np.einsum("nij,njk->nik", R[k], axis_angle_to_matrix(w * step))
+    moving = (k1 > k)[:, None] * fps
+    pos = t[k] + w * (t[k1] - t[k])
+    return (np.concatenate([pos, matrix_to_quaternion(rot)], -1),
+            np.concatenate([(t[k1] - t[k]) * moving, step * moving], -1))
+
+
 def object_qpos(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Free-joint ``qpos`` (..., 7) of poses ``v = R v_template + t``."""
     return np.concatenate([np.asarray(t, np.float64), matrix_to_quaternion(np.asarray(R, np.float64))], -1)
@@ -177,5 +216,6 @@ def object_qvel(R: np.ndarray, t: np.ndarray, k: int, fps: float) -> np.ndarray:
     return np.concatenate([(np.asarray(t[b], np.float64) - t[a]) / dt, omega])
 
 
-__all__ = ["ObjectGeometry", "object_geometry", "scene_xml", "BodyTrack", "body_track", "body_states",
+__all__ = ["ObjectGeometry", "object_geometry", "scene_xml", "BodyTrack", "body_track", "joined_tracks",
+           "body_states", "rigid_states",
            "object_qpos", "object_qvel", "FLOOR_QUAT", "BODY_MASS_RATIO", "HULL_CLOSES_RATIO"]

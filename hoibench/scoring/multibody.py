@@ -23,7 +23,11 @@ runs give identical numbers):
   of a prompt; undefined for K = 1) and OD (between all samples of the split);
 * RA and FID from the recognizer (:mod:`hoibench.evaluator.recognizer`): accuracy of its
   predicted action on the generated clips, Frechet distance between its features of the
-  ground-truth and generated clips.
+  ground-truth and generated clips;
+* the catalogue metrics with a multi-body per-clip function (``multibody_fn``: the physics
+  tier, :mod:`hoibench.metrics.physics_multibody`) that the protocol lists, per sample and for
+  the ground truth; the mean over samples with a value (NaN: undefined for that clip), or
+  "not computed: ..." where the function's extra is not installed.
 
 ``ci95`` gives the half-width of a 95% normal interval ``1.96 std / sqrt(n)`` for the metrics
 that are means of per-clip or per-sample values (CSR, CRR, CSIoU per clip and sample; IV, ID
@@ -43,7 +47,7 @@ from .multibody_samples import clip_from_sample, multibody_limits, sample_arrays
 from .pipeline import EvaluationRefused, Scorer
 from .results import RESULT_FORMAT, half_width_95, metric_entry
 
-__all__ = ["write_multibody_submission", "MultiBodyScorer", "REFERENCE_KINDS"]
+__all__ = ["write_multibody_submission", "MultiBodyScorer", "REFERENCE_KINDS", "clip_functions"]
 
 REFERENCE_KINDS = ("gt", "gt-noise", "desync", "lost_contact", "interpenetration", "static")
 
@@ -124,12 +128,35 @@ def _wrists(clip: MultiBodyClip) -> np.ndarray:
     return np.concatenate(parts, 1) if parts else np.zeros((clip.num_frames, 0, 3))
 
 
+def clip_functions(proto) -> list[tuple[str, tuple[str, ...], dict]]:
+    """The listed catalogue metrics with a multi-body per-clip function that can run here,
+    grouped by function: ``(function "module:attr", metric names, the protocol's settings)``."""
+    from ..metrics.catalog import METRICS, unavailable
+    groups: dict[tuple[str, str], list[str]] = {}
+    for n in proto.metrics:
+        info = METRICS.get(n)
+        if info is not None and info.multibody_fn and unavailable(n) is None:
+            groups.setdefault((info.multibody_fn, info.settings_key), []).append(n)
+    return [(fn, tuple(names), proto.settings_for(key)) for (fn, key), names in groups.items()]
+
+
+def _clip_function_values(clip: MultiBodyClip, functions) -> dict[str, float]:
+    from ..core.registry import load_object
+    out: dict[str, float] = {}
+    for fn, names, settings in functions:
+        got = load_object(fn)(clip, settings)
+        got = got if isinstance(got, dict) else {names[0]: got}
+        out.update({n: float(got[n]) for n in names})
+    return out
+
+
 def _clip_unit(job: tuple, measure_gt: bool = True) -> dict:
     """One test clip: GT (unless ``measure_gt`` is False: ``gt`` None) and every sample's
-    contact frames, penetration per frame, wrists."""
+    contact frames, penetration per frame, wrists and catalogue per-clip values."""
     cid, gt_arrays, sample, proto_dict, templates, K = job
     from ..tracks.protocol import Protocol
     proto = Protocol.from_plain(proto_dict, "multibody")
+    functions = clip_functions(proto)
     gt = MultiBodyClip.from_arrays(gt_arrays)
     gt.templates = templates
     fields = object_fields(gt)
@@ -143,7 +170,7 @@ def _clip_unit(job: tuple, measure_gt: bool = True) -> dict:
             pen_v[:, n], pen_d[:, n] = pair_penetration(clip, i, j, fields, voxel_m=proto.voxel_m)
         return {"contacts": _contacts(clip, fields, proto),
                 "iv_cm3": float(red(pen_v, axis=1).mean() * 1e6), "id_mm": float(red(pen_d, axis=1).mean() * 1e3),
-                "wrists": _wrists(clip)}
+                "wrists": _wrists(clip), "values": _clip_function_values(clip, functions)}
 
     out = {"id": cid, "gt": measure(gt) if measure_gt else None, "samples": []}
     for k in range(K):
@@ -230,6 +257,7 @@ class MultiBodyScorer(Scorer):
         """One replication: the protocol fixes K samples per prompt, every one is scored."""
         metrics, reference, self.counts, self.clip_arrays = _multibody_metrics(self.units, self.jobs, self.proto,
                                                                                self.ev)
+        self.clip_fn_names = {n for _, names, _ in clip_functions(self.proto) for n in names}
         self.reference = reference
         if isinstance(self.options.get("clip_data"), dict):
             self.options["clip_data"].update(self.clip_arrays)
@@ -241,8 +269,11 @@ class MultiBodyScorer(Scorer):
         proto, store, rec, meta = self.proto, self.store, self.ev, self.meta
         listed = set(proto.metrics)
         undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
-                         "needs K >= 2 samples per prompt" if k == "sd" else "undefined")
+                         "needs K >= 2 samples per prompt" if k == "sd" else
+                         "no objects in the split" if k in self.clip_fn_names else "undefined")
                      for k, v in metrics.items() if v is None and k in listed}
+        from ..metrics.catalog import unavailable
+        undefined.update({k: unavailable(k) for k in proto.metrics if unavailable(k)})
         n = len(self.ids)
         over_clips = {}
         if self.counts == n:             # K = 1: a clip-bootstrap interval of every per-clip metric and FID
@@ -347,15 +378,25 @@ def _multibody_metrics(units: list[dict], jobs: list[tuple], proto, rec) -> tupl
     correct = [float(p == g.action) for p, (g, _) in zip(pred, gens)]
     per = {"csr": _values(csr), "crr": _values(crr), "csiou": _values(csiou), "iv_cm3": iv, "id_mm": idm,
            "ra": correct}
+    # catalogue per-clip functions (the physics tier): one value per sample and per ground truth
+    extra = sorted({n for u in ordered for s in u["samples"] for n in s.get("values", {})})
+    ext = {n: [s["values"][n] for u in ordered for s in u["samples"]] for n in extra}
+    gt_ext = {n: [u["gt"]["values"][n] for u in ordered] for n in extra}
+    for n in extra:
+        metrics[n] = _nanmean(ext[n])
+        reference[n] = _nanmean(gt_ext[n])
+        per[n] = [v for v in ext[n] if not np.isnan(v)]
     metrics["ci95"] = {k: half_width_95(v) for k, v in per.items() if half_width_95(v) is not None}
     ids = [u["id"] for u in ordered]
     ks = [len(u["samples"]) for u in ordered]
     keys = [f"{cid}#{k}" for cid, K in zip(ids, ks) for k in range(K)]
     values = {"csr": csr.per_clip(), "crr": crr.per_clip(), "csiou": csiou.per_clip(),
-              "iv_cm3": dict(zip(keys, iv)), "id_mm": dict(zip(keys, idm)), "ra": dict(zip(keys, correct))}
+              "iv_cm3": dict(zip(keys, iv)), "id_mm": dict(zip(keys, idm)), "ra": dict(zip(keys, correct)),
+              **{n: dict(zip(keys, ext[n])) for n in extra}}
     gt_values = {"csr": gt_csr.per_clip(), "crr": gt_crr.per_clip(), "csiou": dict.fromkeys(ids, 1.0),
                  "iv_cm3": dict(zip(ids, gt_iv)), "id_mm": dict(zip(ids, gt_id)),
-                 "ra": {cid: float(p == g.action) for cid, p, g in zip(ids, gt_pred, gts)}}
+                 "ra": {cid: float(p == g.action) for cid, p, g in zip(ids, gt_pred, gts)},
+                 **{n: dict(zip(ids, gt_ext[n])) for n in extra}}
     arrays = multibody_clip_arrays(ids, ks, gen_feats, gt_feats, values, gt_values)
     return metrics, reference, len(gens), arrays
 
@@ -385,6 +426,12 @@ def multibody_clip_arrays(ids: list[str], ks: list[int], gen_feats: np.ndarray, 
             "text": np.zeros((0, d), np.float32), "text_offsets": np.zeros(len(ids) + 1, np.int64),
             "physical": phys, "physical_samples": np.arange(K, dtype=np.int64), "physical_names": np.array(names),
             "reference": np.array([[float(gt_values[n].get(cid, np.nan)) for n in names] for cid in ids], np.float64)}
+
+
+def _nanmean(values: list[float]) -> float | None:
+    """The mean of the values that are not NaN; None when none is."""
+    v = [x for x in values if not np.isnan(x)]
+    return float(np.mean(v)) if v else None
 
 
 def _values(metric) -> list[float]:
