@@ -430,3 +430,26 @@ def test_a_file_that_is_not_a_zip_is_one_error_and_a_misfit_protocol_is_noted(gt
     assert main(["validate", str(gt), "--data", str(data), "--protocol", "behave-clean"]) == 0
     out = capsys.readouterr().out
     assert "note: --protocol behave-clean does not fit the store" in out and "dataset 'behave'" in out
+
+
+def test_a_truncated_zip_is_one_error_not_an_inner_npz_read_as_the_submission(gt_sub, tmp_path, capsys):
+    """A submission zip stores its .npz members as they are, so a file cut at the end of one
+    of them ends with that member's own zip directory; zipfile opens it as the submission."""
+    import zipfile
+    from hoibench.cli import main
+    data, gt, ids = gt_sub
+    whole = tmp_path / "whole.zip"
+    with zipfile.ZipFile(whole, "w", compression=zipfile.ZIP_STORED) as zf:
+        for f in sorted(p for p in gt.rglob("*") if p.is_file()):
+            zf.write(f, f.relative_to(gt).as_posix())
+    with zipfile.ZipFile(whole) as zf:
+        cut = zf.infolist()[-1].header_offset                       # the end of the member before the last
+    cut_file = tmp_path / "cut.zip"
+    cut_file.write_bytes(whole.read_bytes()[:cut])
+    with zipfile.ZipFile(cut_file) as zf:                            # what zipfile alone makes of it
+        assert any(n.endswith(".npy") for n in zf.namelist())
+    assert main(["validate", str(whole), "--data", str(data)]) == 0
+    capsys.readouterr()
+    assert main(["validate", str(cut_file), "--data", str(data)]) == 1
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 2 and "truncated" in out[0] and f"0 of {len(ids)} test ids" in out[1]

@@ -248,6 +248,16 @@ def zip_directory_size(path: str | Path) -> tuple[int, int]:
         return entries, cd_size
 
 
+def _check_starts_at_zero(zf: zipfile.ZipFile) -> None:
+    """BadZipFile when the directory zipfile found does not describe the file from its first
+    byte: a truncated submission zip ends inside one of its stored ``.npz`` members, whose own
+    directory zipfile then finds at the cut (its members would read as the submission's)."""
+    first = min((i.header_offset for i in zf.infolist()), default=0)
+    if first != 0:
+        raise zipfile.BadZipFile(f"truncated: the last directory in the file starts a member {first} bytes in, "
+                                 "so it is an inner archive's, not the submission's")
+
+
 _READ_ERRORS = (zipfile.BadZipFile, OSError, KeyError, ValueError, EOFError, NotImplementedError, RuntimeError,
                 zlib.error)
 
@@ -366,6 +376,7 @@ class Submission:
                                                          f"limit of {self._max_files} files; not read"))
                 return
             self._zip = zipfile.ZipFile(self.path)  # read-ok: a regular file whose directory size was checked
+            _check_starts_at_zero(self._zip)
         except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
             self.problems.append(Problem("*", "path", f"{self.path.name}: neither a folder nor a valid .zip ({e})"))
             self._zip = None
