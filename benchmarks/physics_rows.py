@@ -10,7 +10,9 @@ used only when it was scored with the entry's evaluator and every metric the ent
 the same mean in it (so the physics figures belong to the very samples the row ranks); rows
 are listed in the order of their physics support error. Cells: mean [95% clip-bootstrap
 interval] for the two distances (a K > 1 row: mean ± its interval over the protocol's
-replications), plain means for the ratios.
+replications), plain means for the ratios. The last column is ``phys_balance_ratio``: the
+share of releases after which the object rests (moved < ``unsupported_m``, turned <
+``balance_turn_deg``), higher is better.
 """
 from __future__ import annotations
 
@@ -75,7 +77,7 @@ def table(results: Path, entries: Path) -> tuple[str, list[str]]:
                            f"(protocol {result.get('protocol')}@{result.get('protocol_version')})")
             continue
         rows.append((float(result["metrics"]["phys_support_err_m"]["mean"]), entry["method"], result))
-    head = ("| row | support error (m) | unsupported windows | settle (m) | off balance |\n"
+    head = ("| row | support error (m) ↓ | unsupported windows ↓ | settle (m) ↓ | releases at rest ↑ |\n"
             "|---|---:|---:|---:|---:|")
     lines = [head]
     for _, method, r in sorted(rows, key=lambda x: (x[0], x[1])):
