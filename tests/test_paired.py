@@ -283,3 +283,31 @@ def test_the_same_file_twice_and_another_split_size_are_refused_in_one_line(worl
     assert main(["compare", str(a), str(b), "--paired"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"b.json: field counts.test_ids: {N + 5} test clips, not" in err[0]
+
+
+def test_a_leaderboard_entry_compares_with_a_result_of_its_track(world, tmp_path, capsys):
+    """An entry keeps no store fields (dataset, store_config_sha256): paired with a result it
+    must name the same track, evaluator, protocol and split size, and gives the numbers its
+    result gives."""
+    from hoibench.cli import main
+    from hoibench.publish.leaderboard import add_result
+    from hoibench.scoring.paired import paired_compare
+    rng, real = world
+    cd = np.abs(rng.normal(0.01, 0.002, N))
+    a = _result(tmp_path, "a", real + 0.1 * rng.standard_normal(real.shape), real, cd)
+    b = _result(tmp_path, "b", real + 0.5 * rng.standard_normal(real.shape), real, cd + 0.01)
+    for p in (a, b):
+        r = json.loads(p.read_text())
+        r.update(track="synthetic", complete=True)
+        p.write_text(json.dumps(r))
+    (tmp_path / "lb" / "synthetic" / "entries").mkdir(parents=True)
+    entry = add_result(b, tmp_path / "lb" / "synthetic", method="row b", role="baseline")
+    direct = paired_compare([a, b], resamples=2000, seed=1)["pairs"][0]["metrics"]
+    via_entry = paired_compare([a, entry], resamples=2000, seed=1)["pairs"][0]
+    assert via_entry["b"] == "row b" and via_entry["metrics"] == direct
+    other = json.loads(a.read_text())
+    other["track"] = "behave"
+    a.write_text(json.dumps(other))
+    assert main(["compare", str(a), str(entry), "--paired"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "field track" in err[0] and "one track" in err[0]

@@ -54,18 +54,33 @@ def _seed(*parts) -> int:
     return int.from_bytes(hashlib.sha256(repr(parts).encode()).digest()[:4], "little")
 
 
+def _is_entry(r: dict) -> bool:
+    """A leaderboard entry (read as a result): it keeps no store fields."""
+    return "dataset" not in r and "store_config_sha256" not in r and "method" in r
+
+
+def _test_ids(r: dict):
+    """The test-split size of a result (``counts.test_ids``) or a leaderboard entry (``test_ids``)."""
+    return (r.get("counts") or {}).get("test_ids", r.get("test_ids"))
+
+
 def check_same_scale(a: dict, b: dict, a_path, b_path) -> None:
     """ValueError naming the first field on which ``b`` was scored differently from ``a``, or
     its test-split size (``counts.test_ids``) when it is not ``a``'s: two stores prepared with
-    the same settings share ``store_config_sha256`` but not their clips."""
-    for field, what in SCALE_FIELDS:
+    the same settings share ``store_config_sha256`` but not their clips. A leaderboard entry
+    keeps no store fields: with one, the two must name the same track instead."""
+    fields = SCALE_FIELDS
+    if _is_entry(a) or _is_entry(b):
+        fields = tuple(f for f in SCALE_FIELDS if f[0] not in ("dataset", "store_config_sha256")) + \
+            (("track", "track"),)
+    for field, what in fields:
         if a.get(field) != b.get(field):
             raise ValueError(f"{b_path}: field {field}: {str(b.get(field))[:16]} is not {a_path}'s "
                              f"{str(a.get(field))[:16]}: a paired comparison needs one {what}")
-    na, nb = ((r.get("counts") or {}).get("test_ids") for r in (a, b))     # whole numbers (counts_problem)
+    na, nb = _test_ids(a), _test_ids(b)          # whole numbers (counts_problem)
     if na is not None and nb is not None and na != nb:
-        raise ValueError(f"{b_path}: field counts.test_ids: {nb} test clips, not {a_path}'s {na}: results of "
-                         f"different stores or splits")
+        raise ValueError(f"{b_path}: field {'test_ids' if _is_entry(b) else 'counts.test_ids'}: {nb} test clips, "
+                         f"not {a_path}'s {na}: results of different stores or splits")
 
 
 class _Side:
