@@ -102,11 +102,12 @@ class ClipScene:
         self.kinematic = len(track.radii) + len(self.others)
         self.s = s
         self.models = {}
+        other_geoms = [object_geometry(v, f) for v, f, _, _ in others]
         for kind in ("free", "mocap"):
             xml = scene_xml(self.geom, self.track.radii, self.track.lengths, density=float(s["density_kg_m3"]),
                             friction=float(s["friction"]), timestep=float(s["timestep_s"]),
                             solref=(float(s["contact_timeconst_s"]), float(s["contact_dampratio"])), kinematic=kind,
-                            others=[object_geometry(v, f) for v, f, _, _ in others])
+                            others=other_geoms)
             m = mujoco.MjModel.from_xml_string(xml)
             self.models[kind] = (m, mujoco.MjData(m))
         m = self.models["free"][0]

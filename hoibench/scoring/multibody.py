@@ -257,7 +257,6 @@ class MultiBodyScorer(Scorer):
         """One replication: the protocol fixes K samples per prompt, every one is scored."""
         metrics, reference, self.counts, self.clip_arrays = _multibody_metrics(self.units, self.jobs, self.proto,
                                                                                self.ev)
-        self.clip_fn_names = {n for _, names, _ in clip_functions(self.proto) for n in names}
         self.reference = reference
         if isinstance(self.options.get("clip_data"), dict):
             self.options["clip_data"].update(self.clip_arrays)
@@ -268,12 +267,13 @@ class MultiBodyScorer(Scorer):
         ci = metrics.pop("ci95", {})
         proto, store, rec, meta = self.proto, self.store, self.ev, self.meta
         listed = set(proto.metrics)
+        per_clip_fn = {n for _, names, _ in clip_functions(proto) for n in names}
         undefined = {k: ("no hands in the split" if k in ("csr",) else "no humans in the split" if k == "crr" else
                          "needs K >= 2 samples per prompt" if k == "sd" else
-                         "no objects in the split" if k in self.clip_fn_names else "undefined")
+                         "no objects in the split" if k in per_clip_fn else "undefined")
                      for k, v in metrics.items() if v is None and k in listed}
         from ..metrics.catalog import unavailable
-        undefined.update({k: unavailable(k) for k in proto.metrics if unavailable(k)})
+        undefined.update({k: why for k in proto.metrics if (why := unavailable(k))})
         n = len(self.ids)
         over_clips = {}
         if self.counts == n:             # K = 1: a clip-bootstrap interval of every per-clip metric and FID
